@@ -1,0 +1,404 @@
+/* accel.c - primitive records, brute force ("none") and the binned-SAH BVH.
+ *
+ * One build: binned SAH (Wald 2007, "On fast construction of SAH-based
+ * bounding volume hierarchies"), 32 bins on the centroid bounds of every axis,
+ * leaves of at most RT_BVH_LEAF_MAX primitives, nodes written depth-first so
+ * the first child of node i is node i+1 (pbrt-v4 LinearBVHNode). Spheres and
+ * triangles live in one tree. The primitive records are reordered into leaf
+ * order so a leaf's primitives are contiguous in memory. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "rt.h"
+
+#define RT_BVH_LEAF_MAX 4
+#define RT_BVH_BINS 32
+/* Below this many levels the SAH split is used; deeper, the object median,
+ * which halves the count each level and so bounds the depth. */
+#define RT_BVH_SAH_DEPTH 44
+
+typedef struct Box {
+    float lo[3], hi[3];
+} Box;
+
+static void box_empty(Box *b)
+{
+    for (int i = 0; i < 3; i++) {
+        b->lo[i] = RT_INF;
+        b->hi[i] = -RT_INF;
+    }
+}
+static void box_grow(Box *b, const Box *o)
+{
+    for (int i = 0; i < 3; i++) {
+        b->lo[i] = b->lo[i] < o->lo[i] ? b->lo[i] : o->lo[i];
+        b->hi[i] = b->hi[i] > o->hi[i] ? b->hi[i] : o->hi[i];
+    }
+}
+static void box_grow_pt(Box *b, const float *p)
+{
+    for (int i = 0; i < 3; i++) {
+        b->lo[i] = b->lo[i] < p[i] ? b->lo[i] : p[i];
+        b->hi[i] = b->hi[i] > p[i] ? b->hi[i] : p[i];
+    }
+}
+static float box_area(const Box *b)
+{
+    float dx = b->hi[0] - b->lo[0], dy = b->hi[1] - b->lo[1], dz = b->hi[2] - b->lo[2];
+    if (dx < 0.0f || dy < 0.0f || dz < 0.0f)
+        return 0.0f;
+    return 2.0f * (dx * dy + dy * dz + dz * dx);
+}
+
+const char *rt_accel_name(RtAccelKind k) { return k == RT_ACCEL_BVH ? "bvh" : "none"; }
+
+int rt_accel_parse(const char *s, RtAccelKind *k)
+{
+    if (strcmp(s, "none") == 0) { *k = RT_ACCEL_NONE; return 0; }
+    if (strcmp(s, "bvh") == 0) { *k = RT_ACCEL_BVH; return 0; }
+    return -1;
+}
+
+static RtPrim *make_prims(const RtScene *s, uint32_t *n_out, RtError *err)
+{
+    uint64_t n = (uint64_t)s->nspheres + s->ntriangles;
+    if (n >= RT_PRIM_SPHERE_BIT) {
+        rt_fail(err, "%s: %llu primitives exceed the limit of %u", s->path, (unsigned long long)n,
+                RT_PRIM_SPHERE_BIT - 1);
+        return NULL;
+    }
+    RtPrim *p = calloc(n ? n : 1, sizeof *p);
+    if (!p) {
+        rt_fail(err, "out of memory for %llu primitive records", (unsigned long long)n);
+        return NULL;
+    }
+    for (uint32_t i = 0; i < s->nspheres; i++) {
+        memcpy(p[i].p0, s->spheres[i].c, sizeof p[i].p0);
+        p[i].e1[0] = s->spheres[i].r;
+        p[i].id = i | RT_PRIM_SPHERE_BIT;
+    }
+    for (uint32_t i = 0; i < s->ntriangles; i++) {
+        RtPrim *q = &p[s->nspheres + i];
+        const RtTriangle *t = &s->triangles[i];
+        RtVec3 a = s->vertices[t->v[0]], b = s->vertices[t->v[1]], c = s->vertices[t->v[2]];
+        RtVec3 e1 = rt_sub(b, a), e2 = rt_sub(c, a);
+        q->p0[0] = a.x; q->p0[1] = a.y; q->p0[2] = a.z;
+        q->e1[0] = e1.x; q->e1[1] = e1.y; q->e1[2] = e1.z;
+        q->e2[0] = e2.x; q->e2[1] = e2.y; q->e2[2] = e2.z;
+        q->id = s->nspheres + i;
+    }
+    *n_out = (uint32_t)n;
+    return p;
+}
+
+static void prim_box(const RtScene *s, const RtPrim *p, Box *b)
+{
+    if (p->id & RT_PRIM_SPHERE_BIT) {
+        float r = p->e1[0];
+        for (int i = 0; i < 3; i++) {
+            b->lo[i] = p->p0[i] - r;
+            b->hi[i] = p->p0[i] + r;
+        }
+    } else {
+        const RtTriangle *t = &s->triangles[p->id - s->nspheres];
+        box_empty(b);
+        for (int k = 0; k < 3; k++) {
+            const RtVec3 *v = &s->vertices[t->v[k]];
+            float q[3] = {v->x, v->y, v->z};
+            box_grow_pt(b, q);
+        }
+    }
+    /* A hair of padding so a hit on the box boundary is never lost to the
+     * rounding of the slab test. */
+    for (int i = 0; i < 3; i++) {
+        float pad = 1e-6f * (fabsf(b->lo[i]) + fabsf(b->hi[i])) + 1e-30f;
+        b->lo[i] -= pad;
+        b->hi[i] += pad;
+    }
+}
+
+typedef struct Builder {
+    const Box *boxes;   /* per original primitive */
+    const float *cent;  /* 3 per original primitive */
+    uint32_t *idx;      /* permutation being partitioned */
+    RtBvhNode *nodes;
+    uint32_t nnodes, cap;
+    uint32_t max_depth, leaves;
+} Builder;
+
+/* qsort context for the median fallback (the build is single-threaded). */
+static const float *sort_cent;
+static int sort_axis;
+static int cmp_cent(const void *x, const void *y)
+{
+    float a = sort_cent[3 * *(const uint32_t *)x + sort_axis], c = sort_cent[3 * *(const uint32_t *)y + sort_axis];
+    return a < c ? -1 : (a > c ? 1 : 0);
+}
+
+static uint32_t build(Builder *b, uint32_t begin, uint32_t end, uint32_t depth)
+{
+    uint32_t ni = b->nnodes++;
+    Box bb, cb;
+    box_empty(&bb);
+    box_empty(&cb);
+    for (uint32_t i = begin; i < end; i++) {
+        box_grow(&bb, &b->boxes[b->idx[i]]);
+        box_grow_pt(&cb, &b->cent[3 * b->idx[i]]);
+    }
+    RtBvhNode *n = &b->nodes[ni];
+    memcpy(n->lo, bb.lo, sizeof n->lo);
+    memcpy(n->hi, bb.hi, sizeof n->hi);
+    uint32_t count = end - begin;
+    if (depth > b->max_depth)
+        b->max_depth = depth;
+
+    /* Choose the split. */
+    int axis = -1;
+    uint32_t mid = begin;
+    float leaf_cost = (float)count;
+    int ext_axis = 0;
+    float ext = -1.0f;
+    for (int a = 0; a < 3; a++)
+        if (cb.hi[a] - cb.lo[a] > ext) {
+            ext = cb.hi[a] - cb.lo[a];
+            ext_axis = a;
+        }
+    if (count > 1 && ext > 0.0f && depth < RT_BVH_SAH_DEPTH) {
+        float best = RT_INF;
+        int best_axis = -1, best_bin = 0;
+        for (int a = 0; a < 3; a++) {
+            float w = cb.hi[a] - cb.lo[a];
+            if (!(w > 0.0f))
+                continue;
+            float scale = RT_BVH_BINS / w;
+            Box bins[RT_BVH_BINS];
+            uint32_t cnt[RT_BVH_BINS];
+            for (int k = 0; k < RT_BVH_BINS; k++) {
+                box_empty(&bins[k]);
+                cnt[k] = 0;
+            }
+            for (uint32_t i = begin; i < end; i++) {
+                uint32_t p = b->idx[i];
+                int k = (int)((b->cent[3 * p + a] - cb.lo[a]) * scale);
+                k = k < 0 ? 0 : (k >= RT_BVH_BINS ? RT_BVH_BINS - 1 : k);
+                cnt[k]++;
+                box_grow(&bins[k], &b->boxes[p]);
+            }
+            /* Sweep: right-side areas, then left-to-right. */
+            float rarea[RT_BVH_BINS];
+            uint32_t rcnt[RT_BVH_BINS];
+            Box acc;
+            box_empty(&acc);
+            uint32_t c = 0;
+            for (int k = RT_BVH_BINS - 1; k > 0; k--) {
+                box_grow(&acc, &bins[k]);
+                c += cnt[k];
+                rarea[k] = box_area(&acc);
+                rcnt[k] = c;
+            }
+            box_empty(&acc);
+            c = 0;
+            for (int k = 0; k < RT_BVH_BINS - 1; k++) {
+                box_grow(&acc, &bins[k]);
+                c += cnt[k];
+                if (c == 0 || rcnt[k + 1] == 0)
+                    continue;
+                float cost = box_area(&acc) * (float)c + rarea[k + 1] * (float)rcnt[k + 1];
+                if (cost < best) {
+                    best = cost;
+                    best_axis = a;
+                    best_bin = k;
+                }
+            }
+        }
+        float parea = box_area(&bb);
+        /* SAH: traversal cost 1, intersection cost 1 per primitive. */
+        float split_cost = parea > 0.0f ? 1.0f + best / parea : RT_INF;
+        if (best_axis >= 0 && (count > RT_BVH_LEAF_MAX || split_cost < leaf_cost)) {
+            float w = cb.hi[best_axis] - cb.lo[best_axis];
+            float scale = RT_BVH_BINS / w;
+            uint32_t i = begin, j = end;
+            while (i < j) {
+                uint32_t p = b->idx[i];
+                int k = (int)((b->cent[3 * p + best_axis] - cb.lo[best_axis]) * scale);
+                k = k < 0 ? 0 : (k >= RT_BVH_BINS ? RT_BVH_BINS - 1 : k);
+                if (k <= best_bin) {
+                    i++;
+                } else {
+                    j--;
+                    b->idx[i] = b->idx[j];
+                    b->idx[j] = p;
+                }
+            }
+            if (i > begin && i < end) {
+                axis = best_axis;
+                mid = i;
+            }
+        }
+    }
+    if (axis < 0 && count > RT_BVH_LEAF_MAX) {
+        /* No useful SAH split (equal centroids, or too deep): the object
+         * median on the widest centroid axis, which halves the count. */
+        axis = ext_axis;
+        mid = begin + count / 2;
+        if (ext > 0.0f) {
+            sort_cent = b->cent;
+            sort_axis = axis;
+            qsort(b->idx + begin, count, sizeof *b->idx, cmp_cent);
+        }
+    }
+    if (axis < 0) {
+        n->index = begin;
+        n->meta = count;
+        b->leaves++;
+        return ni;
+    }
+    build(b, begin, mid, depth + 1);
+    uint32_t right = build(b, mid, end, depth + 1);
+    n = &b->nodes[ni]; /* (nodes never move: capacity reserved up front) */
+    n->index = right;
+    n->meta = (uint32_t)axis << 8;
+    return ni;
+}
+
+int rt_accel_build(const RtScene *s, RtAccelKind kind, RtAccel *a, RtError *err)
+{
+    memset(a, 0, sizeof *a);
+    a->kind = kind;
+    uint32_t n = 0;
+    RtPrim *prims = make_prims(s, &n, err);
+    if (!prims)
+        return -1;
+    a->nprims = n;
+    if (kind == RT_ACCEL_NONE || n == 0) {
+        a->prims = prims;
+        return 0;
+    }
+    Box *boxes = malloc((size_t)n * sizeof *boxes);
+    float *cent = malloc((size_t)n * 3 * sizeof *cent);
+    uint32_t *idx = malloc((size_t)n * sizeof *idx);
+    /* A binary tree with leaves of >= 1 primitive has at most 2n-1 nodes. */
+    RtBvhNode *nodes = malloc(((size_t)2 * n) * sizeof *nodes);
+    RtPrim *ordered = malloc((size_t)n * sizeof *ordered);
+    if (!boxes || !cent || !idx || !nodes || !ordered) {
+        free(boxes); free(cent); free(idx); free(nodes); free(ordered); free(prims);
+        return rt_fail(err, "out of memory building a BVH over %u primitives", n);
+    }
+    for (uint32_t i = 0; i < n; i++) {
+        prim_box(s, &prims[i], &boxes[i]);
+        for (int k = 0; k < 3; k++)
+            cent[3 * i + k] = 0.5f * (boxes[i].lo[k] + boxes[i].hi[k]);
+        idx[i] = i;
+    }
+    Builder b;
+    memset(&b, 0, sizeof b);
+    b.boxes = boxes;
+    b.cent = cent;
+    b.idx = idx;
+    b.nodes = nodes;
+    b.cap = 2 * n;
+    build(&b, 0, n, 0);
+    for (uint32_t i = 0; i < n; i++)
+        ordered[i] = prims[idx[i]];
+    free(boxes); free(cent); free(idx); free(prims);
+    if (b.max_depth >= RT_BVH_MAX_DEPTH) {
+        free(nodes); free(ordered);
+        return rt_fail(err, "BVH depth %u exceeds the traversal stack (%d)", b.max_depth, RT_BVH_MAX_DEPTH);
+    }
+    RtBvhNode *shrunk = realloc(nodes, (size_t)b.nnodes * sizeof *nodes);
+    a->nodes = shrunk ? shrunk : nodes;
+    a->nnodes = b.nnodes;
+    a->prims = ordered;
+    a->depth = b.max_depth;
+    a->leaves = b.leaves;
+    return 0;
+}
+
+void rt_accel_free(RtAccel *a)
+{
+    free(a->prims);
+    free(a->nodes);
+    memset(a, 0, sizeof *a);
+}
+
+static int inside(const RtBvhNode *c, const RtBvhNode *p)
+{
+    for (int i = 0; i < 3; i++)
+        if (c->lo[i] < p->lo[i] || c->hi[i] > p->hi[i])
+            return 0;
+    return 1;
+}
+
+int rt_bvh_check(const RtAccel *a, RtError *err)
+{
+    if (a->kind != RT_ACCEL_BVH || a->nprims == 0)
+        return 0;
+    if (a->nnodes == 0 || a->nnodes > 2 * a->nprims)
+        return rt_fail(err, "BVH check: %u nodes for %u primitives", a->nnodes, a->nprims);
+    uint8_t *seen_prim = calloc(a->nprims, 1);
+    uint8_t *seen_node = calloc(a->nnodes, 1);
+    uint8_t *seen_id = calloc(a->nprims, 1);
+    uint32_t *stack = malloc(((size_t)RT_BVH_MAX_DEPTH + 2) * sizeof *stack);
+    uint32_t *sdepth = malloc(((size_t)RT_BVH_MAX_DEPTH + 2) * sizeof *sdepth);
+    int rc = 0;
+    if (!seen_prim || !seen_node || !seen_id || !stack || !sdepth) {
+        rc = rt_fail(err, "BVH check: out of memory");
+        goto out;
+    }
+    int sp = 0;
+    stack[sp] = 0;
+    sdepth[sp++] = 0;
+    while (sp > 0 && rc == 0) {
+        sp--;
+        uint32_t ni = stack[sp], d = sdepth[sp];
+        const RtBvhNode *n = &a->nodes[ni];
+        if (seen_node[ni]++) {
+            rc = rt_fail(err, "BVH check: node %u reached twice", ni);
+            break;
+        }
+        uint32_t count = n->meta & 0xffu;
+        if (count) {
+            if (count > RT_BVH_LEAF_MAX || (uint64_t)n->index + count > a->nprims) {
+                rc = rt_fail(err, "BVH check: leaf %u holds [%u, +%u) of %u primitives", ni, n->index, count,
+                             a->nprims);
+                break;
+            }
+            for (uint32_t k = n->index; k < n->index + count; k++) {
+                if (seen_prim[k]++) {
+                    rc = rt_fail(err, "BVH check: primitive slot %u referenced twice", k);
+                    break;
+                }
+            }
+        } else {
+            uint32_t l = ni + 1, r = n->index;
+            if (r <= l || r >= a->nnodes || l >= a->nnodes) {
+                rc = rt_fail(err, "BVH check: node %u has children %u, %u (not depth-first)", ni, l, r);
+                break;
+            }
+            if (!inside(&a->nodes[l], n) || !inside(&a->nodes[r], n)) {
+                rc = rt_fail(err, "BVH check: a child of node %u lies outside its bounds", ni);
+                break;
+            }
+            if (d + 1 > RT_BVH_MAX_DEPTH) {
+                rc = rt_fail(err, "BVH check: deeper than %d", RT_BVH_MAX_DEPTH);
+                break;
+            }
+            stack[sp] = r; sdepth[sp++] = d + 1;
+            stack[sp] = l; sdepth[sp++] = d + 1;
+        }
+    }
+    for (uint32_t k = 0; rc == 0 && k < a->nprims; k++) {
+        uint32_t id = a->prims[k].id & ~RT_PRIM_SPHERE_BIT;
+        if (!seen_prim[k])
+            rc = rt_fail(err, "BVH check: primitive slot %u is in no leaf", k);
+        else if (id >= a->nprims || seen_id[id]++)
+            rc = rt_fail(err, "BVH check: primitive %u appears twice or is out of range", id);
+    }
+    for (uint32_t k = 0; rc == 0 && k < a->nnodes; k++)
+        if (!seen_node[k])
+            rc = rt_fail(err, "BVH check: node %u is unreachable", k);
+out:
+    free(seen_prim); free(seen_node); free(seen_id); free(stack); free(sdepth);
+    return rc;
+}

@@ -1,0 +1,198 @@
+/* rt_shade.h - Whitted shading without recursion, and the tile loop every
+ * backend shares (RENDERING-RULES "Shading").
+ *
+ * trace(ray, depth) is unrolled into an explicit stack of pending rays, each
+ * carrying the product of the ks/kt weights on its path. Popping a ray adds
+ * weight * (local colour) to the pixel and pushes its reflected and refracted
+ * children. With RT_MAX_DEPTH bounding depth, a pending stack of
+ * RT_MAX_DEPTH + 2 entries can never overflow: every pop pushes at most two
+ * rays one level deeper, so at most one sibling per level is ever waiting. */
+#ifndef RT_SHADE_H
+#define RT_SHADE_H
+
+#include "rt_traverse.h"
+
+#define RT_RAY_STACK (RT_MAX_DEPTH + 2)
+
+typedef struct RtPending {
+    RtVec3 o, d;  /* ray */
+    RtVec3 w;     /* weight of this ray's colour in the pixel */
+    int32_t depth;
+} RtPending;
+
+/* Surface data at a hit. */
+typedef struct RtSurface {
+    RtVec3 p;       /* hit point */
+    RtVec3 n;       /* unit normal facing against the ray */
+    int front;      /* 1 if the geometric side was not flipped */
+    uint32_t material;
+} RtSurface;
+
+static inline RT_HD RtSurface rt_surface(const RtSceneView *s, RtVec3 o, RtVec3 d, const RtHit *h)
+{
+    RtSurface sf;
+    sf.p = rt_madd(o, d, h->t);
+    uint32_t gid = h->id & ~RT_PRIM_SPHERE_BIT;
+    RtVec3 n;
+    if (h->id & RT_PRIM_SPHERE_BIT) {
+        const RtSphere *sp = &s->spheres[gid];
+        n = rt_scale(rt_sub(sf.p, rt_v3_load(sp->c)), 1.0f / sp->r);
+        sf.material = sp->material;
+    } else {
+        const RtTriangle *tr = &s->triangles[gid - s->nspheres];
+        if (tr->n[0] >= 0) {
+            float w0 = 1.0f - h->u - h->v;
+            n = rt_scale(s->normals[tr->n[0]], w0);
+            n = rt_madd(n, s->normals[tr->n[1]], h->u);
+            n = rt_madd(n, s->normals[tr->n[2]], h->v);
+        } else {
+            RtVec3 v0 = s->vertices[tr->v[0]];
+            n = rt_cross(rt_sub(s->vertices[tr->v[1]], v0), rt_sub(s->vertices[tr->v[2]], v0));
+        }
+        sf.material = tr->material;
+    }
+    n = rt_normalize(n);
+    sf.front = rt_dot(n, d) <= 0.0f;
+    sf.n = sf.front ? n : rt_neg(n);
+    return sf;
+}
+
+/* Direct light from every light at the surface, with hard shadows. A light
+ * whose contribution is exactly zero (behind a spot cone, or N.L <= 0 with no
+ * specular lobe) casts no shadow ray: it could not change the colour. */
+static inline RT_HD RtVec3 rt_direct_light(const RtSceneView *s, const RtSurface *sf, const RtMaterial *m,
+                                           RtVec3 view, RtCounters *cnt)
+{
+    RtVec3 kd = rt_v3_load(m->kd), ks = rt_v3_load(m->ks);
+    RtVec3 sum = rt_mul(rt_v3_load(m->ka), s->ambient);
+    RtVec3 so = rt_madd(sf->p, sf->n, RT_SHADOW_OFFSET);
+    for (uint32_t li = 0; li < s->nlights; li++) {
+        const RtLight *lt = &s->lights[li];
+        RtVec3 I = rt_v3_load(lt->color);
+        RtVec3 L;
+        float dist;
+        if (lt->type == RT_LIGHT_DIRECTIONAL) {
+            L = rt_neg(rt_v3_load(lt->dir));
+            dist = RT_INF;
+        } else {
+            RtVec3 tl = rt_sub(rt_v3_load(lt->pos), sf->p);
+            dist = rt_length(tl);
+            if (!(dist > 0.0f))
+                continue;
+            L = rt_scale(tl, 1.0f / dist);
+            I = rt_scale(I, 1.0f / (dist * dist));
+            if (lt->type == RT_LIGHT_SPOT) {
+                float c = rt_dot(rt_v3_load(lt->dir), rt_neg(L));
+                c = c > 1.0f ? 1.0f : (c < -1.0f ? -1.0f : c);
+                float a = acosf(c) * (180.0f / 3.14159265358979f);
+                if (a > lt->angle2)
+                    continue;
+                if (a > lt->angle1)
+                    I = rt_scale(I, 1.0f - (a - lt->angle1) / (lt->angle2 - lt->angle1));
+            }
+        }
+        float ndl = rt_maxf(0.0f, rt_dot(sf->n, L));
+        RtVec3 H = rt_normalize(rt_add(L, view));
+        float ndh = rt_maxf(0.0f, rt_dot(sf->n, H));
+        float spec = powf(ndh, m->ns);
+        RtVec3 c = rt_add(rt_scale(kd, ndl), rt_scale(ks, spec));
+        c = rt_mul(c, I);
+        if (rt_is_zero(c))
+            continue;
+        /* Shadow ray: from just above the surface towards the light; any
+         * surface closer than the light blocks it, transparent or not. */
+        RtHit sh;
+        cnt->shadow_rays++;
+        if (rt_trace_ray(s, so, L, dist, 1, &sh, cnt))
+            continue;
+        sum = rt_add(sum, c);
+    }
+    return sum;
+}
+
+/* The colour of one primary ray, unclamped. */
+static inline RT_HD RtVec3 rt_trace_path(const RtSceneView *s, RtRay primary, RtCounters *cnt)
+{
+    RtPending stack[RT_RAY_STACK];
+    int sp = 0;
+    RtVec3 color = rt_v3(0.0f, 0.0f, 0.0f);
+    if (s->max_depth <= 0)
+        return color;
+    stack[0].o = primary.o;
+    stack[0].d = primary.d;
+    stack[0].w = rt_v3(1.0f, 1.0f, 1.0f);
+    stack[0].depth = s->max_depth;
+    sp = 1;
+    while (sp > 0) {
+        RtPending r = stack[--sp];
+        if (r.depth == s->max_depth)
+            cnt->primary_rays++;
+        else
+            cnt->secondary_rays++;
+        RtHit h;
+        if (!rt_trace_ray(s, r.o, r.d, RT_INF, 0, &h, cnt)) {
+            color = rt_add(color, rt_mul(r.w, s->background));
+            continue;
+        }
+        RtSurface sf = rt_surface(s, r.o, r.d, &h);
+        const RtMaterial *m = &s->materials[sf.material];
+        RtVec3 local = rt_direct_light(s, &sf, m, rt_neg(r.d), cnt);
+        color = rt_add(color, rt_mul(r.w, local));
+        if (r.depth <= 1)
+            continue;
+        float dn = rt_dot(r.d, sf.n);
+        RtVec3 R = rt_normalize(rt_sub(r.d, rt_scale(sf.n, 2.0f * dn)));
+        RtVec3 wt = rt_mul(r.w, rt_v3_load(m->kt));
+        if (!rt_is_zero(wt)) {
+            float eta = sf.front ? 1.0f / m->ior : m->ior;
+            float cos_i = -dn;
+            float k = 1.0f - eta * eta * (1.0f - cos_i * cos_i);
+            RtVec3 T = R; /* total internal reflection */
+            if (k >= 0.0f)
+                T = rt_normalize(rt_add(rt_scale(r.d, eta), rt_scale(sf.n, eta * cos_i - sqrtf(k))));
+            stack[sp].o = rt_madd(sf.p, T, RT_SECONDARY_OFFSET);
+            stack[sp].d = T;
+            stack[sp].w = wt;
+            stack[sp].depth = r.depth - 1;
+            sp++;
+        }
+        RtVec3 wr = rt_mul(r.w, rt_v3_load(m->ks));
+        if (!rt_is_zero(wr)) {
+            stack[sp].o = rt_madd(sf.p, R, RT_SECONDARY_OFFSET);
+            stack[sp].d = R;
+            stack[sp].w = wr;
+            stack[sp].depth = r.depth - 1;
+            sp++;
+        }
+    }
+    return color;
+}
+
+/* Renders pixels [x0,x1) x [y0,y1) into rgb (float RGB, row-major, stride =
+ * image width). The one loop every CPU backend calls. */
+static inline RT_HD void rt_render_pixel(const RtSceneView *s, int i, int j, float *rgb, RtCounters *cnt)
+{
+    RtVec3 c = rt_trace_path(s, rt_camera_ray(&s->cam, i, j), cnt);
+    float *px = rgb + 3 * ((size_t)j * (size_t)s->cam.width + (size_t)i);
+    px[0] = c.x;
+    px[1] = c.y;
+    px[2] = c.z;
+}
+
+static inline RT_HD void rt_render_tile(const RtSceneView *s, int x0, int y0, int x1, int y1, float *rgb,
+                                        RtCounters *cnt)
+{
+    for (int j = y0; j < y1; j++)
+        for (int i = x0; i < x1; i++)
+            rt_render_pixel(s, i, j, rgb, cnt);
+}
+
+/* Output rule: clamp to [0,1], times 255, round to nearest. */
+static inline RT_HD uint8_t rt_quantize(float c)
+{
+    if (!(c > 0.0f)) /* also maps a NaN (an unwritten, poisoned pixel) to 0 */
+        return 0;
+    return (uint8_t)(rt_clamp01(c) * 255.0f + 0.5f);
+}
+
+#endif

@@ -1,0 +1,278 @@
+/* rt_traverse.h - ray/primitive tests and the two accelerators' traversals
+ * (brute force "none" and the flat BVH), shared by every backend.
+ *
+ * Determinism: the closest hit is the smallest t > RT_T_MIN, ties going to the
+ * lower global primitive index. Brute force and BVH call the same
+ * rt_prim_intersect on the same records, so they find bit-identical hits. */
+#ifndef RT_TRAVERSE_H
+#define RT_TRAVERSE_H
+
+#include "rt_camera.h"
+
+/* On x86 hosts the slab test runs on SSE lanes: the same IEEE operations
+ * (subtract, multiply, min, max) as the scalar path, so it culls exactly the
+ * same boxes, in about a third of the instructions. */
+#if !defined(__CUDACC__) && (defined(__SSE2__) || defined(_M_X64)) && !defined(RT_NO_SIMD)
+#include <emmintrin.h>
+#define RT_SSE 1
+#else
+#define RT_SSE 0
+#endif
+
+/* Traversal stack depth. A binned-SAH BVH over 2^32 primitives with leaves of
+ * at most 4 is far shallower than this in practice; the builder refuses trees
+ * deeper than RT_BVH_MAX_DEPTH so the stack can never overflow. */
+#define RT_BVH_STACK 64
+#define RT_BVH_MAX_DEPTH 60
+
+typedef struct RtHit {
+    float t;     /* distance along the ray */
+    float u, v;  /* barycentrics of vertices 1 and 2 (triangles) */
+    uint32_t id; /* RtPrim.id of the hit primitive; UINT32_MAX: none */
+} RtHit;
+
+/* Returns t of the nearest valid intersection in (RT_T_MIN, inf), or RT_INF.
+ * Triangles: Moller & Trumbore 1997. Spheres: the quadratic solved as in
+ * Haines et al., "Precision improvements for ray/sphere intersection", Ray
+ * Tracing Gems ch. 7 (distance to the chord, then the stable root pair), which
+ * keeps float32 accurate for small spheres seen from far away. */
+static inline RT_HD float rt_prim_intersect(const RtPrim *p, RtVec3 o, RtVec3 d, float *u_out, float *v_out)
+{
+    if (p->id & RT_PRIM_SPHERE_BIT) {
+        RtVec3 c = rt_v3_load(p->p0);
+        float r = p->e1[0];
+        RtVec3 f = rt_sub(o, c);
+        float b = -rt_dot(f, d);
+        RtVec3 l = rt_madd(f, d, b);
+        float disc = r * r - rt_dot(l, l);
+        if (disc < 0.0f)
+            return RT_INF;
+        float cc = rt_dot(f, f) - r * r;
+        float q = b + (b >= 0.0f ? sqrtf(disc) : -sqrtf(disc));
+        float t0 = q != 0.0f ? cc / q : 0.0f;
+        float t1 = q;
+        float lo = rt_minf(t0, t1), hi = rt_maxf(t0, t1);
+        *u_out = 0.0f;
+        *v_out = 0.0f;
+        if (lo > RT_T_MIN)
+            return lo;
+        if (hi > RT_T_MIN)
+            return hi;
+        return RT_INF;
+    }
+    RtVec3 e1 = rt_v3_load(p->e1), e2 = rt_v3_load(p->e2);
+    RtVec3 pv = rt_cross(d, e2);
+    float det = rt_dot(e1, pv);
+    if (det == 0.0f)
+        return RT_INF;
+    float inv = 1.0f / det;
+    RtVec3 tv = rt_sub(o, rt_v3_load(p->p0));
+    float u = rt_dot(tv, pv) * inv;
+    if (u < 0.0f || u > 1.0f)
+        return RT_INF;
+    RtVec3 qv = rt_cross(tv, e1);
+    float v = rt_dot(d, qv) * inv;
+    if (v < 0.0f || u + v > 1.0f)
+        return RT_INF;
+    float t = rt_dot(e2, qv) * inv;
+    if (!(t > RT_T_MIN))
+        return RT_INF;
+    *u_out = u;
+    *v_out = v;
+    return t;
+}
+
+/* Keeps the candidate if it is closer, or as close with a lower index. */
+static inline RT_HD void rt_hit_update(RtHit *h, const RtPrim *p, float t, float u, float v)
+{
+    uint32_t gid = p->id & ~RT_PRIM_SPHERE_BIT, hid = h->id & ~RT_PRIM_SPHERE_BIT;
+    if (t < h->t || (t == h->t && t < RT_INF && gid < hid)) {
+        h->t = t;
+        h->u = u;
+        h->v = v;
+        h->id = p->id;
+    }
+}
+
+/* Per-ray constants for the slab test. Zero direction components are nudged
+ * to a tiny value so 1/d stays finite and 0*inf never makes a NaN. */
+typedef struct RtRayBox {
+    RtVec3 o, inv;
+#if RT_SSE
+    __m128 o4, inv4; /* lanes x, y, z, 0 */
+#endif
+} RtRayBox;
+
+static inline RT_HD float rt_safe_inv(float x)
+{
+    const float tiny = 1e-20f;
+    if (x > -tiny && x < tiny)
+        x = x < 0.0f ? -tiny : tiny;
+    return 1.0f / x;
+}
+
+static inline RT_HD RtRayBox rt_raybox(RtVec3 o, RtVec3 d)
+{
+    RtRayBox rb;
+    rb.o = o;
+    rb.inv = rt_v3(rt_safe_inv(d.x), rt_safe_inv(d.y), rt_safe_inv(d.z));
+#if RT_SSE
+    rb.o4 = _mm_set_ps(0.0f, o.z, o.y, o.x);
+    rb.inv4 = _mm_set_ps(0.0f, rb.inv.z, rb.inv.y, rb.inv.x);
+#endif
+    return rb;
+}
+
+/* Entry distance of the ray into the node's box within [tmin, tmax], or RT_INF. */
+static inline RT_HD float rt_box_enter(const RtBvhNode *n, const RtRayBox *rb, float tmin, float tmax)
+{
+#if RT_SSE
+    /* Lane 3 holds index/meta bits; overwriting it with lane 2 (one shuffle)
+     * makes the 4-lane reductions see x, y, z only. tmin/tmax join as scalars. */
+    __m128 a = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->lo), rb->o4), rb->inv4);
+    __m128 b = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->hi), rb->o4), rb->inv4);
+    __m128 tn = _mm_min_ps(a, b), tf = _mm_max_ps(a, b);
+    tn = _mm_shuffle_ps(tn, tn, _MM_SHUFFLE(2, 2, 1, 0));
+    tf = _mm_shuffle_ps(tf, tf, _MM_SHUFFLE(2, 2, 1, 0));
+    tn = _mm_max_ps(tn, _mm_shuffle_ps(tn, tn, _MM_SHUFFLE(1, 0, 3, 2)));
+    tf = _mm_min_ps(tf, _mm_shuffle_ps(tf, tf, _MM_SHUFFLE(1, 0, 3, 2)));
+    tn = _mm_max_ss(tn, _mm_shuffle_ps(tn, tn, _MM_SHUFFLE(2, 3, 0, 1)));
+    tf = _mm_min_ss(tf, _mm_shuffle_ps(tf, tf, _MM_SHUFFLE(2, 3, 0, 1)));
+    float t0s = rt_maxf(_mm_cvtss_f32(tn), tmin), t1s = rt_minf(_mm_cvtss_f32(tf), tmax);
+    return t0s <= t1s * 1.0000004f ? t0s : RT_INF;
+#else
+    float tx0 = (n->lo[0] - rb->o.x) * rb->inv.x, tx1 = (n->hi[0] - rb->o.x) * rb->inv.x;
+    float ty0 = (n->lo[1] - rb->o.y) * rb->inv.y, ty1 = (n->hi[1] - rb->o.y) * rb->inv.y;
+    float tz0 = (n->lo[2] - rb->o.z) * rb->inv.z, tz1 = (n->hi[2] - rb->o.z) * rb->inv.z;
+    float t0 = rt_maxf(rt_maxf(rt_minf(tx0, tx1), rt_minf(ty0, ty1)), rt_maxf(rt_minf(tz0, tz1), tmin));
+    float t1 = rt_minf(rt_minf(rt_maxf(tx0, tx1), rt_maxf(ty0, ty1)), rt_minf(rt_maxf(tz0, tz1), tmax));
+    /* Widen the exit a little (pbrt-v4's 1 + 2*gamma(3)) so float rounding in
+     * the slab test never culls a box whose primitive the exact test would hit;
+     * a culled hit would make BVH and brute force disagree on a pixel. */
+    return t0 <= t1 * 1.0000004f ? t0 : RT_INF;
+#endif
+}
+
+/* Entry distances of the ray into two sibling boxes (RT_INF: missed). The SSE
+ * path shares the lane reductions between the two boxes; it computes the same
+ * values as two calls of rt_box_enter. */
+static inline RT_HD void rt_box_enter2(const RtBvhNode *na, const RtBvhNode *nb, const RtRayBox *rb, float tmax,
+                                       float *ta, float *tb)
+{
+#if RT_SSE
+    __m128 a0 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(na->lo), rb->o4), rb->inv4);
+    __m128 a1 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(na->hi), rb->o4), rb->inv4);
+    __m128 b0 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(nb->lo), rb->o4), rb->inv4);
+    __m128 b1 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(nb->hi), rb->o4), rb->inv4);
+    __m128 an = _mm_min_ps(a0, a1), af = _mm_max_ps(a0, a1);
+    __m128 bn = _mm_min_ps(b0, b1), bf = _mm_max_ps(b0, b1);
+    /* [ax, ay, bx, by] against [az, az, bz, bz], then across pairs. */
+    __m128 n = _mm_max_ps(_mm_movelh_ps(an, bn), _mm_shuffle_ps(an, bn, _MM_SHUFFLE(2, 2, 2, 2)));
+    __m128 f = _mm_min_ps(_mm_movelh_ps(af, bf), _mm_shuffle_ps(af, bf, _MM_SHUFFLE(2, 2, 2, 2)));
+    n = _mm_max_ps(n, _mm_shuffle_ps(n, n, _MM_SHUFFLE(2, 3, 0, 1)));
+    f = _mm_min_ps(f, _mm_shuffle_ps(f, f, _MM_SHUFFLE(2, 3, 0, 1)));
+    n = _mm_max_ps(n, _mm_setzero_ps());
+    f = _mm_min_ps(f, _mm_set1_ps(tmax));
+    int hit = _mm_movemask_ps(_mm_cmple_ps(n, _mm_mul_ps(f, _mm_set1_ps(1.0000004f))));
+    *ta = (hit & 1) ? _mm_cvtss_f32(n) : RT_INF;
+    *tb = (hit & 4) ? _mm_cvtss_f32(_mm_movehl_ps(n, n)) : RT_INF;
+#else
+    *ta = rt_box_enter(na, rb, 0.0f, tmax);
+    *tb = rt_box_enter(nb, rb, 0.0f, tmax);
+#endif
+}
+
+/* Closest hit (any = 0) or any hit closer than tmax (any = 1). Returns 1 on a hit. */
+static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any,
+                                     RtHit *hit, RtCounters *cnt)
+{
+    hit->t = tmax;
+    hit->u = hit->v = 0.0f;
+    hit->id = 0xffffffffu;
+    int found = 0;
+    float u, v, t;
+    if (s->nnodes == 0) {
+        /* Brute force: the report's baseline, every ray against every primitive.
+         * Records are in index order, so a strict < keeps the lower index on ties. */
+        uint64_t tests = 0;
+        for (uint32_t i = 0; i < s->nprims; i++) {
+            tests++;
+            t = rt_prim_intersect(&s->prims[i], o, d, &u, &v);
+            if (t < hit->t) {
+                hit->t = t; hit->u = u; hit->v = v; hit->id = s->prims[i].id;
+                found = 1;
+                if (any)
+                    break;
+            }
+        }
+        cnt->prim_tests += tests;
+        return found;
+    }
+    RtRayBox rb = rt_raybox(o, d);
+    uint32_t stack_node[RT_BVH_STACK];
+    float stack_t[RT_BVH_STACK];
+    int sp = 0;
+    uint32_t ni = 0;
+    uint64_t visits = 0, tests = 0;
+    if (rt_box_enter(&s->nodes[0], &rb, 0.0f, tmax) == RT_INF) {
+        cnt->node_visits += 1;
+        return 0;
+    }
+    for (;;) {
+        const RtBvhNode *n = &s->nodes[ni];
+        visits++;
+        uint32_t count = n->meta & 0xffu;
+        if (count) {
+            const RtPrim *p = &s->prims[n->index];
+            for (uint32_t k = 0; k < count; k++) {
+                tests++;
+                t = rt_prim_intersect(&p[k], o, d, &u, &v);
+                if (any) {
+                    if (t < hit->t) { /* strictly closer than the light, as brute force */
+                        hit->t = t; hit->u = u; hit->v = v; hit->id = p[k].id;
+                        found = 1;
+                        goto done;
+                    }
+                } else if (t <= hit->t && t < RT_INF) {
+                    rt_hit_update(hit, &p[k], t, u, v);
+                    found = 1;
+                }
+            }
+        } else {
+            uint32_t a = ni + 1, b = n->index;
+            float ta, tb;
+            rt_box_enter2(&s->nodes[a], &s->nodes[b], &rb, hit->t, &ta, &tb);
+            if (ta != RT_INF && tb != RT_INF) {
+                /* Near child first; the far one waits with its entry distance. */
+                if (tb < ta) {
+                    uint32_t tmpn = a; a = b; b = tmpn;
+                    float tmpt = ta; ta = tb; tb = tmpt;
+                }
+                stack_node[sp] = b;
+                stack_t[sp] = tb;
+                sp++;
+                ni = a;
+                continue;
+            }
+            if (ta != RT_INF) { ni = a; continue; }
+            if (tb != RT_INF) { ni = b; continue; }
+        }
+        /* Pop, skipping nodes entered beyond the closest hit so far. Ties
+         * (entry == hit->t) are still visited: an equal-t hit with a lower
+         * index may live there. */
+        for (;;) {
+            if (sp == 0)
+                goto done;
+            sp--;
+            if (stack_t[sp] <= hit->t)
+                break;
+        }
+        ni = stack_node[sp];
+    }
+done:
+    cnt->node_visits += visits;
+    cnt->prim_tests += tests;
+    return found;
+}
+
+#endif

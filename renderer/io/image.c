@@ -1,0 +1,292 @@
+/* image.c - PNG (libpng), BMP and PPM, chosen by the file name's extension.
+ * Writes go to a temporary file in the same directory, then rename(2), so an
+ * image appears whole or not at all. */
+#include <errno.h>
+#include <png.h>
+#include <setjmp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <unistd.h>
+
+#include "rt.h"
+
+RtImageFormat rt_image_format_for(const char *path)
+{
+    const char *dot = strrchr(path, '.');
+    const char *slash = strrchr(path, '/');
+    if (!dot || (slash && dot < slash))
+        return RT_IMG_UNKNOWN;
+    if (strcasecmp(dot, ".png") == 0)
+        return RT_IMG_PNG;
+    if (strcasecmp(dot, ".bmp") == 0)
+        return RT_IMG_BMP;
+    if (strcasecmp(dot, ".ppm") == 0)
+        return RT_IMG_PPM;
+    return RT_IMG_UNKNOWN;
+}
+
+typedef struct PngErr {
+    jmp_buf jb;
+    char msg[256];
+} PngErr;
+
+static void png_error_cb(png_structp png, png_const_charp msg)
+{
+    PngErr *pe = (PngErr *)png_get_error_ptr(png);
+    snprintf(pe->msg, sizeof pe->msg, "%s", msg);
+    longjmp(pe->jb, 1);
+}
+static void png_warn_cb(png_structp png, png_const_charp msg)
+{
+    (void)png;
+    (void)msg;
+}
+
+static int write_png(FILE *fp, const uint8_t *rgb, int w, int h, char *msg, size_t msz)
+{
+    PngErr pe;
+    pe.msg[0] = '\0';
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &pe, png_error_cb, png_warn_cb);
+    if (!png) {
+        snprintf(msg, msz, "libpng: cannot create writer");
+        return -1;
+    }
+    png_infop info = png_create_info_struct(png);
+    if (!info || setjmp(pe.jb)) {
+        snprintf(msg, msz, "libpng: %s", pe.msg[0] ? pe.msg : "cannot create info");
+        png_destroy_write_struct(&png, &info);
+        return -1;
+    }
+    png_init_io(png, fp);
+    /* Level 3: most of the size of level 9 for a fraction of the time. */
+    png_set_compression_level(png, 3);
+    png_set_IHDR(png, info, (png_uint_32)w, (png_uint_32)h, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
+                 PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_write_info(png, info);
+    for (int y = 0; y < h; y++)
+        png_write_row(png, (png_const_bytep)(rgb + (size_t)y * (size_t)w * 3));
+    png_write_end(png, info);
+    png_destroy_write_struct(&png, &info);
+    return 0;
+}
+
+static void put_le32(uint8_t *p, uint32_t v)
+{
+    p[0] = (uint8_t)v; p[1] = (uint8_t)(v >> 8); p[2] = (uint8_t)(v >> 16); p[3] = (uint8_t)(v >> 24);
+}
+
+static int write_bmp(FILE *fp, const uint8_t *rgb, int w, int h)
+{
+    size_t stride = ((size_t)w * 3 + 3) & ~(size_t)3;
+    uint8_t hdr[54];
+    memset(hdr, 0, sizeof hdr);
+    hdr[0] = 'B'; hdr[1] = 'M';
+    put_le32(hdr + 2, (uint32_t)(54 + stride * (size_t)h));
+    put_le32(hdr + 10, 54);
+    put_le32(hdr + 14, 40);
+    put_le32(hdr + 18, (uint32_t)w);
+    put_le32(hdr + 22, (uint32_t)h); /* positive: rows stored bottom-up */
+    hdr[26] = 1;
+    hdr[28] = 24;
+    put_le32(hdr + 38, 2835); /* 72 dpi */
+    put_le32(hdr + 42, 2835);
+    if (fwrite(hdr, 1, sizeof hdr, fp) != sizeof hdr)
+        return -1;
+    uint8_t *row = calloc(stride, 1);
+    if (!row)
+        return -1;
+    for (int y = h - 1; y >= 0; y--) {
+        const uint8_t *src = rgb + (size_t)y * (size_t)w * 3;
+        for (int x = 0; x < w; x++) {
+            row[3 * x + 0] = src[3 * x + 2];
+            row[3 * x + 1] = src[3 * x + 1];
+            row[3 * x + 2] = src[3 * x + 0];
+        }
+        if (fwrite(row, 1, stride, fp) != stride) {
+            free(row);
+            return -1;
+        }
+    }
+    free(row);
+    return 0;
+}
+
+int rt_image_write(const char *path, const uint8_t *rgb, int w, int h, RtError *err)
+{
+    RtImageFormat fmt = rt_image_format_for(path);
+    if (fmt == RT_IMG_UNKNOWN)
+        return rt_fail(err, "%s: unknown image format (use .png, .bmp or .ppm)", path);
+    size_t n = strlen(path);
+    char *tmp = malloc(n + 16);
+    if (!tmp)
+        return rt_fail(err, "%s: out of memory", path);
+    snprintf(tmp, n + 16, "%s.tmp.XXXXXX", path);
+    int fd = mkstemp(tmp);
+    if (fd < 0) {
+        int e = errno;
+        free(tmp);
+        return rt_fail(err, "%s: cannot create: %s", path, strerror(e));
+    }
+    FILE *fp = fdopen(fd, "wb");
+    if (!fp) {
+        int e = errno;
+        close(fd);
+        unlink(tmp);
+        free(tmp);
+        return rt_fail(err, "%s: cannot open: %s", path, strerror(e));
+    }
+    char msg[300] = "write error";
+    int rc = 0;
+    if (fmt == RT_IMG_PNG)
+        rc = write_png(fp, rgb, w, h, msg, sizeof msg);
+    else if (fmt == RT_IMG_BMP)
+        rc = write_bmp(fp, rgb, w, h);
+    else {
+        fprintf(fp, "P6\n%d %d\n255\n", w, h);
+        rc = fwrite(rgb, 3, (size_t)w * (size_t)h, fp) == (size_t)w * (size_t)h ? 0 : -1;
+    }
+    int e = errno;
+    if (fflush(fp) != 0 || ferror(fp))
+        rc = -1, e = errno;
+    if (fclose(fp) != 0 && rc == 0)
+        rc = -1, e = errno;
+    if (rc == 0 && rename(tmp, path) != 0)
+        rc = -1, e = errno;
+    if (rc != 0) {
+        unlink(tmp);
+        free(tmp);
+        if (strcmp(msg, "write error") != 0)
+            return rt_fail(err, "%s: %s", path, msg);
+        return rt_fail(err, "%s: write failed: %s", path, strerror(e));
+    }
+    free(tmp);
+    return 0;
+}
+
+static int read_png(FILE *fp, const char *path, uint8_t **out, int *w, int *h, RtError *err)
+{
+    PngErr pe;
+    pe.msg[0] = '\0';
+    png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &pe, png_error_cb, png_warn_cb);
+    png_infop info = png ? png_create_info_struct(png) : NULL;
+    uint8_t *volatile buf = NULL;
+    if (!png || !info) {
+        png_destroy_read_struct(&png, &info, NULL);
+        return rt_fail(err, "%s: libpng: cannot create reader", path);
+    }
+    if (setjmp(pe.jb)) {
+        png_destroy_read_struct(&png, &info, NULL);
+        free(buf);
+        return rt_fail(err, "%s: libpng: %s", path, pe.msg);
+    }
+    png_init_io(png, fp);
+    png_read_info(png, info);
+    png_uint_32 pw = png_get_image_width(png, info), ph = png_get_image_height(png, info);
+    if (pw == 0 || ph == 0 || pw > RT_MAX_SIDE || ph > RT_MAX_SIDE) {
+        png_destroy_read_struct(&png, &info, NULL);
+        return rt_fail(err, "%s: unsupported size %ux%u", path, (unsigned)pw, (unsigned)ph);
+    }
+    /* Normalize every PNG to 8-bit RGB. */
+    png_set_strip_16(png);
+    png_set_strip_alpha(png);
+    png_set_packing(png);
+    png_set_palette_to_rgb(png);
+    png_set_expand_gray_1_2_4_to_8(png);
+    png_set_gray_to_rgb(png);
+    png_read_update_info(png, info);
+    if (png_get_rowbytes(png, info) != (size_t)pw * 3) {
+        png_destroy_read_struct(&png, &info, NULL);
+        return rt_fail(err, "%s: unsupported PNG layout", path);
+    }
+    buf = malloc((size_t)pw * ph * 3);
+    png_bytep *rows = malloc(ph * sizeof *rows);
+    if (!buf || !rows) {
+        free(rows);
+        png_destroy_read_struct(&png, &info, NULL);
+        free(buf);
+        return rt_fail(err, "%s: out of memory", path);
+    }
+    for (png_uint_32 y = 0; y < ph; y++)
+        rows[y] = buf + (size_t)y * pw * 3;
+    png_read_image(png, rows);
+    free(rows);
+    png_destroy_read_struct(&png, &info, NULL);
+    *out = buf;
+    *w = (int)pw;
+    *h = (int)ph;
+    return 0;
+}
+
+static uint32_t get_le32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+int rt_image_read(const char *path, uint8_t **out, int *w, int *h, RtError *err)
+{
+    FILE *fp = fopen(path, "rb");
+    if (!fp)
+        return rt_fail(err, "%s: cannot open: %s", path, strerror(errno));
+    uint8_t sig[8];
+    size_t got = fread(sig, 1, 8, fp);
+    rewind(fp);
+    int rc;
+    if (got == 8 && png_sig_cmp(sig, 0, 8) == 0) {
+        rc = read_png(fp, path, out, w, h, err);
+    } else if (got >= 2 && sig[0] == 'B' && sig[1] == 'M') {
+        uint8_t hdr[54];
+        rc = -1;
+        if (fread(hdr, 1, 54, fp) == 54 && get_le32(hdr + 14) >= 40 && hdr[28] == 24) {
+            int bw = (int)get_le32(hdr + 18), bh = (int)get_le32(hdr + 22);
+            int flip = bh > 0;
+            bh = bh < 0 ? -bh : bh;
+            if (bw > 0 && bh > 0 && bw <= RT_MAX_SIDE && bh <= RT_MAX_SIDE &&
+                fseek(fp, (long)get_le32(hdr + 10), SEEK_SET) == 0) {
+                size_t stride = ((size_t)bw * 3 + 3) & ~(size_t)3;
+                uint8_t *buf = malloc((size_t)bw * bh * 3), *row = malloc(stride);
+                rc = buf && row ? 0 : -1;
+                for (int y = 0; rc == 0 && y < bh; y++) {
+                    if (fread(row, 1, stride, fp) != stride) {
+                        rc = -1;
+                        break;
+                    }
+                    uint8_t *dst = buf + (size_t)(flip ? bh - 1 - y : y) * bw * 3;
+                    for (int x = 0; x < bw; x++) {
+                        dst[3 * x] = row[3 * x + 2];
+                        dst[3 * x + 1] = row[3 * x + 1];
+                        dst[3 * x + 2] = row[3 * x];
+                    }
+                }
+                free(row);
+                if (rc == 0) {
+                    *out = buf; *w = bw; *h = bh;
+                } else {
+                    free(buf);
+                }
+            }
+        }
+        if (rc != 0)
+            rt_fail(err, "%s: not a 24-bit BMP this reader understands", path);
+    } else if (got >= 2 && sig[0] == 'P' && sig[1] == '6') {
+        int pw = 0, ph = 0, maxv = 0;
+        rc = -1;
+        if (fscanf(fp, "P6 %d %d %d", &pw, &ph, &maxv) == 3 && maxv == 255 && pw > 0 && ph > 0 &&
+            pw <= RT_MAX_SIDE && ph <= RT_MAX_SIDE && fgetc(fp) != EOF) {
+            uint8_t *buf = malloc((size_t)pw * ph * 3);
+            if (buf && fread(buf, 3, (size_t)pw * ph, fp) == (size_t)pw * ph) {
+                *out = buf; *w = pw; *h = ph;
+                rc = 0;
+            } else {
+                free(buf);
+            }
+        }
+        if (rc != 0)
+            rt_fail(err, "%s: not a binary 8-bit PPM this reader understands", path);
+    } else {
+        rc = rt_fail(err, "%s: not a PNG, BMP or PPM image", path);
+    }
+    fclose(fp);
+    return rc;
+}

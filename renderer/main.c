@@ -1,0 +1,361 @@
+/* main.c - the raytrace command: options -> scene -> accel -> backend ->
+ * image + one machine-readable record line on stdout. */
+#include <errno.h>
+#include <getopt.h>
+#include <limits.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "config.h"
+#include "rt.h"
+
+typedef struct Options {
+    const char *scene;
+    const char *output;
+    const char *backend;
+    RtAccelKind accel;
+    int width, height;  /* 0: from the scene */
+    int max_depth;      /* -1: from the scene */
+    int threads;
+    int tile_w, tile_h;
+    RtSchedule schedule;
+    RtMpiSchedule mpi_schedule;
+    int block_x, block_y;
+    int device;
+    int quiet;
+    int verify;
+} Options;
+
+static const char *prog = "raytrace";
+
+static void usage(FILE *fp)
+{
+    fprintf(fp,
+            "Usage: %s [OPTIONS] SCENE\n"
+            "Renders a scene file (docs/scene-format.md) with Whitted ray tracing.\n\n"
+            "  -o, --output FILE        image to write (.png, .bmp, .ppm); default: the scene's output_image\n"
+            "  -b, --backend NAME       serial (default), openmp, mpi, cuda\n"
+            "  -a, --accel NAME         bvh (default) or none (every ray against every primitive)\n"
+            "  -r, --resolution WxH     override film_resolution\n"
+            "  -d, --max-depth N        override max_depth (0..%d)\n"
+            "  -t, --threads N          worker threads (openmp; per rank with mpi)\n"
+            "      --tile WxH           tile size in pixels (default 32x32 serial, 16x16 openmp/mpi)\n"
+            "      --schedule S         openmp: tiles (dynamic, default) or pixels (the report's collapse(2) static)\n"
+            "      --mpi-schedule S     mpi: dynamic (default) or rows (the report's block rows + Gatherv)\n"
+            "      --block BXxBY        cuda: thread block shape (default chosen by measurement)\n"
+            "      --device N           cuda: device index (default 0)\n"
+            "      --verify             poison the image first and fail unless every pixel is written\n"
+            "  -q, --quiet              no progress output\n"
+            "  -h, --help               this text\n"
+            "  -V, --version            version and the backends in this build\n\n"
+            "Prints one line 'record: key=value ...' on stdout (see docs/record.md).\n",
+            prog, RT_MAX_DEPTH);
+}
+
+static int parse_int(const char *s, long lo, long hi, int *out)
+{
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (errno || end == s || *end != '\0' || v < lo || v > hi)
+        return -1;
+    *out = (int)v;
+    return 0;
+}
+
+static int parse_wxh(const char *s, int maxside, int *w, int *h)
+{
+    char buf[64];
+    snprintf(buf, sizeof buf, "%s", s);
+    char *x = strchr(buf, 'x');
+    if (!x)
+        x = strchr(buf, 'X');
+    if (!x)
+        return -1;
+    *x = '\0';
+    if (parse_int(buf, 1, maxside, w) != 0 || parse_int(x + 1, 1, maxside, h) != 0)
+        return -1;
+    return 0;
+}
+
+static int opt_error(const char *opt, const char *val, const char *why)
+{
+    fprintf(stderr, "%s: option %s '%s': %s\n", prog, opt, val, why);
+    return -1;
+}
+
+static int parse_options(int argc, char **argv, Options *o)
+{
+    enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY };
+    static const struct option longopts[] = {
+        {"output", required_argument, NULL, 'o'},     {"backend", required_argument, NULL, 'b'},
+        {"accel", required_argument, NULL, 'a'},      {"resolution", required_argument, NULL, 'r'},
+        {"max-depth", required_argument, NULL, 'd'},  {"threads", required_argument, NULL, 't'},
+        {"tile", required_argument, NULL, OPT_TILE},  {"schedule", required_argument, NULL, OPT_SCHEDULE},
+        {"mpi-schedule", required_argument, NULL, OPT_MPI_SCHEDULE},
+        {"block", required_argument, NULL, OPT_BLOCK}, {"device", required_argument, NULL, OPT_DEVICE},
+        {"verify", no_argument, NULL, OPT_VERIFY},    {"quiet", no_argument, NULL, 'q'},
+        {"help", no_argument, NULL, 'h'},             {"version", no_argument, NULL, 'V'},
+        {NULL, 0, NULL, 0}};
+    memset(o, 0, sizeof *o);
+    o->backend = "serial";
+    o->accel = RT_ACCEL_BVH;
+    o->max_depth = -1;
+    int c;
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, ":o:b:a:r:d:t:qhV", longopts, NULL)) != -1) {
+        switch (c) {
+        case 'o': o->output = optarg; break;
+        case 'b': o->backend = optarg; break;
+        case 'a':
+            if (rt_accel_parse(optarg, &o->accel) != 0)
+                return opt_error("--accel", optarg, "expected none or bvh");
+            break;
+        case 'r':
+            if (parse_wxh(optarg, RT_MAX_SIDE, &o->width, &o->height) != 0)
+                return opt_error("--resolution", optarg, "expected WxH with 1 <= W,H <= 32768");
+            if ((unsigned long long)o->width * (unsigned long long)o->height > RT_MAX_PIXELS)
+                return opt_error("--resolution", optarg, "more than 2^28 pixels");
+            break;
+        case 'd':
+            if (parse_int(optarg, 0, RT_MAX_DEPTH, &o->max_depth) != 0)
+                return opt_error("--max-depth", optarg, "expected an integer from 0 to 32");
+            break;
+        case 't':
+            if (parse_int(optarg, 1, 4096, &o->threads) != 0)
+                return opt_error("--threads", optarg, "expected an integer from 1 to 4096");
+            break;
+        case OPT_TILE:
+            if (parse_wxh(optarg, 4096, &o->tile_w, &o->tile_h) != 0)
+                return opt_error("--tile", optarg, "expected WxH with 1 <= W,H <= 4096");
+            break;
+        case OPT_SCHEDULE:
+            if (strcmp(optarg, "tiles") == 0) o->schedule = RT_SCHED_TILES;
+            else if (strcmp(optarg, "pixels") == 0) o->schedule = RT_SCHED_PIXELS;
+            else return opt_error("--schedule", optarg, "expected tiles or pixels");
+            break;
+        case OPT_MPI_SCHEDULE:
+            if (strcmp(optarg, "dynamic") == 0) o->mpi_schedule = RT_MPI_DYNAMIC;
+            else if (strcmp(optarg, "rows") == 0) o->mpi_schedule = RT_MPI_ROWS;
+            else return opt_error("--mpi-schedule", optarg, "expected dynamic or rows");
+            break;
+        case OPT_BLOCK:
+            if (parse_wxh(optarg, 1024, &o->block_x, &o->block_y) != 0 || o->block_x * o->block_y > 1024)
+                return opt_error("--block", optarg, "expected BXxBY with at most 1024 threads");
+            break;
+        case OPT_DEVICE:
+            if (parse_int(optarg, 0, 1023, &o->device) != 0)
+                return opt_error("--device", optarg, "expected a device index");
+            break;
+        case OPT_VERIFY: o->verify = 1; break;
+        case 'q': o->quiet = 1; break;
+        case 'h': usage(stdout); exit(0);
+        case 'V': {
+            printf("raytrace (raybench) %s\nbackends:", RT_VERSION);
+            const RtBackend *const *b = rt_backend_list();
+            for (int i = 0; b[i]; i++)
+                printf(" %s%s", b[i]->name, b[i]->unavailable ? "(not built)" : "");
+            printf("\n");
+            exit(0);
+        }
+        case ':':
+            fprintf(stderr, "%s: option %s needs a value\n", prog, argv[optind - 1]);
+            return -1;
+        default:
+            fprintf(stderr, "%s: unknown option '%s' (see --help)\n", prog, argv[optind - 1]);
+            return -1;
+        }
+    }
+    if (optind != argc - 1) {
+        fprintf(stderr, "%s: expected exactly one scene file (see --help)\n", prog);
+        return -1;
+    }
+    o->scene = argv[optind];
+    return 0;
+}
+
+typedef struct Progress {
+    int enabled;
+    int last_pct;
+} Progress;
+
+static void progress_cb(void *ctx, uint64_t done, uint64_t total)
+{
+    Progress *p = (Progress *)ctx;
+    int pct = total ? (int)(100 * done / total) : 100;
+    if (pct != p->last_pct) {
+        p->last_pct = pct;
+        fprintf(stderr, "\rrendering %3d%%", pct);
+        if (done == total)
+            fputc('\n', stderr);
+        fflush(stderr);
+    }
+}
+
+static void warn_cb(void *ctx, const char *msg)
+{
+    (void)ctx;
+    fprintf(stderr, "%s\n", msg);
+}
+
+/* The directory of the output must be writable: checked before rendering, so
+ * a long render never ends in a write error. */
+static int check_output(const char *path, RtError *err)
+{
+    if (rt_image_format_for(path) == RT_IMG_UNKNOWN)
+        return rt_fail(err, "%s: unknown image format (use .png, .bmp or .ppm)", path);
+    char dir[4096];
+    snprintf(dir, sizeof dir, "%s", path);
+    char *slash = strrchr(dir, '/');
+    if (slash == dir)
+        dir[1] = '\0';
+    else if (slash)
+        *slash = '\0';
+    else
+        snprintf(dir, sizeof dir, ".");
+    if (access(dir, W_OK) != 0)
+        return rt_fail(err, "%s: cannot write into directory '%s': %s", path, dir, strerror(errno));
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    double t_start = rt_now_ms();
+    Options o;
+    if (parse_options(argc, argv, &o) != 0)
+        return 1;
+    const RtBackend *be = rt_backend_find(o.backend);
+    if (!be) {
+        fprintf(stderr, "%s: option --backend '%s': unknown backend (serial, openmp, mpi, cuda)\n", prog, o.backend);
+        return 1;
+    }
+    if (be->unavailable) {
+        fprintf(stderr, "%s: --backend %s: %s\n", prog, be->name, be->unavailable);
+        return 1;
+    }
+    RtError err;
+    err.msg[0] = '\0';
+    if (be->init && be->init(&argc, &argv, &err) != 0) {
+        fprintf(stderr, "%s: %s\n", prog, err.msg);
+        return 1;
+    }
+    int rc = 1;
+    RtScene scene;
+    RtAccel accel;
+    memset(&scene, 0, sizeof scene);
+    memset(&accel, 0, sizeof accel);
+    float *rgbf = NULL;
+    uint8_t *rgb = NULL;
+    const char *output = NULL;
+
+    double t0 = rt_now_ms();
+    if (rt_scene_load(o.scene, &scene, o.quiet ? NULL : warn_cb, NULL, &err) != 0)
+        goto fail;
+    double parse_ms = rt_now_ms() - t0;
+    if (o.width) {
+        scene.width = o.width;
+        scene.height = o.height;
+        scene.line_res = 0;
+    }
+    if (o.max_depth >= 0)
+        scene.max_depth = o.max_depth;
+    RtCamera cam;
+    if (rt_scene_camera(&scene, &cam, &err) != 0)
+        goto fail;
+    output = o.output ? o.output : scene.output;
+    if (check_output(output, &err) != 0)
+        goto fail;
+
+    t0 = rt_now_ms();
+    if (rt_accel_build(&scene, o.accel, &accel, &err) != 0 || rt_bvh_check(&accel, &err) != 0)
+        goto fail;
+    double build_ms = rt_now_ms() - t0;
+
+    size_t npix = (size_t)cam.width * (size_t)cam.height;
+    rgbf = malloc(npix * 3 * sizeof *rgbf);
+    rgb = malloc(npix * 3);
+    if (!rgbf || !rgb) {
+        rt_fail(&err, "out of memory for a %dx%d image (%.1f MiB)", cam.width, cam.height,
+                (double)npix * 15.0 / (1024.0 * 1024.0));
+        goto fail;
+    }
+    /* Poison: NaN in every channel, so an unwritten pixel cannot pass as black. */
+    for (size_t i = 0; i < npix * 3; i++)
+        rgbf[i] = NAN;
+
+    RtRenderJob job;
+    memset(&job, 0, sizeof job);
+    job.scene = &scene;
+    job.accel = &accel;
+    job.view = rt_scene_view(&scene, &accel, &cam);
+    job.threads = o.threads;
+    job.tile_w = o.tile_w;
+    job.tile_h = o.tile_h;
+    job.schedule = o.schedule;
+    job.mpi_schedule = o.mpi_schedule;
+    job.block_x = o.block_x;
+    job.block_y = o.block_y;
+    job.device = o.device;
+    Progress prog_state = {0, -1};
+    if (!o.quiet && isatty(STDERR_FILENO)) {
+        prog_state.enabled = 1;
+        job.progress = progress_cb;
+        job.progress_ctx = &prog_state;
+    }
+    RtRenderOut out;
+    memset(&out, 0, sizeof out);
+    out.rgb = rgbf;
+    out.is_root = 1;
+    if (be->render(&job, &out, &err) != 0)
+        goto fail;
+    if (!out.is_root) {
+        rc = 0;
+        goto done;
+    }
+    if (o.verify) {
+        for (size_t i = 0; i < npix * 3; i++)
+            if (isnan(rgbf[i])) {
+                rt_fail(&err, "--verify: pixel (%zu, %zu) was never written by the %s backend", (i / 3) % (size_t)cam.width,
+                        (i / 3) / (size_t)cam.width, be->name);
+                goto fail;
+            }
+    }
+    rt_image_quantize(rgbf, rgb, npix);
+    uint64_t hash = rt_fnv1a64(rgb, npix * 3);
+    t0 = rt_now_ms();
+    if (rt_image_write(output, rgb, cam.width, cam.height, &err) != 0)
+        goto fail;
+    double write_ms = rt_now_ms() - t0;
+    double total_ms = rt_now_ms() - t_start;
+    uint64_t rays = rt_counters_rays(&out.counters);
+    int tw = o.tile_w ? o.tile_w : (strcmp(be->name, "serial") == 0 ? 32 : 16);
+    int th = o.tile_h ? o.tile_h : tw;
+    printf("record: scene=%s width=%d height=%d backend=%s accel=%s threads=%d ranks=%d parse_ms=%.3f "
+           "build_ms=%.3f render_ms=%.3f write_ms=%.3f total_ms=%.3f rays=%llu primary_rays=%llu "
+           "shadow_rays=%llu secondary_rays=%llu node_visits=%llu prim_tests=%llu mrays_per_s=%.3f "
+           "image_fnv1a=%016llx tile=%dx%d cores=%s%s\n",
+           scene.name, cam.width, cam.height, be->name, rt_accel_name(o.accel), out.threads_used, out.ranks_used,
+           parse_ms, build_ms, out.render_ms, write_ms, total_ms, (unsigned long long)rays,
+           (unsigned long long)out.counters.primary_rays, (unsigned long long)out.counters.shadow_rays,
+           (unsigned long long)out.counters.secondary_rays, (unsigned long long)out.counters.node_visits,
+           (unsigned long long)out.counters.prim_tests,
+           out.render_ms > 0.0 ? (double)rays / (out.render_ms * 1000.0) : 0.0, (unsigned long long)hash, tw, th,
+           out.cores[0] ? out.cores : "unknown", out.extra);
+    fflush(stdout);
+    rc = 0;
+    goto done;
+fail:
+    fprintf(stderr, "%s\n", err.msg);
+    rc = 1;
+done:
+    free(rgbf);
+    free(rgb);
+    rt_accel_free(&accel);
+    rt_scene_free(&scene);
+    if (be->finalize)
+        be->finalize();
+    return rc;
+}

@@ -1,0 +1,167 @@
+/* rt.h - the raybench renderer library: scene loading, acceleration
+ * structures, images and the backend table. Library functions report errors
+ * as return values with a message in RtError; they never exit(). */
+#ifndef RT_H
+#define RT_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "core/rt_shade.h"
+
+typedef struct RtError {
+    char msg[1024];
+} RtError;
+
+/* Formats msg into err (printf-style); returns -1 so callers can `return rt_fail(...)`. */
+int rt_fail(RtError *err, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+/* ---------------------------------------------------------------- scene */
+
+/* Image size limits, checked before any allocation. */
+#define RT_MAX_SIDE 32768
+#define RT_MAX_PIXELS (1ull << 28)
+
+typedef struct RtScene {
+    /* flat arrays (see core/rt_scene.h) */
+    RtVec3 *vertices;   uint32_t nvertices, cap_vertices;
+    RtVec3 *normals;    uint32_t nnormals, cap_normals;
+    RtSphere *spheres;  uint32_t nspheres, cap_spheres;
+    RtTriangle *triangles; uint32_t ntriangles, cap_triangles;
+    RtMaterial *materials; uint32_t nmaterials, cap_materials;
+    RtLight *lights;    uint32_t nlights, cap_lights;
+    /* settings as read (camera vectors unnormalized) */
+    RtVec3 camera_pos, camera_fwd, camera_up;
+    float fov_ha;       /* degrees, half the horizontal... as the format names it */
+    int32_t width, height;
+    int32_t max_depth;
+    RtVec3 background, ambient;
+    char output[4096];  /* output_image */
+    char name[256];     /* scene name: file name without directory and extension */
+    char path[4096];    /* file it came from */
+    /* lines that set camera values (0: default), for error messages */
+    int line_fwd, line_up, line_fov, line_res, line_depth;
+} RtScene;
+
+typedef void (*RtWarnFn)(void *ctx, const char *msg);
+
+/* Parses path into scene (which the caller zeroes or frees). Unknown commands
+ * go to warn (may be NULL). Returns 0, or -1 with "path:line: message". */
+int rt_scene_load(const char *path, RtScene *scene, RtWarnFn warn, void *warn_ctx, RtError *err);
+/* Parses a scene held in memory; name is used in messages. */
+int rt_scene_parse_buffer(const char *name, const char *buf, size_t len, RtScene *scene, RtWarnFn warn,
+                          void *warn_ctx, RtError *err);
+void rt_scene_free(RtScene *scene);
+/* Checks the camera and resolution (after CLI overrides) and builds the camera. */
+int rt_scene_camera(const RtScene *scene, RtCamera *cam, RtError *err);
+
+/* ---------------------------------------------------------------- accel */
+
+typedef enum RtAccelKind { RT_ACCEL_NONE = 0, RT_ACCEL_BVH = 1 } RtAccelKind;
+
+typedef struct RtAccel {
+    RtAccelKind kind;
+    RtPrim *prims;       /* nprims records; BVH order for bvh, index order for none */
+    uint32_t nprims;
+    RtBvhNode *nodes;    /* nnodes (0 for none) */
+    uint32_t nnodes;
+    uint32_t depth;      /* deepest leaf */
+    uint32_t leaves;
+} RtAccel;
+
+int rt_accel_build(const RtScene *scene, RtAccelKind kind, RtAccel *accel, RtError *err);
+void rt_accel_free(RtAccel *accel);
+/* Checks the BVH invariants: every primitive referenced exactly once, leaves
+ * of 1..4 primitives, children inside parents, depth-first layout. */
+int rt_bvh_check(const RtAccel *accel, RtError *err);
+const char *rt_accel_name(RtAccelKind kind);
+int rt_accel_parse(const char *s, RtAccelKind *kind);
+
+/* The view the shading code reads; pointers into scene and accel. */
+RtSceneView rt_scene_view(const RtScene *scene, const RtAccel *accel, const RtCamera *cam);
+
+/* ---------------------------------------------------------------- images */
+
+typedef enum RtImageFormat { RT_IMG_UNKNOWN = 0, RT_IMG_PNG, RT_IMG_BMP, RT_IMG_PPM } RtImageFormat;
+
+RtImageFormat rt_image_format_for(const char *path);
+/* Writes 8-bit RGB, row-major from the top; the file appears whole or not at
+ * all (written under a temporary name, then renamed). */
+int rt_image_write(const char *path, const uint8_t *rgb, int width, int height, RtError *err);
+/* Reads PNG (8/16-bit, any colour type), BMP (24-bit) or PPM (P6) into 8-bit RGB (malloc'd). */
+int rt_image_read(const char *path, uint8_t **rgb, int *width, int *height, RtError *err);
+void rt_image_quantize(const float *rgbf, uint8_t *rgb, size_t npixels);
+uint64_t rt_fnv1a64(const uint8_t *data, size_t len);
+
+/* ---------------------------------------------------------------- backends */
+
+typedef enum RtSchedule { RT_SCHED_TILES = 0, RT_SCHED_PIXELS = 1 } RtSchedule;
+typedef enum RtMpiSchedule { RT_MPI_DYNAMIC = 0, RT_MPI_ROWS = 1 } RtMpiSchedule;
+
+typedef void (*RtProgressFn)(void *ctx, uint64_t done, uint64_t total);
+
+typedef struct RtRenderJob {
+    const RtScene *scene;
+    const RtAccel *accel;
+    RtSceneView view;
+    int threads;          /* 0: backend default */
+    int tile_w, tile_h;   /* tile size in pixels */
+    RtSchedule schedule;
+    RtMpiSchedule mpi_schedule;
+    int block_x, block_y; /* CUDA block shape; 0: default */
+    int device;           /* CUDA device */
+    RtProgressFn progress; /* may be NULL */
+    void *progress_ctx;
+} RtRenderJob;
+
+typedef struct RtRenderOut {
+    float *rgb;           /* width*height*3 floats, filled by the backend (root rank) */
+    RtCounters counters;  /* summed over all workers */
+    double render_ms;     /* pixel work only (max over ranks for MPI; kernel time for CUDA) */
+    double render_ms_min; /* min over ranks; = render_ms elsewhere */
+    int threads_used;
+    int ranks_used;
+    int is_root;          /* 0 on MPI ranks other than 0: they print and write nothing */
+    char cores[512];      /* CPUs the workers ran on, "0,1" */
+    char extra[512];      /* extra record keys, " key=value ..." */
+} RtRenderOut;
+
+typedef struct RtBackend {
+    const char *name;
+    /* NULL when built in; else the reason it cannot run in this build */
+    const char *unavailable;
+    /* optional: called before the scene is loaded (MPI_Init_thread) */
+    int (*init)(int *argc, char ***argv, RtError *err);
+    int (*render)(const RtRenderJob *job, RtRenderOut *out, RtError *err);
+    /* optional: called before exit, also after errors */
+    void (*finalize)(void);
+} RtBackend;
+
+const RtBackend *rt_backend_find(const char *name);
+/* NULL-terminated list of every backend this program knows. */
+const RtBackend *const *rt_backend_list(void);
+
+/* ---------------------------------------------------------------- helpers */
+
+double rt_now_ms(void);
+/* Tiles of tw x th covering the image, row-major. */
+static inline int rt_tile_count(int w, int h, int tw, int th)
+{
+    return ((w + tw - 1) / tw) * ((h + th - 1) / th);
+}
+static inline void rt_tile_rect(int w, int h, int tw, int th, int index, int *x0, int *y0, int *x1, int *y1)
+{
+    int cols = (w + tw - 1) / tw;
+    *x0 = (index % cols) * tw;
+    *y0 = (index / cols) * th;
+    *x1 = *x0 + tw < w ? *x0 + tw : w;
+    *y1 = *y0 + th < h ? *y0 + th : h;
+}
+/* Appends the CPU the calling thread runs on to a sorted, unique list. */
+void rt_cores_note(char *list, size_t size, int cpu);
+int rt_current_cpu(void);
+
+#endif

@@ -1,0 +1,154 @@
+/* scene.c - camera set-up, the shading view, and small shared helpers. */
+#define _GNU_SOURCE
+#include <math.h>
+#include <sched.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "rt.h"
+
+int rt_fail(RtError *err, const char *fmt, ...)
+{
+    if (err) {
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(err->msg, sizeof err->msg, fmt, ap);
+        va_end(ap);
+    }
+    return -1;
+}
+
+static int cam_err(const RtScene *s, int line, RtError *err, const char *msg)
+{
+    if (line > 0)
+        return rt_fail(err, "%s:%d: %s", s->path, line, msg);
+    return rt_fail(err, "%s: %s (default value)", s->path, msg);
+}
+
+int rt_scene_camera(const RtScene *s, RtCamera *cam, RtError *err)
+{
+    /* Camera vectors in double: they are computed once, and the reference
+     * images were made in double. */
+    double f[3] = {s->camera_fwd.x, s->camera_fwd.y, s->camera_fwd.z};
+    double u[3] = {s->camera_up.x, s->camera_up.y, s->camera_up.z};
+    double fl = sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+    if (!(fl > 0.0))
+        return cam_err(s, s->line_fwd, err, "camera_fwd is the zero vector");
+    for (int i = 0; i < 3; i++)
+        f[i] /= fl;
+    double r[3] = {u[1] * f[2] - u[2] * f[1], u[2] * f[0] - u[0] * f[2], u[0] * f[1] - u[1] * f[0]};
+    double rl = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+    double ul = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    if (!(ul > 0.0) || !(rl > 1e-6 * ul))
+        return cam_err(s, s->line_up ? s->line_up : s->line_fwd, err,
+                       "camera_up is zero or parallel to camera_fwd: no image plane");
+    for (int i = 0; i < 3; i++)
+        r[i] /= rl;
+    double up[3] = {f[1] * r[2] - f[2] * r[1], f[2] * r[0] - f[0] * r[2], f[0] * r[1] - f[1] * r[0]};
+    double upl = sqrt(up[0] * up[0] + up[1] * up[1] + up[2] * up[2]);
+    for (int i = 0; i < 3; i++)
+        up[i] /= upl;
+    if (!(s->fov_ha > 0.0f && s->fov_ha < 90.0f))
+        return cam_err(s, s->line_fov, err, "camera_fov_ha must be strictly between 0 and 90 degrees");
+    if (s->width < 1 || s->height < 1 || s->width > RT_MAX_SIDE || s->height > RT_MAX_SIDE ||
+        (uint64_t)s->width * (uint64_t)s->height > RT_MAX_PIXELS) {
+        char msg[256];
+        snprintf(msg, sizeof msg, "resolution %dx%d is outside 1x1 .. %dx%d (at most %llu pixels)", s->width,
+                 s->height, RT_MAX_SIDE, RT_MAX_SIDE, (unsigned long long)RT_MAX_PIXELS);
+        return cam_err(s, s->line_res, err, msg);
+    }
+    cam->pos = s->camera_pos;
+    cam->fwd = rt_v3((float)f[0], (float)f[1], (float)f[2]);
+    cam->right = rt_v3((float)r[0], (float)r[1], (float)r[2]);
+    cam->up = rt_v3((float)up[0], (float)up[1], (float)up[2]);
+    cam->d = (float)((s->height * 0.5) / tan(s->fov_ha * (M_PI / 180.0)));
+    cam->width = s->width;
+    cam->height = s->height;
+    return 0;
+}
+
+RtSceneView rt_scene_view(const RtScene *s, const RtAccel *a, const RtCamera *cam)
+{
+    RtSceneView v;
+    memset(&v, 0, sizeof v);
+    v.prims = a->prims;
+    v.nprims = a->nprims;
+    v.nodes = a->nnodes ? a->nodes : NULL;
+    v.nnodes = a->nnodes;
+    v.vertices = s->vertices;
+    v.normals = s->normals;
+    v.spheres = s->spheres;
+    v.triangles = s->triangles;
+    v.materials = s->materials;
+    v.lights = s->lights;
+    v.nspheres = s->nspheres;
+    v.ntriangles = s->ntriangles;
+    v.nmaterials = s->nmaterials;
+    v.nlights = s->nlights;
+    v.cam = *cam;
+    v.background = s->background;
+    v.ambient = s->ambient;
+    v.max_depth = s->max_depth;
+    return v;
+}
+
+double rt_now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
+
+int rt_current_cpu(void)
+{
+    return sched_getcpu();
+}
+
+void rt_cores_note(char *list, size_t size, int cpu)
+{
+    if (cpu < 0)
+        return;
+    /* parse, insert sorted unique, re-emit */
+    int cpus[512], n = 0;
+    const char *p = list;
+    while (*p && n < 511) {
+        cpus[n++] = atoi(p);
+        p = strchr(p, ',');
+        if (!p)
+            break;
+        p++;
+    }
+    for (int i = 0; i < n; i++)
+        if (cpus[i] == cpu)
+            return;
+    int k = n;
+    while (k > 0 && cpus[k - 1] > cpu) {
+        cpus[k] = cpus[k - 1];
+        k--;
+    }
+    cpus[k] = cpu;
+    n++;
+    size_t off = 0;
+    list[0] = '\0';
+    for (int i = 0; i < n && off + 12 < size; i++)
+        off += (size_t)snprintf(list + off, size - off, i ? ",%d" : "%d", cpus[i]);
+}
+
+uint64_t rt_fnv1a64(const uint8_t *data, size_t len)
+{
+    uint64_t h = 0xcbf29ce484222325ull;
+    for (size_t i = 0; i < len; i++) {
+        h ^= data[i];
+        h *= 0x100000001b3ull;
+    }
+    return h;
+}
+
+void rt_image_quantize(const float *rgbf, uint8_t *rgb, size_t npixels)
+{
+    for (size_t i = 0; i < 3 * npixels; i++)
+        rgb[i] = rt_quantize(rgbf[i]);
+}

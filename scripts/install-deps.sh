@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Installs what raybench needs from Debian's packages (run as root, or with sudo).
+# Idempotent: packages already present are skipped, so a second run is quick.
+# The CUDA toolkit is not in Debian 12's main archive under the same version on
+# every machine; when nvcc is missing the CUDA backend is simply not built.
+set -euo pipefail
+pkgs=(meson ninja-build gcc pkg-config libpng-dev libhwloc-dev hwloc
+      libopenmpi-dev openmpi-bin gnuplot-nox)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all packages present"
+  exit 0
+fi
+SUDO=""
+[ "$(id -u)" -eq 0 ] || SUDO="sudo"
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "install-deps: done"
