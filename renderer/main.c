@@ -207,6 +207,10 @@ static int check_output(const char *path, RtError *err)
 {
     if (rt_image_format_for(path) == RT_IMG_UNKNOWN)
         return rt_fail(err, "%s: unknown image format (use .png, .bmp or .ppm)", path);
+#if !HAVE_PNG
+    if (rt_image_format_for(path) == RT_IMG_PNG)
+        return rt_fail(err, "%s: this build has no libpng: write .bmp or .ppm", path);
+#endif
     char dir[4096];
     snprintf(dir, sizeof dir, "%s", path);
     char *slash = strrchr(dir, '/');

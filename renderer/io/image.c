@@ -2,7 +2,6 @@
  * Writes go to a temporary file in the same directory, then rename(2), so an
  * image appears whole or not at all. */
 #include <errno.h>
-#include <png.h>
 #include <setjmp.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -10,7 +9,11 @@
 #include <strings.h>
 #include <unistd.h>
 
+#include "config.h"
 #include "rt.h"
+#if HAVE_PNG
+#include <png.h>
+#endif
 
 RtImageFormat rt_image_format_for(const char *path)
 {
@@ -27,6 +30,7 @@ RtImageFormat rt_image_format_for(const char *path)
     return RT_IMG_UNKNOWN;
 }
 
+#if HAVE_PNG
 typedef struct PngErr {
     jmp_buf jb;
     char msg[256];
@@ -71,6 +75,8 @@ static int write_png(FILE *fp, const uint8_t *rgb, int w, int h, char *msg, size
     png_destroy_write_struct(&png, &info);
     return 0;
 }
+
+#endif
 
 static void put_le32(uint8_t *p, uint32_t v)
 {
@@ -139,8 +145,14 @@ int rt_image_write(const char *path, const uint8_t *rgb, int w, int h, RtError *
     }
     char msg[300] = "write error";
     int rc = 0;
-    if (fmt == RT_IMG_PNG)
+    if (fmt == RT_IMG_PNG) {
+#if HAVE_PNG
         rc = write_png(fp, rgb, w, h, msg, sizeof msg);
+#else
+        snprintf(msg, sizeof msg, "this build has no libpng: write .bmp or .ppm");
+        rc = -1;
+#endif
+    }
     else if (fmt == RT_IMG_BMP)
         rc = write_bmp(fp, rgb, w, h);
     else {
@@ -165,6 +177,7 @@ int rt_image_write(const char *path, const uint8_t *rgb, int w, int h, RtError *
     return 0;
 }
 
+#if HAVE_PNG
 static int read_png(FILE *fp, const char *path, uint8_t **out, int *w, int *h, RtError *err)
 {
     PngErr pe;
@@ -219,6 +232,8 @@ static int read_png(FILE *fp, const char *path, uint8_t **out, int *w, int *h, R
     return 0;
 }
 
+#endif
+
 static uint32_t get_le32(const uint8_t *p)
 {
     return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
@@ -233,8 +248,12 @@ int rt_image_read(const char *path, uint8_t **out, int *w, int *h, RtError *err)
     size_t got = fread(sig, 1, 8, fp);
     rewind(fp);
     int rc;
-    if (got == 8 && png_sig_cmp(sig, 0, 8) == 0) {
+    if (got == 8 && memcmp(sig, "\x89PNG\r\n\x1a\n", 8) == 0) {
+#if HAVE_PNG
         rc = read_png(fp, path, out, w, h, err);
+#else
+        rc = rt_fail(err, "%s: this build has no libpng to read PNG", path);
+#endif
     } else if (got >= 2 && sig[0] == 'B' && sig[1] == 'M') {
         uint8_t hdr[54];
         rc = -1;
