@@ -190,7 +190,7 @@ static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, f
     hit->u = hit->v = 0.0f;
     hit->id = 0xffffffffu;
     int found = 0;
-    float u, v, t;
+    float u = 0.0f, v = 0.0f, t;
     if (s->nnodes == 0) {
         /* Brute force: the report's baseline, every ray against every primitive.
          * Records are in index order, so a strict < keeps the lower index on ties. */

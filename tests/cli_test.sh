@@ -1,0 +1,85 @@
+#!/bin/sh
+# cli_test.sh RAYTRACE IMGDIFF SRCDIR - the raytrace command as a user meets it:
+# options, the record line, image formats, and bad input (one line on stderr
+# naming the file and line, exit status 1, no output file).
+set -u
+rt=$1 imgdiff=$2 src=$3
+abspath() { echo "$(cd "$(dirname "$1")" && pwd)/$(basename "$1")"; }
+rt=$(abspath "$rt") imgdiff=$(abspath "$imgdiff")
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fails=0
+fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
+
+# --- a good run: the record line has every documented key, in order
+out=$("$rt" --quiet -o "$tmp/demo.png" "$src/scenes/demo.txt") || fail "demo render failed"
+keys="scene width height backend accel threads ranks parse_ms build_ms render_ms write_ms total_ms rays primary_rays shadow_rays secondary_rays node_visits prim_tests mrays_per_s image_fnv1a"
+pattern="^record:"
+for k in $keys; do pattern="$pattern.* $k="; done
+echo "$out" | grep -q "$pattern" || fail "record line lacks keys or order: $out"
+[ "$(echo "$out" | wc -l)" -eq 1 ] || fail "more than one stdout line"
+[ -s "$tmp/demo.png" ] || fail "no PNG written"
+rays=$(echo "$out" | sed 's/.* rays=\([0-9]*\).*/\1/')
+sum=$(echo "$out" | sed 's/.*primary_rays=\([0-9]*\) shadow_rays=\([0-9]*\) secondary_rays=\([0-9]*\).*/\1 + \2 + \3/')
+[ "$rays" -eq "$(( $sum ))" ] || fail "rays ($rays) != primary + shadow + secondary ($sum)"
+
+# --- every format holds the same pixels; the default name comes from the scene
+"$rt" -q -o "$tmp/demo.bmp" "$src/scenes/demo.txt" >/dev/null || fail "bmp"
+"$rt" -q -o "$tmp/demo.ppm" "$src/scenes/demo.txt" >/dev/null || fail "ppm"
+"$imgdiff" "$tmp/demo.png" "$tmp/demo.bmp" | grep -q "maxdiff=0 " || fail "png and bmp differ"
+"$imgdiff" "$tmp/demo.png" "$tmp/demo.ppm" | grep -q "maxdiff=0 " || fail "png and ppm differ"
+(cd "$tmp" && "$rt" -q "$src/scenes/demo.txt" >/dev/null && [ -s demo.png ]) || fail "default output_image name"
+printf 'sphere: 0 0 -5 1\nfilm_resolution: 16 12\n' > "$tmp/noname.txt"
+(cd "$tmp" && "$rt" -q noname.txt >/dev/null && [ -s raytraced.bmp ]) || fail "format default raytraced.bmp"
+
+# --- overrides
+out=$("$rt" -q -r 40x30 -d 1 -o "$tmp/small.png" "$src/scenes/demo.txt") || fail "overrides"
+echo "$out" | grep -q "width=40 height=30" || fail "--resolution ignored"
+echo "$out" | grep -q "secondary_rays=0 " || fail "--max-depth 1 still traced secondary rays"
+"$rt" --version | grep -q "raybench" || fail "--version"
+"$rt" --help | grep -q -- "--accel" || fail "--help"
+
+# --- bad input: exit 1, exactly one stderr line naming the place, no output
+bad() { # bad NAME EXPECTED_SUBSTRING ARGS...
+    name=$1 want=$2
+    shift 2
+    rm -f "$tmp/out.png"
+    "$rt" -q -o "$tmp/out.png" "$@" > "$tmp/stdout" 2> "$tmp/stderr"
+    rc=$?
+    [ $rc -eq 1 ] || fail "$name: exit status $rc, want 1"
+    [ "$(wc -l < "$tmp/stderr")" -eq 1 ] || fail "$name: stderr is not one line: $(cat "$tmp/stderr")"
+    grep -q -- "$want" "$tmp/stderr" || fail "$name: stderr '$(cat "$tmp/stderr")' lacks '$want'"
+    [ ! -s "$tmp/stdout" ] || fail "$name: printed a record"
+    [ ! -e "$tmp/out.png" ] || fail "$name: wrote an output file"
+    ls "$tmp" | grep -q '\.tmp\.' && fail "$name: left a temporary file"
+}
+printf 'sphere: 0 0 -5 1\n\nsphere: 1 2\n' > "$tmp/count.txt"
+bad "wrong count" "count.txt:3:" "$tmp/count.txt"
+printf 'vertex: 0 0 0\ntriangle: 0 1 2\n' > "$tmp/index.txt"
+bad "index range" "index.txt:2:" "$tmp/index.txt"
+printf 'camera_fwd: 0 0 0\n' > "$tmp/cam.txt"
+bad "zero camera_fwd" "cam.txt:1:" "$tmp/cam.txt"
+printf 'film_resolution: 100000 100000\n' > "$tmp/huge.txt"
+bad "absurd resolution" "huge.txt:1:.*GiB" "$tmp/huge.txt"
+head -c 3000 /dev/urandom > "$tmp/garbage.txt"
+printf '\001\002' >> "$tmp/garbage.txt"
+bad "binary garbage" "garbage.txt:" "$tmp/garbage.txt"
+bad "missing file" "nothere.txt: cannot open" "$tmp/nothere.txt"
+bad "bad accel" "--accel" --accel fast "$src/scenes/demo.txt"
+bad "bad resolution option" "--resolution" --resolution 0x10 "$src/scenes/demo.txt"
+bad "bad depth option" "--max-depth" --max-depth -2 "$src/scenes/demo.txt"
+bad "unknown backend" "unknown backend" --backend vulkan "$src/scenes/demo.txt"
+bad "unknown option" "unknown option" --frobnicate "$src/scenes/demo.txt"
+rm -f "$tmp/out.png"
+"$rt" -q -o "$tmp/out.tga" "$src/scenes/demo.txt" > /dev/null 2> "$tmp/stderr"
+[ $? -eq 1 ] && grep -q "unknown image format" "$tmp/stderr" || fail "unknown extension accepted"
+"$rt" -q -o "$tmp/no/such/dir/out.png" "$src/scenes/demo.txt" > /dev/null 2> "$tmp/stderr"
+[ $? -eq 1 ] && grep -q "cannot write" "$tmp/stderr" || fail "unwritable output accepted"
+
+# --- an existing output survives a failed run untouched
+cp "$tmp/demo.png" "$tmp/keep.png"
+"$rt" -q -o "$tmp/keep.png" "$tmp/count.txt" > /dev/null 2>&1
+cmp -s "$tmp/demo.png" "$tmp/keep.png" || fail "a failed run damaged an existing image"
+
+echo "cli_test: $fails failures"
+[ $fails -eq 0 ]

@@ -1,0 +1,45 @@
+#!/bin/sh
+# header_test.sh CC NVCC HEADER... - every shared RT_HD header compiles ALONE,
+# as strict C11 and through nvcc (pbrt-v4's CPU/GPU rule): no VLAs, compound
+# literals, designated initializers, bare restrict or implicit void* casts,
+# and no missing includes. One extra unit launches a kernel that calls the
+# shading loop, so the device code of every function really gets compiled.
+# NVCC may be "none": then only the C half runs.
+set -u
+cc=$1 nvcc=$2
+shift 2
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fails=0
+for h in "$@"; do
+    dir=$(dirname "$h") base=$(basename "$h")
+    printf '#include "%s"\n#include "%s"\n' "$base" "$base" > "$tmp/t.c"
+    if ! "$cc" -std=c11 -pedantic-errors -Wall -Wextra -Werror -I"$dir" -c "$tmp/t.c" -o "$tmp/t.o"; then
+        echo "FAIL: $base does not compile alone as C11"; fails=$((fails + 1))
+    fi
+    if [ "$nvcc" != none ]; then
+        printf '#include "%s"\n' "$base" > "$tmp/t.cu"
+        if ! "$nvcc" -std=c++17 -arch=sm_90 -Werror all-warnings -I"$dir" -c "$tmp/t.cu" -o "$tmp/t.o"; then
+            echo "FAIL: $base does not compile alone through nvcc"; fails=$((fails + 1))
+        fi
+    fi
+done
+if [ "$nvcc" != none ]; then
+    dir=$(dirname "$1")
+    cat > "$tmp/k.cu" <<'CU'
+#include "rt_shade.h"
+__global__ void k(RtSceneView s, float *rgb, RtCounters *c)
+{
+    RtCounters mine = {0, 0, 0, 0, 0};
+    rt_render_pixel(&s, (int)threadIdx.x, (int)blockIdx.x, rgb, &mine);
+    atomicAdd((unsigned long long *)&c->primary_rays, (unsigned long long)mine.primary_rays);
+}
+CU
+    if ! "$nvcc" -std=c++17 -arch=sm_90 -Werror all-warnings -I"$dir" -c "$tmp/k.cu" -o "$tmp/k.o"; then
+        echo "FAIL: the shading loop does not compile as device code"; fails=$((fails + 1))
+    fi
+else
+    echo "nvcc not found: C11 half only"
+fi
+echo "header_test: $fails failures"
+[ $fails -eq 0 ]

@@ -1,0 +1,41 @@
+/* check.h - a minimal test harness: CHECK counts failures and keeps going, so
+ * one run reports every broken property; main returns non-zero on any. */
+#ifndef RT_CHECK_H
+#define RT_CHECK_H
+
+#include <stdio.h>
+
+static int check_failures = 0;
+static int check_count = 0;
+
+#define CHECK(cond, ...)                                                                                     \
+    do {                                                                                                     \
+        check_count++;                                                                                       \
+        if (!(cond)) {                                                                                       \
+            check_failures++;                                                                                \
+            fprintf(stderr, "%s:%d: CHECK(%s) failed: ", __FILE__, __LINE__, #cond);                         \
+            fprintf(stderr, __VA_ARGS__);                                                                    \
+            fputc('\n', stderr);                                                                             \
+        }                                                                                                    \
+    } while (0)
+
+static inline int check_report(const char *name)
+{
+    printf("%s: %d checks, %d failed\n", name, check_count, check_failures);
+    return check_failures ? 1 : 0;
+}
+
+/* Deterministic xorshift64* for seeded property tests. */
+static inline unsigned long long check_rand(unsigned long long *s)
+{
+    *s ^= *s >> 12;
+    *s ^= *s << 25;
+    *s ^= *s >> 27;
+    return *s * 2685821657736338717ull;
+}
+static inline float check_randf(unsigned long long *s, float lo, float hi)
+{
+    return lo + (hi - lo) * (float)((check_rand(s) >> 40) * (1.0 / 16777216.0));
+}
+
+#endif
