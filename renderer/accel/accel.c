@@ -166,22 +166,25 @@ static uint32_t build(Builder *b, uint32_t begin, uint32_t end, uint32_t depth)
         }
     if (count > 1 && ext > 0.0f && depth < RT_BVH_SAH_DEPTH) {
         float best = RT_INF;
-        int best_axis = -1, best_bin = 0;
+        int best_axis = -1, best_bin = 0, best_nb = RT_BVH_BINS;
+        /* Small nodes get fewer bins: 32 bins for 6 primitives cost more to
+         * sweep than they can gain. */
+        int nb = count < RT_BVH_BINS / 2 ? (int)count * 2 : RT_BVH_BINS;
         for (int a = 0; a < 3; a++) {
             float w = cb.hi[a] - cb.lo[a];
             if (!(w > 0.0f))
                 continue;
-            float scale = RT_BVH_BINS / w;
+            float scale = (float)nb / w;
             Box bins[RT_BVH_BINS];
             uint32_t cnt[RT_BVH_BINS];
-            for (int k = 0; k < RT_BVH_BINS; k++) {
+            for (int k = 0; k < nb; k++) {
                 box_empty(&bins[k]);
                 cnt[k] = 0;
             }
             for (uint32_t i = begin; i < end; i++) {
                 uint32_t p = b->idx[i];
                 int k = (int)((b->cent[3 * p + a] - cb.lo[a]) * scale);
-                k = k < 0 ? 0 : (k >= RT_BVH_BINS ? RT_BVH_BINS - 1 : k);
+                k = k < 0 ? 0 : (k >= nb ? nb - 1 : k);
                 cnt[k]++;
                 box_grow(&bins[k], &b->boxes[p]);
             }
@@ -191,7 +194,7 @@ static uint32_t build(Builder *b, uint32_t begin, uint32_t end, uint32_t depth)
             Box acc;
             box_empty(&acc);
             uint32_t c = 0;
-            for (int k = RT_BVH_BINS - 1; k > 0; k--) {
+            for (int k = nb - 1; k > 0; k--) {
                 box_grow(&acc, &bins[k]);
                 c += cnt[k];
                 rarea[k] = box_area(&acc);
@@ -199,7 +202,7 @@ static uint32_t build(Builder *b, uint32_t begin, uint32_t end, uint32_t depth)
             }
             box_empty(&acc);
             c = 0;
-            for (int k = 0; k < RT_BVH_BINS - 1; k++) {
+            for (int k = 0; k < nb - 1; k++) {
                 box_grow(&acc, &bins[k]);
                 c += cnt[k];
                 if (c == 0 || rcnt[k + 1] == 0)
@@ -209,6 +212,7 @@ static uint32_t build(Builder *b, uint32_t begin, uint32_t end, uint32_t depth)
                     best = cost;
                     best_axis = a;
                     best_bin = k;
+                    best_nb = nb;
                 }
             }
         }
@@ -217,12 +221,12 @@ static uint32_t build(Builder *b, uint32_t begin, uint32_t end, uint32_t depth)
         float split_cost = parea > 0.0f ? 1.0f + best / parea : RT_INF;
         if (best_axis >= 0 && (count > RT_BVH_LEAF_MAX || split_cost < leaf_cost)) {
             float w = cb.hi[best_axis] - cb.lo[best_axis];
-            float scale = RT_BVH_BINS / w;
+            float scale = (float)best_nb / w;
             uint32_t i = begin, j = end;
             while (i < j) {
                 uint32_t p = b->idx[i];
                 int k = (int)((b->cent[3 * p + best_axis] - cb.lo[best_axis]) * scale);
-                k = k < 0 ? 0 : (k >= RT_BVH_BINS ? RT_BVH_BINS - 1 : k);
+                k = k < 0 ? 0 : (k >= best_nb ? best_nb - 1 : k);
                 if (k <= best_bin) {
                     i++;
                 } else {

@@ -214,7 +214,8 @@ static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, f
     int sp = 0;
     uint32_t ni = 0;
     uint64_t visits = 0, tests = 0;
-    if (rt_box_enter(&s->nodes[0], &rb, 0.0f, tmax) == RT_INF) {
+    /* A single-leaf tree has no parent to test the root's box: test it here. */
+    if ((s->nodes[0].meta & 0xffu) && rt_box_enter(&s->nodes[0], &rb, 0.0f, tmax) == RT_INF) {
         cnt->node_visits += 1;
         return 0;
     }
@@ -243,8 +244,10 @@ static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, f
             float ta, tb;
             rt_box_enter2(&s->nodes[a], &s->nodes[b], &rb, hit->t, &ta, &tb);
             if (ta != RT_INF && tb != RT_INF) {
-                /* Near child first; the far one waits with its entry distance. */
-                if (tb < ta) {
+                /* Near child first; the far one waits with its entry distance.
+                 * Shadow rays stop at any hit, so their order only matters
+                 * for speed: they skip the swap. */
+                if (!any && tb < ta) {
                     uint32_t tmpn = a; a = b; b = tmpn;
                     float tmpt = ta; ta = tb; tb = tmpt;
                 }

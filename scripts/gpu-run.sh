@@ -1,0 +1,131 @@
+#!/usr/bin/env bash
+# gpu-run.sh [STEPS] - everything the CUDA backend needs measured, in ONE call
+# on the GPU machine (the device budget is small; a fresh machine is bare):
+#   build    meson setup build-dev -Dharness=false -Dgpu_arch=9.0 + ninja, and
+#            nvcc -Xptxas -v for every kernel instantiation (ptxas.txt)
+#   time     cuda+bvh and cuda+none on every course scene at the default block,
+#            both schedules, every register cap (timings.csv)
+#   blocks   the block-size sweep on the report's scenes (blocks.csv)
+#   big      the dragon at 3840x2160 (in timings.csv)
+#   check    meson test --suite gpu: images and counters against serial on
+#            every course scene, compute-sanitizer (check.csv, test log)
+# STEPS defaults to "build time blocks big check". Results go to $OUT (the
+# device tool's folder; ./gpu-out when unset), at most 8 files:
+#   log.txt setup.txt ptxas.txt timings.csv blocks.csv check.csv testlog.txt
+# GPU_BUILD names the build folder (default build-dev).
+# Scenes: the course scenes, copied beforehand into .devcarry/scenes/course
+# (git-ignored, passed to the device tool with carry: [".devcarry"]).
+set -uo pipefail
+cd "$(dirname "$0")/.."
+OUT=${OUT:-$PWD/gpu-out}
+mkdir -p "$OUT"
+STEPS=${*:-build time blocks big check}
+SC=${GPU_SCENES:-$PWD/.devcarry/scenes/course}
+B=${GPU_BUILD:-build-dev}
+RT=$B/renderer/raytrace
+LOG=$OUT/log.txt
+exec > >(tee -a "$LOG") 2>&1
+has() { case " $STEPS " in *" $1 "*) return 0 ;; esac; return 1; }
+export PATH=/usr/local/cuda/bin:$PATH
+
+echo "== $(date -u +%FT%TZ) gpu-run.sh: $STEPS"
+nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm,clocks.sm,power.limit --format=csv || true
+nvcc --version | tail -2; meson --version; nproc
+
+if has build; then
+    echo "== build"
+    if [ ! -f $B/build.ninja ]; then
+        meson setup $B -Dharness=false -Dgpu_arch=9.0 -Dpng=auto -Dmpi=disabled >$OUT/setup.txt 2>&1 || { tail -40 $OUT/setup.txt; exit 1; }
+    fi
+    ninja -C $B 2>&1 | tail -5 || exit 1
+    # Resource use of every kernel instantiation, from the same flags the build used.
+    cmd=$(ninja -C $B -t commands renderer/raytrace | grep -m1 'cuda\.cu')
+    cmd=$(printf '%s\n' "$cmd" | sed 's| -o [^ ]*| -Xptxas -v -o /tmp/ptxas_probe.o|')
+    (cd $B && eval "$cmd") >$OUT/ptxas.txt 2>&1 || true
+    grep -E "Compiling entry|stack frame|Used" $OUT/ptxas.txt | sed 's/_Z16rt_render_kernelILi\([0-9]*\)ELi\([0-9]\)E.*/<\1,\2>/'
+fi
+[ -x $RT ] || { echo "no $RT"; exit 1; }
+
+# one render -> one CSV row (selected record keys, plus the variable columns)
+KEYS="scene width height accel render_ms kernel_min_ms first_ms rays primary_rays shadow_rays secondary_rays node_visits prim_tests mrays_per_s block sched kernel_runs regs local_bytes bounds blocks_per_sm grid upload_ms download_ms wall_ms init_ms image_fnv1a gpu"
+header() { echo "$KEYS" | tr ' ' ','; }
+row() { # CSV RECORD
+    local csv=$1 rec=$2 line="" k v
+    for k in $KEYS; do
+        v=$(printf '%s\n' "$rec" | tr ' ' '\n' | sed -n "s/^$k=//p" | head -1)
+        line="$line,$v"
+    done
+    echo "${line#,}" >>"$csv"
+}
+scene_path() { ls "$SC"/*/"$1".txt; }
+render() { # CSV SCENE ARGS... (env passes RAYBENCH_CUDA_*)
+    local csv=$1 s=$2; shift 2
+    local rec
+    rec=$("$RT" -q --backend cuda -o /tmp/gpu-run.ppm "$@" "$(scene_path "$s")") || { echo "FAILED: $s $*"; return 1; }
+    row "$csv" "$rec"
+    printf '%-16s %-34s %s\n' "$s" "$*" "$(printf '%s\n' "$rec" | grep -o 'render_ms=[^ ]*\|kernel_min_ms=[^ ]*\|mrays_per_s=[^ ]*\|regs=[^ ]*\|blocks_per_sm=[^ ]*' | tr '\n' ' ')"
+}
+REPORT="dragon arm-reach bottle bottle-nolabel ShadowTest test_reasonable bear"
+
+if has time; then
+    echo "== time: kernel time, median of 21 launches after a warm-up"
+    T=$OUT/timings.csv; header | sed 's/^/variant,/' >$T
+    for s in $REPORT spheres2; do
+        for sched in persistent grid; do
+            for minb in 1 2 3 4; do
+                RAYBENCH_CUDA_RUNS=21 RAYBENCH_CUDA_SCHED=$sched RAYBENCH_CUDA_MINB=$minb \
+                    render /tmp/t.csv $s --accel bvh && sed -i "\$s/^/bvh-$sched-minb$minb,/" /tmp/t.csv
+            done
+        done
+        RAYBENCH_CUDA_RUNS=9 render /tmp/t.csv $s --accel none && sed -i '$s/^/none-default,/' /tmp/t.csv
+        RAYBENCH_CUDA_RUNS=9 RAYBENCH_CUDA_SCHED=grid render /tmp/t.csv $s --accel none && sed -i '$s/^/none-grid,/' /tmp/t.csv
+    done
+    cat /tmp/t.csv >>$T; rm -f /tmp/t.csv
+fi
+
+if has blocks; then
+    echo "== blocks: the sweep (default schedule and register cap)"
+    C=$OUT/blocks.csv; header | sed 's/^/sched,/' >$C
+    for s in dragon arm-reach bottle test_reasonable ShadowTest; do
+        for blk in 8x4 8x8 16x8 16x16 32x4 32x8 32x16 32x32 64x4 64x8 128x1 256x1 512x1 1024x1 4x8 13x7; do
+            for sched in persistent grid; do
+                RAYBENCH_CUDA_RUNS=15 RAYBENCH_CUDA_SCHED=$sched render /tmp/b.csv $s --accel bvh --block $blk \
+                    && sed -i "\$s/^/$sched,/" /tmp/b.csv
+            done
+        done
+    done
+    cat /tmp/b.csv >>$C; rm -f /tmp/b.csv
+fi
+
+if has big; then
+    echo "== big: the dragon at 3840x2160"
+    T=$OUT/timings.csv; [ -s $T ] || header | sed 's/^/variant,/' >$T
+    for minb in 1 2 3 4; do
+        RAYBENCH_CUDA_RUNS=11 RAYBENCH_CUDA_MINB=$minb render /tmp/t.csv dragon --accel bvh -r 3840x2160 \
+            && sed -i "\$s/^/4k-bvh-minb$minb,/" /tmp/t.csv
+    done
+    RAYBENCH_CUDA_RUNS=11 render /tmp/t.csv arm-reach --accel bvh -r 3840x2160 && sed -i '$s/^/4k-bvh,/' /tmp/t.csv
+    RAYBENCH_CUDA_RUNS=1 render /tmp/t.csv dragon --accel none -r 3840x2160 && sed -i '$s/^/4k-none,/' /tmp/t.csv
+    cat /tmp/t.csv >>$T; rm -f /tmp/t.csv
+fi
+
+if has check; then
+    # The same scripts as `meson test --suite gpu` (tests/gpu/meson.build),
+    # called directly so that this works before tests/meson.build has subdir('gpu').
+    echo "== check: every course scene against serial; compute-sanitizer"
+    rm -f $OUT/check.csv
+    fails=0
+    for f in "$SC"/*/*.txt; do
+        g=$(basename "$(dirname "$f")"); n=$(basename "$f" .txt)
+        GPU_CHECK_CSV=$OUT/check.csv tests/gpu/gpu_check.sh $RT $B/renderer/imgdiff "$SC" full "$g/$n" \
+            >>$OUT/testlog.txt 2>&1; rc=$?
+        [ $rc -eq 0 ] || [ $rc -eq 77 ] || { fails=$((fails + 1)); echo "FAIL: $g/$n"; }
+    done
+    echo "scenes failing: $fails"
+    awk -F, 'NR > 1 && $12 != "ok"' $OUT/check.csv
+    awk -F, 'NR > 1 { n++; if ($4 != "inf" && (m == "" || $4 + 0 < m)) m = $4 + 0; if ($5 + 0 > o) o = $5 + 0; d = $9 < 0 ? -$9 : $9; if (d > r) r = d }
+             END { printf "comparisons %d, lowest PSNR %s dB, most pixels over 2/255 %s%%, largest ray-count gap %s%%\n", n, m, o, r }' $OUT/check.csv
+    timeout 400 tests/gpu/gpu_sanitize.sh $RT "$SC" >>$OUT/testlog.txt 2>&1; echo "sanitizer exit $?"
+    grep -E "^(memcheck|racecheck)" $OUT/testlog.txt
+fi
+echo "== done $(date -u +%FT%TZ)"
