@@ -1,0 +1,241 @@
+/* compare.c: `harness compare NEW.csv BASE.csv`: the regression check.
+ *
+ * Two kinds of evidence, kept apart on purpose:
+ *  - work counters and the image hash are deterministic, so any difference
+ *    is a regression (or a renderer change that needs a new baseline);
+ *  - times are noisy, so a configuration regresses only when its median got
+ *    slower by more than --factor (default 1.5) AND the samples differ
+ *    significantly: two-sided Mann-Whitney U p < --alpha (default 0.05) when
+ *    both sides have >= 4 samples (with 3 against 3 the smallest possible p is
+ *    0.1, the test could never fire); in both cases the minimum must also be
+ *    slower by more than the factor (the minimum is the least noisy estimate
+ *    of the undisturbed time: on a busy 2-core machine, medians of a quiet
+ *    and a loaded run of the same code differed by 1.5x with p = 0.095).
+ * A 2x slowdown passes both rules; scheduler noise on a quiet machine (a few
+ * percent, occasionally one slow repeat) passes neither. */
+#include "hx.h"
+
+#include <getopt.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const char *const counters[] = {"width", "height", "rays", "primary_rays",
+                                       "shadow_rays", "secondary_rays", "node_visits",
+                                       "prim_tests", "image_fnv1a", NULL};
+
+static void usage_compare(FILE *f)
+{
+    fputs("usage: harness compare NEW.csv BASE.csv [--factor F] [--alpha A] [--metric COL]\n"
+          "                       [--min-ms MS]\n"
+          "Flags regressions of NEW against BASE per configuration and exits 1 if any:\n"
+          "  - any change of a work counter (rays, node_visits, prim_tests, ...) or of the\n"
+          "    image hash, a configuration missing from NEW, or no ok run in NEW;\n"
+          "  - a time regression: median and minimum ratios NEW/BASE both > F and, with\n"
+          "    >= 4 samples a side, Mann-Whitney U two-sided p < A.\n"
+          "Rows from different machines (fingerprint column) are reported as such.\n"
+          "  --factor F    slowdown factor that counts (default 1.5)\n"
+          "  --alpha A     significance level (default 0.05)\n"
+          "  --metric COL  time column (default render_ms)\n"
+          "  --min-ms MS   base medians below MS are too short to judge (default 0.5)\n"
+          "  -h, --help    this text\n", f);
+}
+
+/* Distinct values of a column over the ok (non-wrong) rows of a group. */
+static void group_values(const HxStudy *s, const HxGroup *g, const char *col, HxStrList *out)
+{
+    for (size_t r = 0; r < s->csv.nrows; r++) {
+        if (s->row_status_wrong[r] || strcmp(hx_csv_get(&s->csv, r, "status"), "ok") != 0)
+            continue;
+        /* row belongs to g when its config id matches: compare swept values */
+        int same = 1;
+        for (int d = 0; d < HX_NDIM && same; d++) {
+            const char *a = hx_csv_get(&s->csv, r, hx_dim_col[d]);
+            const char *b = hx_csv_get(&s->csv, g->first_row, hx_dim_col[d]);
+            same = strcmp(a, b) == 0;
+        }
+        if (!same)
+            continue;
+        const char *v = hx_csv_get(&s->csv, r, col);
+        if (hx_strlist_find(out, v) < 0)
+            hx_strlist_push(out, v);
+    }
+}
+
+static void join(const HxStrList *l, char *buf, size_t n)
+{
+    buf[0] = '\0';
+    for (size_t i = 0; i < l->n; i++) {
+        if (i)
+            strncat(buf, "/", n - strlen(buf) - 1);
+        strncat(buf, l->v[i], n - strlen(buf) - 1);
+    }
+}
+
+/* Fingerprint summary of a study: distinct (fingerprint, cpu, compiler). */
+static void fingerprints(const HxStudy *s, HxStrList *out)
+{
+    for (size_t r = 0; r < s->csv.nrows; r++) {
+        HxBuf b = {0};
+        hx_buf_printf(&b, "%s [%s, %s cores, SMT %s, governor %s, %s, GPU %s]",
+                      hx_csv_get(&s->csv, r, "fingerprint"), hx_csv_get(&s->csv, r, "cpu_model"),
+                      hx_csv_get(&s->csv, r, "phys_cores"), hx_csv_get(&s->csv, r, "smt"),
+                      hx_csv_get(&s->csv, r, "governor"), hx_csv_get(&s->csv, r, "compiler"),
+                      hx_csv_get(&s->csv, r, "gpu_name"));
+        if (hx_strlist_find(out, b.s) < 0)
+            hx_strlist_push(out, b.s);
+        hx_buf_free(&b);
+    }
+}
+
+int hx_cmd_compare(int argc, char **argv)
+{
+    static const struct option lo[] = {
+        {"factor", required_argument, NULL, 'f'}, {"alpha", required_argument, NULL, 'a'},
+        {"metric", required_argument, NULL, 'm'}, {"min-ms", required_argument, NULL, 'n'},
+        {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
+    double factor = 1.5, alpha = 0.05, min_ms = 0.5;
+    const char *metric = "render_ms";
+    int c;
+    while ((c = getopt_long(argc, argv, "h", lo, NULL)) != -1) {
+        switch (c) {
+        case 'f':
+            if (hx_parse_double(optarg, &factor) || factor <= 1.0) {
+                fprintf(stderr, "harness compare: --factor: expected a number > 1, got '%s'\n", optarg);
+                return 1;
+            }
+            break;
+        case 'a':
+            if (hx_parse_double(optarg, &alpha) || alpha <= 0 || alpha >= 1) {
+                fprintf(stderr, "harness compare: --alpha: expected 0 < A < 1, got '%s'\n", optarg);
+                return 1;
+            }
+            break;
+        case 'n':
+            if (hx_parse_double(optarg, &min_ms) || min_ms < 0) {
+                fprintf(stderr, "harness compare: --min-ms: expected a number >= 0, got '%s'\n", optarg);
+                return 1;
+            }
+            break;
+        case 'm': metric = optarg; break;
+        case 'h': usage_compare(stdout); return 0;
+        default: usage_compare(stderr); return 1;
+        }
+    }
+    if (argc - optind != 2) {
+        fprintf(stderr, "harness compare: expected NEW.csv BASE.csv (see --help)\n");
+        return 1;
+    }
+    HxStudy nw, base;
+    char err[512];
+    if (hx_study_load(argv[optind], metric, &nw, err, sizeof err)) {
+        fprintf(stderr, "harness compare: %s\n", err);
+        return 1;
+    }
+    if (hx_study_load(argv[optind + 1], metric, &base, err, sizeof err)) {
+        fprintf(stderr, "harness compare: %s\n", err);
+        hx_study_free(&nw);
+        return 1;
+    }
+    HxStrList fpn = {0}, fpb = {0};
+    fingerprints(&nw, &fpn);
+    fingerprints(&base, &fpb);
+    int fp_differs = fpn.n != fpb.n;
+    for (size_t i = 0; i < fpn.n && !fp_differs; i++)
+        fp_differs = hx_strlist_find(&fpb, fpn.v[i]) < 0;
+    if (fp_differs) {
+        printf("NOTE machine fingerprints differ: times below compare different machines\n");
+        for (size_t i = 0; i < fpb.n; i++)
+            printf("  base: %s\n", fpb.v[i]);
+        for (size_t i = 0; i < fpn.n; i++)
+            printf("  new:  %s\n", fpn.v[i]);
+    }
+    int regressions = 0, compared = 0;
+    for (size_t i = 0; i < base.ng; i++) {
+        const HxGroup *b = &base.g[i];
+        const HxGroup *n = NULL;
+        for (size_t k = 0; k < nw.ng; k++)
+            if (strcmp(nw.g[k].config_id, b->config_id) == 0)
+                n = &nw.g[k];
+        const char *name = b->label;
+        if (!n) {
+            printf("REGRESSION %s %s: missing from NEW\n", b->scene, name);
+            regressions++;
+            continue;
+        }
+        compared++;
+        if (b->nt && !n->nt) {
+            printf("REGRESSION %s %s: no ok run in NEW (timeout %zu, wrong-image %zu, %s %zu)\n",
+                   b->scene, name, n->ntimeout, n->nwrong,
+                   n->first_status ? n->first_status : "other", n->nerror);
+            regressions++;
+            continue;
+        }
+        if (n->nwrong) {
+            printf("REGRESSION %s %s: %zu wrong-image run(s) in NEW\n", b->scene, name, n->nwrong);
+            regressions++;
+        }
+        if (!b->nt)
+            continue;
+        /* exact counters */
+        int counter_bad = 0;
+        for (int ci = 0; counters[ci]; ci++) {
+            HxStrList vb = {0}, vn = {0};
+            group_values(&base, b, counters[ci], &vb);
+            group_values(&nw, n, counters[ci], &vn);
+            int same = vb.n == vn.n;
+            for (size_t k = 0; k < vn.n && same; k++)
+                same = hx_strlist_find(&vb, vn.v[k]) >= 0;
+            if (!same || vn.n > 1) {
+                char sb[256], sn[256];
+                join(&vb, sb, sizeof sb);
+                join(&vn, sn, sizeof sn);
+                printf("REGRESSION %s %s: counter %s changed: base %s, new %s%s\n", b->scene,
+                       name, counters[ci], sb, sn, vn.n > 1 ? " (not deterministic)" : "");
+                counter_bad = 1;
+            }
+            hx_strlist_free(&vb);
+            hx_strlist_free(&vn);
+        }
+        regressions += counter_bad;
+        /* noise-aware time rule */
+        double ratio = n->median / b->median, rmin = n->min / b->min;
+        if (b->median < min_ms) {
+            printf("ok %s %s: times %.3f -> %.3f ms too short to judge (< %.3g ms)\n", b->scene,
+                   name, b->median, n->median, min_ms);
+            continue;
+        }
+        int slow;
+        char how[128];
+        if (b->nt >= 4 && n->nt >= 4) {
+            double p = hx_mann_whitney_p(n->t, n->nt, b->t, b->nt);
+            /* the minimum must move too: noise on a busy machine only ever
+             * adds time, so it inflates medians but rarely the fastest run */
+            slow = ratio > factor && p < alpha && rmin > factor;
+            snprintf(how, sizeof how, "Mann-Whitney p=%.4f, min ratio %.2f, n=%zu/%zu", p, rmin,
+                     n->nt, b->nt);
+        } else {
+            slow = ratio > factor && rmin > factor;
+            snprintf(how, sizeof how, "min ratio %.2f, n=%zu/%zu (too few for a test)", rmin,
+                     n->nt, b->nt);
+        }
+        printf("%s %s %s: median %.3f -> %.3f ms, ratio %.2f (%s)%s\n",
+               slow ? "REGRESSION" : "ok", b->scene, name, b->median, n->median, ratio, how,
+               slow && fp_differs ? " [different machines]" : "");
+        regressions += slow;
+    }
+    for (size_t k = 0; k < nw.ng; k++) {
+        int found = 0;
+        for (size_t i = 0; i < base.ng && !found; i++)
+            found = strcmp(nw.g[k].config_id, base.g[i].config_id) == 0;
+        if (!found)
+            printf("new %s %s: not in the baseline (not compared)\n", nw.g[k].scene, nw.g[k].label);
+    }
+    printf("compare: %d configuration(s) compared, %d regression(s) (factor %.2f, alpha %.3g)\n",
+           compared, regressions, factor, alpha);
+    hx_strlist_free(&fpn);
+    hx_strlist_free(&fpb);
+    hx_study_free(&nw);
+    hx_study_free(&base);
+    return regressions ? 1 : 0;
+}

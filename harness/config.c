@@ -1,0 +1,576 @@
+/* config.c: the study config format and its expansion into runs.
+ *
+ * Format (in the spirit of the scene files): one `key: values` per line,
+ * `#` starts a comment, values are separated by spaces or commas. A list on
+ * a swept key (scenes, backend, accel, threads, ...) sweeps that dimension;
+ * the runs are the cartesian product. Every error names FILE:LINE so a typo
+ * in a 40-line sweep is found at once, before hours of runs start. */
+#include "hx.h"
+
+#include <dirent.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+
+const char *const hx_dim_key[HX_NDIM] = {
+    "scenes", "backend", "accel", "resolution", "max_depth", "tile",
+    "schedule", "threads", "ranks", "mpi_schedule", "block", "pin"};
+const char *const hx_dim_col[HX_NDIM] = {
+    "scene", "backend", "accel", "resolution", "max_depth", "tile",
+    "schedule", "threads", "ranks", "mpi_schedule", "block", "pin"};
+
+static const char *const backends[] = {"serial", "openmp", "mpi", "cuda", NULL};
+static const char *const accels[] = {"none", "bvh", NULL};
+static const char *const schedules[] = {"tiles", "pixels", NULL};
+static const char *const mpi_schedules[] = {"dynamic", "rows", NULL};
+static const char *const pins[] = {"none", "close", "spread", NULL};
+
+/* Which option each backend understands. A dimension that does not apply
+ * collapses to "-" for that backend, so `threads: 1 2` next to a serial
+ * backend does not produce two identical serial runs that would later look
+ * like a (fake) scaling series. */
+int hx_dim_applies(int dim, const char *backend)
+{
+    switch (dim) {
+    case HX_DIM_TILE:
+        return strcmp(backend, "cuda") != 0;
+    case HX_DIM_SCHEDULE:
+        return strcmp(backend, "openmp") == 0;
+    case HX_DIM_THREADS: /* openmp; with mpi: threads per rank (hybrid) */
+        return strcmp(backend, "openmp") == 0 || strcmp(backend, "mpi") == 0;
+    case HX_DIM_RANKS:
+    case HX_DIM_MPI_SCHEDULE:
+        return strcmp(backend, "mpi") == 0;
+    case HX_DIM_BLOCK:
+        return strcmp(backend, "cuda") == 0;
+    default:
+        return 1;
+    }
+}
+
+static int set_err(char *err, size_t errlen, const char *path, int line,
+                   const char *fmt, ...) __attribute__((format(printf, 5, 6)));
+static int set_err(char *err, size_t errlen, const char *path, int line,
+                   const char *fmt, ...)
+{
+    char msg[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    snprintf(err, errlen, "%s:%d: %s", path, line, msg);
+    return -1;
+}
+
+static int in_set(const char *v, const char *const *set)
+{
+    for (; *set; set++)
+        if (strcmp(v, *set) == 0)
+            return 1;
+    return 0;
+}
+
+static void set_join(char *out, size_t n, const char *const *set)
+{
+    out[0] = '\0';
+    for (const char *const *s = set; *s; s++) {
+        if (s != set)
+            strncat(out, "|", n - strlen(out) - 1);
+        strncat(out, *s, n - strlen(out) - 1);
+    }
+}
+
+/* Validates one value of a swept dimension. */
+static int check_dim_value(int dim, const char *v, char *why, size_t n)
+{
+    const char *const *set = NULL;
+    long a, b;
+    switch (dim) {
+    case HX_DIM_BACKEND: set = backends; break;
+    case HX_DIM_ACCEL: set = accels; break;
+    case HX_DIM_SCHEDULE: set = schedules; break;
+    case HX_DIM_MPI_SCHEDULE: set = mpi_schedules; break;
+    case HX_DIM_PIN: set = pins; break;
+    case HX_DIM_THREADS:
+    case HX_DIM_RANKS:
+        if (hx_parse_int(v, 1, 4096, &a)) {
+            snprintf(why, n, "expected an integer 1..4096, got '%s'", v);
+            return -1;
+        }
+        return 0;
+    case HX_DIM_MAX_DEPTH:
+        if (hx_parse_int(v, 0, 1000, &a)) {
+            snprintf(why, n, "expected an integer 0..1000, got '%s'", v);
+            return -1;
+        }
+        return 0;
+    case HX_DIM_TILE:
+    case HX_DIM_BLOCK:
+    case HX_DIM_RESOLUTION:
+        if (hx_parse_wxh(v, &a, &b)) {
+            snprintf(why, n, "expected WxH (e.g. 16x16), got '%s'", v);
+            return -1;
+        }
+        return 0;
+    default:
+        return 0;
+    }
+    if (!in_set(v, set)) {
+        char opts[128];
+        set_join(opts, sizeof opts, set);
+        snprintf(why, n, "expected one of %s, got '%s'", opts, v);
+        return -1;
+    }
+    return 0;
+}
+
+/* Finds a scene: DIR/NAME, DIR/NAME.txt, or one level down
+ * (DIR/SUB/NAME[.txt]) so that `scenes: dragon` works with the course folder,
+ * which keeps its scenes in sub-folders. Returns a malloc'd path, NULL when
+ * missing; *ambiguous set when more than one sub-folder has it. */
+static char *find_scene(const char *dir, const char *name, int *ambiguous)
+{
+    *ambiguous = 0;
+    char *p = hx_path_join(dir, name);
+    if (hx_file_exists(p))
+        return p;
+    free(p);
+    HxBuf b = {0};
+    hx_buf_printf(&b, "%s.txt", name);
+    p = hx_path_join(dir, b.s);
+    if (hx_file_exists(p)) {
+        hx_buf_free(&b);
+        return p;
+    }
+    free(p);
+    char *found = NULL;
+    DIR *d = opendir(dir);
+    if (d) {
+        struct dirent *e;
+        while ((e = readdir(d)) != NULL) {
+            if (e->d_name[0] == '.')
+                continue;
+            char *sub = hx_path_join(dir, e->d_name);
+            if (hx_is_dir(sub)) {
+                for (int k = 0; k < 2; k++) {
+                    char *c = hx_path_join(sub, k ? b.s : name);
+                    if (hx_file_exists(c)) {
+                        if (found) {
+                            *ambiguous = 1;
+                            free(c);
+                        } else {
+                            found = c;
+                        }
+                        break;
+                    }
+                    free(c);
+                }
+            }
+            free(sub);
+        }
+        closedir(d);
+    }
+    hx_buf_free(&b);
+    if (*ambiguous) {
+        free(found);
+        return NULL;
+    }
+    return found;
+}
+
+/* Relative paths in a config are tried against the current directory first
+ * (users run `harness run configs/x.conf` from the repository root) and then
+ * against the config file's own folder. */
+static char *resolve_dir(const char *cfg_path, const char *dir)
+{
+    if (dir[0] == '/' || hx_is_dir(dir))
+        return hx_strdup(dir);
+    char *cd = hx_dirname(cfg_path);
+    char *p = hx_path_join(cd, dir);
+    free(cd);
+    if (hx_is_dir(p))
+        return p;
+    free(p);
+    return NULL;
+}
+
+static void config_defaults(HxConfig *cfg, const char *path)
+{
+    memset(cfg, 0, sizeof *cfg);
+    cfg->path = hx_strdup(path);
+    for (int i = 0; i < HX_NDIM; i++)
+        cfg->dim_line[i] = 0;
+    cfg->repeats = 3;
+    cfg->warmup = 0;
+    cfg->timeout_s = 600;
+    cfg->oversubscribe_allow = 0;
+}
+
+static void fill_default_dims(HxConfig *cfg)
+{
+    for (int i = 0; i < HX_NDIM; i++) {
+        if (cfg->dim[i].n)
+            continue;
+        /* Pinning defaults to close: unpinned numbers on a shared machine
+         * are the report's main source of unexplained spread. */
+        if (i == HX_DIM_BACKEND)
+            hx_strlist_push(&cfg->dim[i], "serial");
+        else if (i == HX_DIM_PIN)
+            hx_strlist_push(&cfg->dim[i], "close");
+        else
+            hx_strlist_push(&cfg->dim[i], "-");
+    }
+}
+
+/* Splits a value list on spaces and commas. */
+static void split_values(char *s, HxStrList *out)
+{
+    char *save = NULL;
+    for (char *t = strtok_r(s, " \t,", &save); t; t = strtok_r(NULL, " \t,", &save))
+        hx_strlist_push(out, t);
+}
+
+static int dim_of_key(const char *key)
+{
+    for (int i = 0; i < HX_NDIM; i++)
+        if (strcmp(key, hx_dim_key[i]) == 0)
+            return i;
+    /* The singular is accepted too: `scene: dragon` reads naturally. */
+    if (strcmp(key, "scene") == 0)
+        return HX_DIM_SCENE;
+    return -1;
+}
+
+static const char *const scalar_keys[] = {
+    "study", "scene_dir", "repeats", "warmup", "timeout", "oversubscribe",
+    "baseline", "raytrace", "mpirun", NULL};
+
+/* Timeout: seconds, with an optional s/m/h suffix. */
+static int parse_timeout(const char *v, double *out)
+{
+    char buf[64];
+    size_t n = strlen(v);
+    if (n == 0 || n >= sizeof buf)
+        return -1;
+    memcpy(buf, v, n + 1);
+    double mul = 1;
+    char last = buf[n - 1];
+    if (last == 's' || last == 'm' || last == 'h') {
+        mul = last == 's' ? 1 : last == 'm' ? 60 : 3600;
+        buf[n - 1] = '\0';
+    }
+    double d;
+    if (hx_parse_double(buf, &d) || d <= 0)
+        return -1;
+    *out = d * mul;
+    return 0;
+}
+
+int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
+                           char *err, size_t errlen)
+{
+    config_defaults(cfg, path);
+    int seen_scalar[16] = {0};
+    int lineno = 0, rc = 0;
+    const char *p = text;
+    while (*p && rc == 0) {
+        const char *nl = strchr(p, '\n');
+        size_t n = nl ? (size_t)(nl - p) : strlen(p);
+        char *line = hx_strndup(p, n);
+        p += n + (nl ? 1 : 0);
+        lineno++;
+        char *hash = strchr(line, '#');
+        if (hash)
+            *hash = '\0';
+        char *s = hx_trim(line);
+        if (*s == '\0') {
+            free(line);
+            continue;
+        }
+        char *colon = strchr(s, ':');
+        if (!colon) {
+            rc = set_err(err, errlen, path, lineno, "expected 'key: values', got '%s'", s);
+            free(line);
+            break;
+        }
+        *colon = '\0';
+        char *key = hx_trim(s);
+        char *val = hx_trim(colon + 1);
+        HxStrList vals = {0};
+        split_values(val, &vals);
+        if (vals.n == 0) {
+            rc = set_err(err, errlen, path, lineno, "key '%s' has no value", key);
+            goto next;
+        }
+        int dim = dim_of_key(key);
+        if (dim >= 0) {
+            if (cfg->dim_line[dim]) {
+                rc = set_err(err, errlen, path, lineno, "key '%s' already set on line %d",
+                             key, cfg->dim_line[dim]);
+                goto next;
+            }
+            cfg->dim_line[dim] = lineno;
+            for (size_t i = 0; i < vals.n; i++) {
+                char why[256];
+                if (check_dim_value(dim, vals.v[i], why, sizeof why)) {
+                    rc = set_err(err, errlen, path, lineno, "%s: %s", key, why);
+                    goto next;
+                }
+                if (hx_strlist_find(&cfg->dim[dim], vals.v[i]) >= 0) {
+                    rc = set_err(err, errlen, path, lineno, "%s: value '%s' listed twice",
+                                 key, vals.v[i]);
+                    goto next;
+                }
+                hx_strlist_push(&cfg->dim[dim], vals.v[i]);
+            }
+            goto next;
+        }
+        if (strcmp(key, "extra_args") == 0) {
+            for (size_t i = 0; i < vals.n; i++)
+                hx_strlist_push(&cfg->extra_args, vals.v[i]);
+            goto next;
+        }
+        int sk = -1;
+        for (int i = 0; scalar_keys[i]; i++)
+            if (strcmp(key, scalar_keys[i]) == 0)
+                sk = i;
+        if (sk < 0) {
+            rc = set_err(err, errlen, path, lineno, "unknown key '%s'", key);
+            goto next;
+        }
+        if (seen_scalar[sk]) {
+            rc = set_err(err, errlen, path, lineno, "key '%s' already set on line %d",
+                         key, seen_scalar[sk]);
+            goto next;
+        }
+        seen_scalar[sk] = lineno;
+        if (vals.n != 1) {
+            rc = set_err(err, errlen, path, lineno, "key '%s' takes one value, got %zu",
+                         key, vals.n);
+            goto next;
+        }
+        const char *v = vals.v[0];
+        long iv;
+        if (strcmp(key, "study") == 0) {
+            cfg->study = hx_strdup(v);
+        } else if (strcmp(key, "scene_dir") == 0) {
+            cfg->scene_dir = hx_strdup(v);
+        } else if (strcmp(key, "repeats") == 0) {
+            if (hx_parse_int(v, 1, 100000, &iv))
+                rc = set_err(err, errlen, path, lineno, "repeats: expected an integer >= 1, got '%s'", v);
+            else
+                cfg->repeats = (int)iv;
+        } else if (strcmp(key, "warmup") == 0) {
+            if (hx_parse_int(v, 0, 1000, &iv))
+                rc = set_err(err, errlen, path, lineno, "warmup: expected an integer >= 0, got '%s'", v);
+            else
+                cfg->warmup = (int)iv;
+        } else if (strcmp(key, "timeout") == 0) {
+            if (parse_timeout(v, &cfg->timeout_s))
+                rc = set_err(err, errlen, path, lineno,
+                             "timeout: expected seconds > 0 (e.g. 30, 30s, 5m, 2h), got '%s'", v);
+        } else if (strcmp(key, "oversubscribe") == 0) {
+            if (strcmp(v, "allow") == 0)
+                cfg->oversubscribe_allow = 1;
+            else if (strcmp(v, "refuse") == 0)
+                cfg->oversubscribe_allow = 0;
+            else
+                rc = set_err(err, errlen, path, lineno,
+                             "oversubscribe: expected refuse|allow, got '%s'", v);
+        } else if (strcmp(key, "baseline") == 0) {
+            const char *eq = strchr(v, '=');
+            if (!eq || eq == v || eq[1] == '\0')
+                rc = set_err(err, errlen, path, lineno,
+                             "baseline: expected KEY=VALUE (e.g. backend=serial), got '%s'", v);
+            else
+                cfg->baseline = hx_strdup(v);
+        } else if (strcmp(key, "raytrace") == 0) {
+            cfg->raytrace = hx_strdup(v);
+        } else if (strcmp(key, "mpirun") == 0) {
+            cfg->mpirun = hx_strdup(v);
+        }
+    next:
+        hx_strlist_free(&vals);
+        free(line);
+    }
+    if (rc)
+        return rc;
+    if (!cfg->dim_line[HX_DIM_SCENE])
+        return set_err(err, errlen, path, lineno > 0 ? lineno : 1,
+                       "missing required key 'scenes'");
+    if (!cfg->study) {
+        /* Default study name: the config's file name without .conf. */
+        const char *base = strrchr(path, '/');
+        base = base ? base + 1 : path;
+        size_t n = strlen(base);
+        if (n > 5 && strcmp(base + n - 5, ".conf") == 0)
+            n -= 5;
+        cfg->study = hx_strndup(base, n);
+    }
+    if (!cfg->baseline)
+        cfg->baseline = hx_strdup("backend=serial");
+    if (!cfg->mpirun)
+        cfg->mpirun = hx_strdup("mpirun");
+    fill_default_dims(cfg);
+
+    /* Resolve scenes now, so a missing file fails before any run starts. */
+    int sline = cfg->dim_line[HX_DIM_SCENE];
+    char *dir = resolve_dir(path, cfg->scene_dir ? cfg->scene_dir : ".");
+    if (!dir)
+        return set_err(err, errlen, path, seen_scalar[1] ? seen_scalar[1] : sline,
+                       "scene_dir '%s' is not a directory", cfg->scene_dir);
+    for (size_t i = 0; i < cfg->dim[HX_DIM_SCENE].n; i++) {
+        int amb;
+        char *sp = find_scene(dir, cfg->dim[HX_DIM_SCENE].v[i], &amb);
+        if (!sp) {
+            rc = set_err(err, errlen, path, sline, "scene '%s' %s in '%s'",
+                         cfg->dim[HX_DIM_SCENE].v[i],
+                         amb ? "is ambiguous (several sub-folders have it)" : "not found",
+                         dir);
+            break;
+        }
+        hx_strlist_push(&cfg->scene_path, sp);
+        free(sp);
+    }
+    free(dir);
+    return rc;
+}
+
+int hx_config_load(const char *path, HxConfig *cfg, char *err, size_t errlen)
+{
+    memset(cfg, 0, sizeof *cfg);
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        snprintf(err, errlen, "%s: cannot open config", path);
+        return -1;
+    }
+    HxBuf b = {0};
+    char chunk[4096];
+    size_t n;
+    while ((n = fread(chunk, 1, sizeof chunk, f)) > 0)
+        hx_buf_putn(&b, chunk, n);
+    fclose(f);
+    int rc = hx_config_parse_string(path, b.s ? b.s : "", cfg, err, errlen);
+    hx_buf_free(&b);
+    return rc;
+}
+
+void hx_config_free(HxConfig *cfg)
+{
+    free(cfg->path);
+    free(cfg->study);
+    for (int i = 0; i < HX_NDIM; i++)
+        hx_strlist_free(&cfg->dim[i]);
+    hx_strlist_free(&cfg->scene_path);
+    hx_strlist_free(&cfg->extra_args);
+    free(cfg->scene_dir);
+    free(cfg->baseline);
+    free(cfg->raytrace);
+    free(cfg->mpirun);
+    memset(cfg, 0, sizeof *cfg);
+}
+
+char *hx_make_config_id(const char *const v[HX_NDIM])
+{
+    /* A readable, stable key: the same run gets the same id in every study,
+     * which is what --resume and `compare` match on. */
+    HxBuf b = {0};
+    for (int d = 0; d < HX_NDIM; d++) {
+        if (d)
+            hx_buf_put(&b, " ");
+        hx_buf_printf(&b, "%s=%s", hx_dim_col[d], v[d]);
+    }
+    return b.s;
+}
+
+static void push_run(HxPlan *plan, size_t *cap, const HxConfig *cfg,
+                     const char *const v[HX_NDIM], size_t scene_idx, int repeat,
+                     int warmup)
+{
+    if (plan->n == *cap) {
+        *cap = *cap ? 2 * *cap : 64;
+        plan->runs = hx_xrealloc(plan->runs, *cap * sizeof *plan->runs);
+    }
+    HxRun *r = &plan->runs[plan->n++];
+    memset(r, 0, sizeof *r);
+    for (int d = 0; d < HX_NDIM; d++)
+        r->v[d] = v[d];
+    r->scene_path = cfg->scene_path.v[scene_idx];
+    r->scene_name = v[HX_DIM_SCENE];
+    r->repeat = repeat;
+    r->warmup = warmup;
+    long w = 1, t = 1;
+    if (strcmp(v[HX_DIM_THREADS], "-") != 0)
+        hx_parse_int(v[HX_DIM_THREADS], 1, 4096, &w);
+    if (strcmp(v[HX_DIM_BACKEND], "mpi") == 0 && strcmp(v[HX_DIM_RANKS], "-") != 0)
+        hx_parse_int(v[HX_DIM_RANKS], 1, 4096, &t);
+    r->workers = (int)(w * t);
+    r->config_id = hx_make_config_id(v);
+    HxBuf b = {0};
+    hx_buf_printf(&b, "%s #r%d", r->config_id, repeat);
+    r->run_id = b.s;
+}
+
+/* Recursive cartesian product over dimensions d..HX_NDIM-1. */
+static void expand_rec(const HxConfig *cfg, HxPlan *plan, size_t *cap,
+                       const char *v[HX_NDIM], size_t scene_idx, int d)
+{
+    if (d == HX_NDIM) {
+        for (int w = 0; w < cfg->warmup; w++)
+            push_run(plan, cap, cfg, v, scene_idx, w - cfg->warmup, 1);
+        for (int r = 0; r < cfg->repeats; r++)
+            push_run(plan, cap, cfg, v, scene_idx, r, 0);
+        return;
+    }
+    if (d == HX_DIM_SCENE) {
+        for (size_t i = 0; i < cfg->dim[d].n; i++) {
+            v[d] = cfg->dim[d].v[i];
+            expand_rec(cfg, plan, cap, v, i, d + 1);
+        }
+        return;
+    }
+    if (d == HX_DIM_BACKEND) {
+        /* serial first (the image reference), then the config's order */
+        for (int pass = 0; pass < 2; pass++)
+            for (size_t i = 0; i < cfg->dim[d].n; i++) {
+                int is_serial = strcmp(cfg->dim[d].v[i], "serial") == 0;
+                if (is_serial != (pass == 0))
+                    continue;
+                v[d] = cfg->dim[d].v[i];
+                expand_rec(cfg, plan, cap, v, scene_idx, d + 1);
+            }
+        return;
+    }
+    if (!hx_dim_applies(d, v[HX_DIM_BACKEND])) {
+        v[d] = "-";
+        expand_rec(cfg, plan, cap, v, scene_idx, d + 1);
+        return;
+    }
+    for (size_t i = 0; i < cfg->dim[d].n; i++) {
+        v[d] = cfg->dim[d].v[i];
+        expand_rec(cfg, plan, cap, v, scene_idx, d + 1);
+    }
+}
+
+int hx_expand(const HxConfig *cfg, HxPlan *plan)
+{
+    memset(plan, 0, sizeof *plan);
+    size_t cap = 0;
+    const char *v[HX_NDIM];
+    for (int d = 0; d < HX_NDIM; d++)
+        v[d] = "-";
+    expand_rec(cfg, plan, &cap, v, 0, 0);
+    return 0;
+}
+
+void hx_plan_free(HxPlan *plan)
+{
+    for (size_t i = 0; i < plan->n; i++) {
+        free(plan->runs[i].config_id);
+        free(plan->runs[i].run_id);
+        free(plan->runs[i].cores);
+        free(plan->runs[i].cores_planned);
+    }
+    free(plan->runs);
+    memset(plan, 0, sizeof *plan);
+}

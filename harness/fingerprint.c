@@ -1,0 +1,141 @@
+/* fingerprint.c: what machine and code produced a row.
+ * Timings are only comparable on the same machine, so every row carries the
+ * CPU model, core count, SMT, governor, compiler and GPU, plus a short hash of
+ * them that `compare` checks before it trusts a time ratio. */
+#include "hx.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+static void copy_trim(char *dst, size_t n, const char *src)
+{
+    /* bounded copy (memmove: src may be dst); longer values are cut */
+    size_t len = strlen(src);
+    if (len >= n)
+        len = n - 1;
+    memmove(dst, src, len);
+    dst[len] = '\0';
+    char *t = hx_trim(dst);
+    memmove(dst, t, strlen(t) + 1);
+    /* keep CSV cells tidy: no commas or quotes inside fingerprint cells */
+    for (char *p = dst; *p; p++)
+        if (*p == ',' || *p == '"' || *p == '\n')
+            *p = ' ';
+}
+
+/* First line of a command's stdout, or "" (stderr discarded). */
+static void first_line_of(const char *cmd, char *out, size_t n)
+{
+    out[0] = '\0';
+    FILE *p = popen(cmd, "r");
+    if (!p)
+        return;
+    char line[512];
+    if (fgets(line, sizeof line, p))
+        copy_trim(out, n, line);
+    pclose(p);
+}
+
+void hx_utc_now(char *buf, size_t n)
+{
+    time_t now = time(NULL);
+    struct tm tm;
+    gmtime_r(&now, &tm);
+    strftime(buf, n, "%Y-%m-%dT%H:%M:%SZ", &tm);
+}
+
+void hx_fingerprint_hash(HxFingerprint *fp)
+{
+    /* host and git commit are left out: two hosts of one cluster model are
+     * the same machine for timing purposes, and a commit is what we compare */
+    HxBuf b = {0};
+    hx_buf_printf(&b, "%s|%d|%d|%d|%s|%s|%s", fp->cpu_model, fp->phys_cores,
+                  fp->logical_cpus, fp->smt, fp->governor, fp->compiler, fp->gpu_name);
+    uint64_t h = 1469598103934665603ull;
+    for (const char *p = b.s; *p; p++) {
+        h ^= (unsigned char)*p;
+        h *= 1099511628211ull;
+    }
+    snprintf(fp->fingerprint, sizeof fp->fingerprint, "%016llx", (unsigned long long)h);
+    hx_buf_free(&b);
+}
+
+void hx_fingerprint_get(HxFingerprint *fp, const HxTopo *t, int want_gpu,
+                        const char *repo_dir)
+{
+    memset(fp, 0, sizeof *fp);
+    if (gethostname(fp->host, sizeof fp->host - 1) != 0)
+        strcpy(fp->host, "unknown");
+    strcpy(fp->cpu_model, "unknown");
+    FILE *f = fopen("/proc/cpuinfo", "r");
+    if (f) {
+        char line[512];
+        while (fgets(line, sizeof line, f)) {
+            /* x86: "model name"; arm64: no model name, use "CPU part" */
+            if (strncmp(line, "model name", 10) == 0 || strncmp(line, "Processor", 9) == 0) {
+                char *c = strchr(line, ':');
+                if (c) {
+                    copy_trim(fp->cpu_model, sizeof fp->cpu_model, c + 1);
+                    break;
+                }
+            }
+        }
+        fclose(f);
+    }
+    fp->phys_cores = t->ncores;
+    fp->logical_cpus = t->npus;
+    fp->smt = t->npus > t->ncores;
+    strcpy(fp->governor, "n/a");
+    f = fopen("/sys/devices/system/cpu/cpu0/cpufreq/scaling_governor", "r");
+    if (f) {
+        char g[64];
+        if (fgets(g, sizeof g, f))
+            copy_trim(fp->governor, sizeof fp->governor, g);
+        fclose(f);
+    }
+    /* The harness is built by the same meson project and compiler as the
+     * renderer, so its own compiler string names the renderer's compiler. */
+#if defined(__clang__)
+    snprintf(fp->compiler, sizeof fp->compiler, "clang %s", __clang_version__);
+#elif defined(__GNUC__)
+    snprintf(fp->compiler, sizeof fp->compiler, "gcc %s", __VERSION__);
+#else
+    strcpy(fp->compiler, "unknown");
+#endif
+    copy_trim(fp->compiler, sizeof fp->compiler, fp->compiler);
+    strcpy(fp->gpu_name, "-");
+    strcpy(fp->gpu_driver, "-");
+    if (want_gpu) {
+        char line[512];
+        first_line_of("nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null",
+                      line, sizeof line);
+        /* copy_trim turned the comma into a space; split on the last space */
+        char *sp = strrchr(line, ' ');
+        if (sp) {
+            *sp = '\0';
+            copy_trim(fp->gpu_name, sizeof fp->gpu_name, line);
+            copy_trim(fp->gpu_driver, sizeof fp->gpu_driver, sp + 1);
+        }
+    }
+    HxBuf cmd = {0};
+    hx_buf_printf(&cmd, "git -C '%s' rev-parse --short HEAD 2>/dev/null", repo_dir ? repo_dir : ".");
+    first_line_of(cmd.s, fp->git_commit, sizeof fp->git_commit - 8);
+    hx_buf_free(&cmd);
+    if (fp->git_commit[0] == '\0') {
+        strcpy(fp->git_commit, "unknown");
+    } else {
+        /* mark uncommitted changes to tracked files: the number belongs to
+         * code that no commit holds */
+        char dirty[256];
+        hx_buf_printf(&cmd, "git -C '%s' status --porcelain --untracked-files=no 2>/dev/null",
+                      repo_dir ? repo_dir : ".");
+        first_line_of(cmd.s, dirty, sizeof dirty);
+        hx_buf_free(&cmd);
+        if (dirty[0])
+            strcat(fp->git_commit, "-dirty");
+    }
+    hx_fingerprint_hash(fp);
+}

@@ -1,0 +1,250 @@
+/* hx.h: shared types and entry points of the raybench harness.
+ *
+ * Data flows one way: config file -> run matrix (config.c) -> pinned child
+ * runs (runner.c, topo.c) -> CSV rows (csv.c) -> statistics (stats.c) ->
+ * tables (table.c), plots (plot.c) and the regression check (compare.c).
+ * The harness never links the renderer: it runs `raytrace` as a child and
+ * parses its `record:` line, so it keeps working across renderer changes. */
+#ifndef HX_H
+#define HX_H
+
+#include <stddef.h>
+#include <stdio.h>
+
+/* ---- small containers (util.c) ---- */
+typedef struct {
+    char **v;      /* owned strings */
+    size_t n, cap;
+} HxStrList;
+
+typedef struct {
+    char *s;       /* always NUL-terminated once anything was appended */
+    size_t len, cap;
+} HxBuf;
+
+void hx_strlist_push(HxStrList *l, const char *s);
+void hx_strlist_free(HxStrList *l);
+int hx_strlist_find(const HxStrList *l, const char *s); /* index or -1 */
+void hx_buf_put(HxBuf *b, const char *s);
+void hx_buf_putn(HxBuf *b, const char *s, size_t n);
+void hx_buf_printf(HxBuf *b, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+void hx_buf_free(HxBuf *b);
+char *hx_strdup(const char *s);
+char *hx_strndup(const char *s, size_t n);
+void *hx_xmalloc(size_t n);
+void *hx_xrealloc(void *p, size_t n);
+char *hx_trim(char *s);                 /* in place, returns s moved */
+int hx_parse_int(const char *s, long lo, long hi, long *out);
+int hx_parse_double(const char *s, double *out);
+int hx_parse_wxh(const char *s, long *w, long *h);
+double hx_now_ms(void);                 /* CLOCK_MONOTONIC */
+int hx_file_exists(const char *path);
+int hx_is_dir(const char *path);
+char *hx_dirname(const char *path);     /* malloc'd */
+char *hx_path_join(const char *a, const char *b);
+int hx_cmp_double(const void *a, const void *b);
+
+/* ---- config and run matrix (config.c) ---- */
+/* Swept dimensions, in the nesting order of the expansion (outermost first).
+ * Repeats are innermost, so all repeats of one configuration run back to
+ * back; the backend dimension puts `serial` first so that the reference image
+ * of every scene exists before any parallel run is checked against it. */
+enum {
+    HX_DIM_SCENE,
+    HX_DIM_BACKEND,
+    HX_DIM_ACCEL,
+    HX_DIM_RESOLUTION,
+    HX_DIM_MAX_DEPTH,
+    HX_DIM_TILE,
+    HX_DIM_SCHEDULE,
+    HX_DIM_THREADS,
+    HX_DIM_RANKS,
+    HX_DIM_MPI_SCHEDULE,
+    HX_DIM_BLOCK,
+    HX_DIM_PIN,
+    HX_NDIM
+};
+extern const char *const hx_dim_key[HX_NDIM];  /* config key ("scenes", ...) */
+extern const char *const hx_dim_col[HX_NDIM];  /* CSV column ("scene", ...) */
+
+typedef struct {
+    char *path;                 /* config file as given */
+    char *study;
+    HxStrList dim[HX_NDIM];     /* values; an unset dimension holds "-" */
+    int dim_line[HX_NDIM];
+    HxStrList scene_path;       /* resolved path of each dim[HX_DIM_SCENE] */
+    char *scene_dir;
+    int repeats, warmup;
+    double timeout_s;
+    int oversubscribe_allow;
+    char *baseline;             /* KEY=VALUE for `table`'s baseline (b) */
+    char *raytrace;             /* NULL: $RAYTRACE or next to the harness */
+    char *mpirun;
+    HxStrList extra_args;       /* passed verbatim to raytrace */
+} HxConfig;
+
+typedef struct {
+    const char *v[HX_NDIM];     /* "-" where not set or not applicable */
+    const char *scene_path;
+    const char *scene_name;     /* basename without .txt */
+    int repeat;                 /* 0-based; warm-ups count -warmup..-1 */
+    int warmup;
+    int workers;                /* threads (openmp), ranks (mpi), else 1 */
+    char *config_id;            /* every swept value except repeat */
+    char *run_id;               /* config_id + "#r" repeat */
+    /* filled by the planner (topo.c) */
+    int ncores;                 /* entries in cores[] */
+    int *cores;                 /* topology core index per worker */
+    char *cores_planned;        /* OS CPU ids, "-" when not pinned */
+    int oversubscribed, refused;
+} HxRun;
+
+typedef struct {
+    HxRun *runs;
+    size_t n;
+} HxPlan;
+
+/* Returns 0, or -1 with "FILE:LINE: message" in err. */
+int hx_config_load(const char *path, HxConfig *cfg, char *err, size_t errlen);
+int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
+                           char *err, size_t errlen);
+void hx_config_free(HxConfig *cfg);
+int hx_dim_applies(int dim, const char *backend);
+int hx_expand(const HxConfig *cfg, HxPlan *plan);
+void hx_plan_free(HxPlan *plan);
+char *hx_make_config_id(const char *const v[HX_NDIM]);
+
+/* ---- topology and pinning (topo.c) ---- */
+typedef struct {
+    int ncores;         /* physical cores (hwloc), else online CPUs */
+    int npus;
+    int npackages;
+    int numa_nodes;
+    int have_hwloc;
+    int *core_os;       /* OS id of the first PU of each core, close order */
+    char **core_pus;    /* "0" or "0,36": every PU of the core */
+    int *spread_order;  /* core indices round-robin across packages */
+    void *topo;         /* hwloc_topology_t */
+} HxTopo;
+
+int hx_topo_load(HxTopo *t);
+void hx_topo_free(HxTopo *t);
+/* Plans cores for every run; prints a warning per run over the machine. */
+void hx_plan_cores(const HxTopo *t, const HxConfig *cfg, HxPlan *plan);
+/* In the forked child, before exec: bind to the run's cores. */
+int hx_bind_child(const HxTopo *t, const HxRun *r);
+void hx_topo_print(const HxTopo *t, FILE *out);
+/* OMP_PLACES value for the run's cores, malloc'd ("{0},{1}"). */
+char *hx_omp_places(const HxTopo *t, const HxRun *r);
+
+/* ---- machine fingerprint (fingerprint.c) ---- */
+typedef struct {
+    char host[256];
+    char cpu_model[256];
+    int phys_cores, logical_cpus, smt;
+    char governor[64];
+    char compiler[128];
+    char gpu_name[256];
+    char gpu_driver[64];
+    char git_commit[64];
+    char fingerprint[20];   /* FNV-1a of the fields that affect timings */
+} HxFingerprint;
+
+void hx_fingerprint_get(HxFingerprint *fp, const HxTopo *t, int want_gpu,
+                        const char *repo_dir);
+void hx_fingerprint_hash(HxFingerprint *fp);
+void hx_utc_now(char *buf, size_t n);
+
+/* ---- CSV schema, writing and reading (csv.c) ---- */
+extern const char *const hx_columns[];
+extern const int hx_ncolumns;
+int hx_column_index(const char *name);     /* schema index or -1 */
+/* Maps a record key to its fixed column, or NULL (goes to `extra`). */
+const char *hx_record_column(const char *key);
+
+typedef struct {
+    int ncol;
+    char **cols;
+    size_t nrows;
+    char ***rows;    /* rows[i][j], j < ncol */
+} HxCsv;
+
+int hx_csv_read(const char *path, HxCsv *csv, char *err, size_t errlen);
+int hx_csv_parse(const char *text, HxCsv *csv, char *err, size_t errlen);
+void hx_csv_free(HxCsv *csv);
+int hx_csv_col(const HxCsv *csv, const char *name);
+const char *hx_csv_get(const HxCsv *csv, size_t row, const char *name);
+void hx_csv_field(HxBuf *b, const char *s);   /* RFC 4180 quoting */
+/* Formats one row of hx_ncolumns values (NULL -> empty) with a newline. */
+void hx_csv_format_row(HxBuf *b, const char *const *vals);
+/* Opens for appending: creates the header, checks an existing header, cuts a
+ * torn last line. Returns fd or -1 with err. */
+int hx_csv_open_append(const char *path, int truncate, char *err, size_t errlen);
+/* Writes a whole row with one write() and fsync()s it. */
+int hx_csv_append_row(int fd, const char *const *vals);
+/* Parses "record: k=v ..." into the row values (malloc'd strings). */
+int hx_record_to_row(const char *line, char **vals);
+
+/* ---- statistics (stats.c) ---- */
+double hx_median(const double *x, size_t n);
+double hx_quantile_sorted(const double *sorted, size_t n, double q);
+double hx_mad(const double *x, size_t n);
+double hx_min(const double *x, size_t n);
+int hx_outliers(const double *x, size_t n, double k, int *flag);
+double hx_karp_flatt(double speedup, double p);
+typedef struct {
+    int ok;          /* enough points for a, b */
+    int has_se;      /* enough for standard errors */
+    double a, b, se_a, se_b, cov_ab;
+    double serial_fraction, se_serial_fraction;
+} HxAmdahl;
+HxAmdahl hx_amdahl_fit(const double *p, const double *t, size_t n);
+double hx_mann_whitney_p(const double *x, size_t nx, const double *y, size_t ny);
+
+/* ---- commands ---- */
+int hx_cmd_run(int argc, char **argv);
+int hx_cmd_table(int argc, char **argv);
+int hx_cmd_plot(int argc, char **argv);
+int hx_cmd_compare(int argc, char **argv);
+int hx_cmd_topo(int argc, char **argv);
+
+/* ---- shared analysis helpers (table.c) ---- */
+/* One configuration of one scene, with its ok samples. */
+typedef struct {
+    char *scene;
+    char *config_id;     /* unique key: scene + every swept value */
+    char *series_id;     /* config_id without the worker dimension */
+    char *label;         /* short, readable, for tables and plots */
+    char *backend;
+    char *block;
+    int workers;
+    size_t nrows, nok, ntimeout, nwrong, nerror;
+    double *t;           /* ok samples of the metric */
+    size_t nt;
+    double median, min, q1, q3;
+    int noutliers;
+    const char *first_status; /* status of a failed run for the cross table */
+    size_t first_row;
+} HxGroup;
+
+typedef struct {
+    HxCsv csv;
+    HxGroup *g;
+    size_t ng;
+    HxStrList scenes;
+    HxStrList labels;    /* cross-table columns, first-seen order */
+    int *row_status_wrong; /* per row: 1 when the gate marks it wrong */
+    size_t nwrong_rows;
+} HxStudy;
+
+int hx_study_load(const char *path, const char *metric, HxStudy *s,
+                  char *err, size_t errlen);
+void hx_study_free(HxStudy *s);
+/* Speedup baselines of a group: (a) same series at one worker, (b) the
+ * fastest group of the same scene matching KEY=VALUE. NULL if none. */
+const HxGroup *hx_baseline_one_worker(const HxStudy *s, const HxGroup *g);
+const HxGroup *hx_baseline_fastest(const HxStudy *s, const HxGroup *g,
+                                   const char *kv);
+
+#endif

@@ -1,0 +1,829 @@
+/* runner.c: `harness run`: execute the run matrix, one CSV row per run.
+ *
+ * Each run is a child in its own process group (so a timeout can kill
+ * everything it started, mpirun's ranks included), bound to its planned cores
+ * before exec, with stdout/stderr read through pipes and a wall-clock deadline.
+ * A row is formatted whole, written with one write() and fsync()ed before the
+ * next run starts: a study killed half-way leaves only whole rows, and
+ * --resume continues it. */
+#include "hx.h"
+
+#include "config.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <getopt.h>
+#include <poll.h>
+#include <stdarg.h>
+#include <signal.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+typedef struct {
+    int timed_out;
+    int exited;        /* WIFEXITED */
+    int code;          /* exit code or signal number */
+    double wall_ms;
+    HxBuf out, err;
+} ChildResult;
+
+static const char *signal_name(int sig)
+{
+    switch (sig) {
+    case SIGSEGV: return "SIGSEGV";
+    case SIGABRT: return "SIGABRT";
+    case SIGBUS: return "SIGBUS";
+    case SIGFPE: return "SIGFPE";
+    case SIGILL: return "SIGILL";
+    case SIGKILL: return "SIGKILL";
+    case SIGTERM: return "SIGTERM";
+    case SIGINT: return "SIGINT";
+    case SIGPIPE: return "SIGPIPE";
+    case SIGTRAP: return "SIGTRAP";
+    default: return NULL;
+    }
+}
+
+/* Keep the tail of a large stdout: the record line is the last line. */
+static void keep_tail(HxBuf *b)
+{
+    const size_t limit = 4u << 20, keep = 64u << 10;
+    if (b->len > limit) {
+        memmove(b->s, b->s + b->len - keep, keep);
+        b->len = keep;
+        b->s[b->len] = '\0';
+    }
+}
+
+static void kill_group(pid_t pgid, double grace_ms, pid_t child, int *reaped, int *status)
+{
+    kill(-pgid, SIGTERM);
+    double until = hx_now_ms() + grace_ms;
+    while (!*reaped && hx_now_ms() < until) {
+        if (waitpid(child, status, WNOHANG) == child)
+            *reaped = 1;
+        else
+            usleep(10000);
+    }
+    /* SIGKILL the group even if the leader is gone: its children may not be */
+    kill(-pgid, SIGKILL);
+    if (!*reaped && waitpid(child, status, 0) == child)
+        *reaped = 1;
+}
+
+static int run_child(char *const *argv, char *const *env_add, const HxTopo *topo,
+                     const HxRun *run, int bind, double timeout_s, ChildResult *res)
+{
+    memset(res, 0, sizeof *res);
+    int po[2], pe[2];
+    if (pipe(po) || pipe(pe))
+        return -1;
+    double t0 = hx_now_ms();
+    pid_t pid = fork();
+    if (pid < 0)
+        return -1;
+    if (pid == 0) {
+        /* child: own process group, pipes, binding, environment, exec */
+        setpgid(0, 0);
+        int devnull = open("/dev/null", O_RDONLY);
+        if (devnull >= 0)
+            dup2(devnull, 0);
+        dup2(po[1], 1);
+        dup2(pe[1], 2);
+        close(po[0]);
+        close(po[1]);
+        close(pe[0]);
+        close(pe[1]);
+        if (bind && hx_bind_child(topo, run) != 0)
+            fprintf(stderr, "harness: warning: binding to cores %s failed: %s\n",
+                    run->cores_planned, strerror(errno));
+        for (int i = 0; env_add && env_add[i]; i += 2)
+            setenv(env_add[i], env_add[i + 1], 1);
+        execvp(argv[0], argv);
+        fprintf(stderr, "cannot execute %s: %s\n", argv[0], strerror(errno));
+        _exit(127);
+    }
+    setpgid(pid, pid); /* both sides: no race with an early kill */
+    close(po[1]);
+    close(pe[1]);
+    struct pollfd fds[2] = {{po[0], POLLIN, 0}, {pe[0], POLLIN, 0}};
+    int open_fds = 2, reaped = 0, status = 0;
+    double deadline = t0 + timeout_s * 1e3;
+    double reaped_at = 0;
+    char chunk[65536];
+    while (open_fds > 0) {
+        double now = hx_now_ms();
+        if (now >= deadline) {
+            res->timed_out = 1;
+            kill_group(pid, 500, pid, &reaped, &status);
+            break;
+        }
+        if (!reaped && waitpid(pid, &status, WNOHANG) == pid) {
+            reaped = 1;
+            reaped_at = now;
+            res->wall_ms = now - t0;
+        }
+        if (reaped && now - reaped_at > 500) {
+            /* leader gone but something it started still holds the pipes */
+            kill(-pid, SIGKILL);
+            break;
+        }
+        double wait = deadline - now;
+        /* wake up now and then to notice an exited leader (see above) */
+        int ms = wait > 100 ? 100 : (int)wait + 1;
+        int pr = poll(fds, 2, ms);
+        if (pr < 0) {
+            if (errno == EINTR)
+                continue;
+            break;
+        }
+        for (int i = 0; i < 2; i++) {
+            if (fds[i].fd < 0 || !(fds[i].revents & (POLLIN | POLLHUP | POLLERR)))
+                continue;
+            ssize_t n = read(fds[i].fd, chunk, sizeof chunk);
+            if (n > 0) {
+                if (i == 0) {
+                    hx_buf_putn(&res->out, chunk, (size_t)n);
+                    keep_tail(&res->out);
+                } else if (res->err.len < (64u << 10)) {
+                    hx_buf_putn(&res->err, chunk, (size_t)n);
+                }
+            } else if (n == 0 || errno != EINTR) {
+                close(fds[i].fd);
+                fds[i].fd = -1;
+                open_fds--;
+            }
+        }
+    }
+    for (int i = 0; i < 2; i++)
+        if (fds[i].fd >= 0)
+            close(fds[i].fd);
+    if (!reaped && !res->timed_out) {
+        /* pipes closed; the leader should be exiting: wait up to the deadline */
+        while (!reaped) {
+            pid_t w = waitpid(pid, &status, WNOHANG);
+            if (w == pid) {
+                reaped = 1;
+                res->wall_ms = hx_now_ms() - t0;
+                break;
+            }
+            if (hx_now_ms() >= deadline) {
+                res->timed_out = 1;
+                kill_group(pid, 500, pid, &reaped, &status);
+                break;
+            }
+            usleep(200);
+        }
+    }
+    if (res->timed_out)
+        res->wall_ms = hx_now_ms() - t0;
+    if (WIFEXITED(status)) {
+        res->exited = 1;
+        res->code = WEXITSTATUS(status);
+    } else if (WIFSIGNALED(status)) {
+        res->exited = 0;
+        res->code = WTERMSIG(status);
+    }
+    return 0;
+}
+
+/* ---- per-run command line ---- */
+
+typedef struct {
+    HxStrList argv;
+    HxStrList env;   /* name, value pairs */
+    int bind;        /* bind the child with hwloc before exec */
+} Command;
+
+static void build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r,
+                          const char *raytrace, const char *image, Command *c)
+{
+    memset(c, 0, sizeof *c);
+    const char *be = r->v[HX_DIM_BACKEND];
+    int is_mpi = strcmp(be, "mpi") == 0;
+    int pinned = strcmp(r->v[HX_DIM_PIN], "none") != 0;
+    if (is_mpi) {
+        /* mpirun binds its ranks itself; binding mpirun would only shrink
+         * the set it maps into. close = --map-by core, spread = --map-by
+         * socket: the orders topo.c plans with. */
+        hx_strlist_push(&c->argv, cfg->mpirun);
+        if (r->oversubscribed)
+            hx_strlist_push(&c->argv, "--oversubscribe");
+        hx_strlist_push(&c->argv, "--bind-to");
+        hx_strlist_push(&c->argv, !pinned ? "none"
+                                          : r->oversubscribed ? "core:overload-allowed" : "core");
+        if (pinned) {
+            /* hybrid runs: PE=T gives each rank T consecutive cores */
+            HxBuf m = {0};
+            int spread = strcmp(r->v[HX_DIM_PIN], "spread") == 0;
+            if (strcmp(r->v[HX_DIM_THREADS], "-") != 0 && strcmp(r->v[HX_DIM_THREADS], "1") != 0)
+                hx_buf_printf(&m, "%s:PE=%s", spread ? "socket" : "slot", r->v[HX_DIM_THREADS]);
+            else
+                hx_buf_put(&m, spread ? "socket" : "core");
+            hx_strlist_push(&c->argv, "--map-by");
+            hx_strlist_push(&c->argv, m.s);
+            hx_buf_free(&m);
+        }
+        hx_strlist_push(&c->argv, "-np");
+        hx_strlist_push(&c->argv, r->v[HX_DIM_RANKS][0] == '-' ? "1" : r->v[HX_DIM_RANKS]);
+        if (geteuid() == 0) {
+            hx_strlist_push(&c->env, "OMPI_ALLOW_RUN_AS_ROOT");
+            hx_strlist_push(&c->env, "1");
+            hx_strlist_push(&c->env, "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM");
+            hx_strlist_push(&c->env, "1");
+        }
+    } else {
+        c->bind = pinned;
+    }
+    hx_strlist_push(&c->argv, raytrace);
+    hx_strlist_push(&c->argv, "--backend");
+    hx_strlist_push(&c->argv, be);
+    static const struct { int dim; const char *opt; } opts[] = {
+        {HX_DIM_ACCEL, "--accel"}, {HX_DIM_RESOLUTION, "--resolution"},
+        {HX_DIM_MAX_DEPTH, "--max-depth"}, {HX_DIM_TILE, "--tile"},
+        {HX_DIM_SCHEDULE, "--schedule"}, {HX_DIM_THREADS, "--threads"},
+        {HX_DIM_MPI_SCHEDULE, "--mpi-schedule"}, {HX_DIM_BLOCK, "--block"},
+    };
+    for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++) {
+        const char *v = r->v[opts[i].dim];
+        if (strcmp(v, "-") == 0)
+            continue;
+        hx_strlist_push(&c->argv, opts[i].opt);
+        hx_strlist_push(&c->argv, v);
+    }
+    hx_strlist_push(&c->argv, "-o");
+    hx_strlist_push(&c->argv, image);
+    for (size_t i = 0; i < cfg->extra_args.n; i++)
+        hx_strlist_push(&c->argv, cfg->extra_args.v[i]);
+    hx_strlist_push(&c->argv, r->scene_path);
+    if (strcmp(be, "openmp") == 0) {
+        char n[16];
+        snprintf(n, sizeof n, "%d", r->workers);
+        /* OMP_PLACES lists exactly the planned cores inside the bound set */
+        hx_strlist_push(&c->env, "OMP_NUM_THREADS");
+        hx_strlist_push(&c->env, n);
+        if (pinned && r->ncores > 0) {
+            char *places = hx_omp_places(topo, r);
+            hx_strlist_push(&c->env, "OMP_PLACES");
+            hx_strlist_push(&c->env, places);
+            free(places);
+            hx_strlist_push(&c->env, "OMP_PROC_BIND");
+            hx_strlist_push(&c->env, strcmp(r->v[HX_DIM_PIN], "spread") == 0 ? "spread" : "close");
+        }
+    }
+    hx_strlist_push(&c->argv, ""); /* placeholder for the NULL terminator */
+    free(c->argv.v[c->argv.n - 1]);
+    c->argv.v[c->argv.n - 1] = NULL;
+    c->argv.n--;
+    hx_strlist_push(&c->env, "");
+    free(c->env.v[c->env.n - 1]);
+    c->env.v[c->env.n - 1] = NULL;
+    c->env.n--;
+}
+
+static void command_free(Command *c)
+{
+    c->argv.n++; /* include the NULL slot, free() of NULL is fine */
+    c->env.n++;
+    hx_strlist_free(&c->argv);
+    hx_strlist_free(&c->env);
+}
+
+static void print_command(FILE *out, const Command *c)
+{
+    for (size_t i = 0; i + 1 < c->env.n + 1 && c->env.v[i]; i += 2)
+        fprintf(out, "%s=%s ", c->env.v[i], c->env.v[i + 1]);
+    for (size_t i = 0; i < c->argv.n; i++)
+        fprintf(out, "%s%s", i ? " " : "", c->argv.v[i]);
+    fputc('\n', out);
+}
+
+/* ---- pinning check ---- */
+
+static int parse_int_set(const char *s, int *out, int max)
+{
+    int n = 0;
+    const char *p = s;
+    while (*p && n < max) {
+        char *end;
+        long v = strtol(p, &end, 10);
+        if (end == p)
+            return -1;
+        out[n++] = (int)v;
+        p = end;
+        if (*p == ',')
+            p++;
+        else if (*p)
+            return -1;
+    }
+    return n;
+}
+
+static int count_distinct(const int *v, int n)
+{
+    int d = 0;
+    for (int i = 0; i < n; i++) {
+        int seen = 0;
+        for (int k = 0; k < i; k++)
+            seen |= v[k] == v[i];
+        d += !seen;
+    }
+    return d;
+}
+
+/* yes: every reported core is planned and as many distinct cores were used
+ * as planned; partial: planned cores only, but fewer of them (threads shared
+ * a core); no: a thread ran outside the plan. */
+static const char *pin_held(const char *planned, const char *actual)
+{
+    if (!planned || strcmp(planned, "-") == 0)
+        return "n/a";
+    if (!actual || !*actual)
+        return "unknown";
+    int p[4096], a[4096];
+    int np = parse_int_set(planned, p, 4096), na = parse_int_set(actual, a, 4096);
+    if (np <= 0 || na <= 0)
+        return "unknown";
+    for (int i = 0; i < na; i++) {
+        int in = 0;
+        for (int k = 0; k < np; k++)
+            in |= a[i] == p[k];
+        if (!in)
+            return "no";
+    }
+    return count_distinct(a, na) == count_distinct(p, np) ? "yes" : "partial";
+}
+
+/* ---- correctness gate ---- */
+
+typedef struct {
+    char *key;         /* scene_path|resolution|max_depth: what fixes the image */
+    char *hash;
+    char *run_id;
+    int serial;
+} ImageRef;
+
+typedef struct {
+    ImageRef *v;
+    size_t n;
+} RefTable;
+
+static ImageRef *ref_find(RefTable *t, const char *key)
+{
+    for (size_t i = 0; i < t->n; i++)
+        if (strcmp(t->v[i].key, key) == 0)
+            return &t->v[i];
+    return NULL;
+}
+
+/* Applies the gate to an ok row; returns the new status (static string) and
+ * may set *detail. Reference: the first ok serial run of the image, else the
+ * first ok run. CUDA rows are never failed on the hash: the GPU image may
+ * differ by rounding and is checked against a tolerance by the image test. */
+static const char *gate(RefTable *t, const char *key, const char *backend,
+                        const char *hash, const char *run_id, char **detail)
+{
+    if (!hash || !*hash)
+        return "ok";
+    int serial = strcmp(backend, "serial") == 0;
+    int cuda = strcmp(backend, "cuda") == 0;
+    ImageRef *r = ref_find(t, key);
+    if (!r || (!r->serial && serial)) {
+        if (!r && !cuda) {
+            t->v = hx_xrealloc(t->v, (t->n + 1) * sizeof *t->v);
+            r = &t->v[t->n++];
+            r->key = hx_strdup(key);
+        } else if (!r) {
+            return "ok";
+        } else {
+            free(r->hash);
+            free(r->run_id);
+        }
+        r->hash = hx_strdup(hash);
+        r->run_id = hx_strdup(run_id);
+        r->serial = serial;
+        return "ok";
+    }
+    if (strcmp(r->hash, hash) == 0)
+        return "ok";
+    HxBuf b = {0};
+    hx_buf_printf(&b, "%simage_fnv1a %s != reference %s (%s)",
+                  cuda ? "gpu-tolerance: " : "", hash, r->hash, r->run_id);
+    free(*detail);
+    *detail = b.s;
+    return cuda ? "ok" : "wrong-image";
+}
+
+static void ref_free(RefTable *t)
+{
+    for (size_t i = 0; i < t->n; i++) {
+        free(t->v[i].key);
+        free(t->v[i].hash);
+        free(t->v[i].run_id);
+    }
+    free(t->v);
+}
+
+static char *image_key(const char *scene_path, const char *res, const char *depth)
+{
+    HxBuf b = {0};
+    hx_buf_printf(&b, "%s|%s|%s", scene_path, res, depth);
+    return b.s;
+}
+
+/* ---- the command ---- */
+
+static void set(char **vals, const char *col, const char *v)
+{
+    int i = hx_column_index(col);
+    if (i < 0)
+        return;
+    free(vals[i]);
+    vals[i] = hx_strdup(v ? v : "");
+}
+
+static void setf(char **vals, const char *col, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+static void setf(char **vals, const char *col, const char *fmt, ...)
+{
+    char buf[256];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    set(vals, col, buf);
+}
+
+static char *find_raytrace(const HxConfig *cfg, const char *opt)
+{
+    if (opt)
+        return hx_strdup(opt);
+    if (cfg->raytrace)
+        return hx_strdup(cfg->raytrace);
+    const char *env = getenv("RAYTRACE");
+    if (env && *env)
+        return hx_strdup(env);
+    /* default: the build tree layout, build/harness/harness next to
+     * build/renderer/raytrace */
+    char self[4096];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (n > 0) {
+        self[n] = '\0';
+        char *d = hx_dirname(self);
+        char *p = hx_path_join(d, "../renderer/raytrace");
+        free(d);
+        return p;
+    }
+    return hx_strdup("raytrace");
+}
+
+static void usage_run(FILE *f)
+{
+    fputs("usage: harness run CONFIG [-o FILE.csv] [--resume | --overwrite] [--dry-run]\n"
+          "                  [--raytrace PATH] [--quiet]\n"
+          "Expands CONFIG into runs and executes them, appending one CSV row per run.\n"
+          "  -o, --output FILE   CSV to append to (default: results/STUDY.csv if results/\n"
+          "                      exists, else STUDY.csv)\n"
+          "      --resume        skip runs whose run_id is already in FILE\n"
+          "      --overwrite     start FILE afresh (without it, a non-empty FILE is refused)\n"
+          "      --dry-run       list the runs, their command lines and planned cores\n"
+          "      --raytrace PATH renderer binary (else config 'raytrace:', $RAYTRACE,\n"
+          "                      or ../renderer/raytrace next to the harness)\n"
+          "  -q, --quiet         no progress lines\n"
+          "  -h, --help          this text\n", f);
+}
+
+static int csv_has_rows(const char *path)
+{
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return 0;
+    int lines = 0, c;
+    while ((c = fgetc(f)) != EOF && lines < 2)
+        lines += c == '\n';
+    fclose(f);
+    return lines >= 2;
+}
+
+int hx_cmd_run(int argc, char **argv)
+{
+    static const struct option lo[] = {
+        {"output", required_argument, NULL, 'o'}, {"resume", no_argument, NULL, 'r'},
+        {"overwrite", no_argument, NULL, 'w'}, {"dry-run", no_argument, NULL, 'n'},
+        {"raytrace", required_argument, NULL, 't'}, {"quiet", no_argument, NULL, 'q'},
+        {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
+    const char *out_path = NULL, *rt_opt = NULL;
+    int resume = 0, overwrite = 0, dry = 0, quiet = 0, c;
+    while ((c = getopt_long(argc, argv, "o:qh", lo, NULL)) != -1) {
+        switch (c) {
+        case 'o': out_path = optarg; break;
+        case 'r': resume = 1; break;
+        case 'w': overwrite = 1; break;
+        case 'n': dry = 1; break;
+        case 't': rt_opt = optarg; break;
+        case 'q': quiet = 1; break;
+        case 'h': usage_run(stdout); return 0;
+        default: usage_run(stderr); return 1;
+        }
+    }
+    if (optind != argc - 1) {
+        fprintf(stderr, "harness run: expected one CONFIG argument (see --help)\n");
+        return 1;
+    }
+    if (resume && overwrite) {
+        fprintf(stderr, "harness run: --resume and --overwrite exclude each other\n");
+        return 1;
+    }
+    HxConfig cfg;
+    char err[1024];
+    if (hx_config_load(argv[optind], &cfg, err, sizeof err)) {
+        fprintf(stderr, "%s\n", err);
+        hx_config_free(&cfg);
+        return 1;
+    }
+    HxPlan plan;
+    hx_expand(&cfg, &plan);
+    HxTopo topo;
+    hx_topo_load(&topo);
+    hx_plan_cores(&topo, &cfg, &plan);
+    char *raytrace = find_raytrace(&cfg, rt_opt);
+    char *image = NULL;
+    char tmpdir[] = "/tmp/harness-XXXXXX";
+    int rc = 0, fd = -1;
+    size_t nover = 0, nref = 0;
+    for (size_t i = 0; i < plan.n; i++) {
+        nover += plan.runs[i].oversubscribed && !plan.runs[i].warmup;
+        nref += plan.runs[i].refused && !plan.runs[i].warmup;
+    }
+    if (nover)
+        fprintf(stderr, "harness: %zu run(s) need more workers than the %d physical cores: %s\n",
+                nover, topo.ncores, cfg.oversubscribe_allow
+                ? "running them oversubscribed (oversubscribed=1 in the CSV)"
+                : "refused (status refused; set 'oversubscribe: allow' to run them)");
+    if (!topo.have_hwloc)
+        fprintf(stderr, "harness: built without hwloc: runs are not pinned\n");
+
+    if (dry) {
+        printf("study %s: %zu runs (%d warm-up + %d repeats per configuration), %d cores\n",
+               cfg.study, plan.n, cfg.warmup, cfg.repeats, topo.ncores);
+        for (size_t i = 0; i < plan.n; i++) {
+            HxRun *r = &plan.runs[i];
+            Command cmd;
+            build_command(&cfg, &topo, r, raytrace, "IMAGE.png", &cmd);
+            printf("[%zu] %s%s  cores=%s%s%s\n    ", i + 1, r->warmup ? "(warm-up) " : "",
+                   r->run_id, r->cores_planned, r->oversubscribed ? " oversubscribed" : "",
+                   r->refused ? " REFUSED" : "");
+            print_command(stdout, &cmd);
+            command_free(&cmd);
+        }
+        goto done;
+    }
+    if (access(raytrace, X_OK) != 0) {
+        fprintf(stderr, "harness run: raytrace not executable at '%s' (set --raytrace, "
+                        "'raytrace:' in the config or $RAYTRACE)\n", raytrace);
+        rc = 1;
+        goto done;
+    }
+    HxBuf defout = {0};
+    if (!out_path) {
+        hx_buf_printf(&defout, "%s%s.csv", hx_is_dir("results") ? "results/" : "", cfg.study);
+        out_path = defout.s;
+    }
+    if (!resume && !overwrite && csv_has_rows(out_path)) {
+        fprintf(stderr, "harness run: %s already has rows; use --resume to continue it or "
+                        "--overwrite to start again\n", out_path);
+        rc = 1;
+        hx_buf_free(&defout);
+        goto done;
+    }
+    /* What is already there: run ids to skip and image references. */
+    HxStrList done_ids = {0}, timed_out = {0};
+    RefTable refs = {0};
+    if (resume && hx_file_exists(out_path)) {
+        HxCsv old;
+        if (hx_csv_read(out_path, &old, err, sizeof err) == 0) {
+            for (size_t i = 0; i < old.nrows; i++) {
+                hx_strlist_push(&done_ids, hx_csv_get(&old, i, "run_id"));
+                if (strcmp(hx_csv_get(&old, i, "status"), "ok") == 0) {
+                    char *key = image_key(hx_csv_get(&old, i, "scene_path"),
+                                          hx_csv_get(&old, i, "resolution"),
+                                          hx_csv_get(&old, i, "max_depth"));
+                    char *d = NULL;
+                    gate(&refs, key, hx_csv_get(&old, i, "backend"),
+                         hx_csv_get(&old, i, "image_fnv1a"), hx_csv_get(&old, i, "run_id"), &d);
+                    free(d);
+                    free(key);
+                }
+            }
+            hx_csv_free(&old);
+        }
+    }
+    fd = hx_csv_open_append(out_path, overwrite, err, sizeof err);
+    if (fd < 0) {
+        fprintf(stderr, "harness run: %s\n", err);
+        rc = 1;
+        goto done_ids;
+    }
+    if (!mkdtemp(tmpdir)) {
+        fprintf(stderr, "harness run: cannot create a temporary directory: %s\n", strerror(errno));
+        rc = 1;
+        goto done_ids;
+    }
+    image = hx_path_join(tmpdir, "image.png");
+
+    int want_gpu = hx_strlist_find(&cfg.dim[HX_DIM_BACKEND], "cuda") >= 0;
+    char *rtdir = hx_dirname(raytrace);
+    HxFingerprint fp;
+    hx_fingerprint_get(&fp, &topo, want_gpu, rtdir);
+    free(rtdir);
+
+    double study_t0 = hx_now_ms(), child_ms = 0;
+    size_t executed = 0, skipped = 0, nstat[6] = {0};
+    static const char *const stat_names[6] = {"ok", "wrong-image", "timeout", "crash", "error", "refused"};
+    for (size_t i = 0; i < plan.n; i++) {
+        HxRun *r = &plan.runs[i];
+        if (hx_strlist_find(&done_ids, r->run_id) >= 0) {
+            skipped++;
+            continue;
+        }
+        if (r->warmup) {
+            /* a warm-up only helps when a repeat of its configuration runs */
+            int needed = 0;
+            for (size_t k = i + 1; k < plan.n && !needed; k++)
+                needed = !plan.runs[k].warmup &&
+                         strcmp(plan.runs[k].config_id, r->config_id) == 0 &&
+                         hx_strlist_find(&done_ids, plan.runs[k].run_id) < 0;
+            if (!needed || r->refused)
+                continue;
+        }
+        char **vals = calloc((size_t)hx_ncolumns, sizeof *vals);
+        char utc[32];
+        hx_utc_now(utc, sizeof utc);
+        set(vals, "study", cfg.study);
+        set(vals, "run_id", r->run_id);
+        setf(vals, "repeat", "%d", r->repeat);
+        set(vals, "utc", utc);
+        set(vals, "git_commit", fp.git_commit);
+        set(vals, "host", fp.host);
+        set(vals, "cpu_model", fp.cpu_model);
+        setf(vals, "phys_cores", "%d", fp.phys_cores);
+        setf(vals, "logical_cpus", "%d", fp.logical_cpus);
+        set(vals, "smt", fp.smt ? "on" : "off");
+        set(vals, "governor", fp.governor);
+        set(vals, "compiler", fp.compiler);
+        set(vals, "gpu_name", strcmp(r->v[HX_DIM_BACKEND], "cuda") == 0 ? fp.gpu_name : "-");
+        set(vals, "gpu_driver", strcmp(r->v[HX_DIM_BACKEND], "cuda") == 0 ? fp.gpu_driver : "-");
+        set(vals, "fingerprint", fp.fingerprint);
+        for (int d = 0; d < HX_NDIM; d++)
+            set(vals, hx_dim_col[d], r->v[d]);
+        set(vals, "scene_path", r->scene_path);
+        setf(vals, "workers", "%d", r->workers);
+        set(vals, "oversubscribed", r->oversubscribed ? "1" : "0");
+        set(vals, "baseline", cfg.baseline);
+        set(vals, "cores_planned", r->cores_planned);
+        const char *status = "ok";
+        char *detail = NULL;
+        if (!r->warmup && hx_strlist_find(&timed_out, r->config_id) >= 0) {
+            /* a configuration that timed out once will again: record the
+             * TLE for the remaining repeats instead of burning hours */
+            status = "timeout";
+            detail = hx_strdup("not run: an earlier repeat of this configuration timed out");
+        } else if (r->refused) {
+            status = "refused";
+            HxBuf b = {0};
+            hx_buf_printf(&b, "%d workers > %d physical cores (oversubscribe: refuse)",
+                          r->workers, topo.ncores);
+            detail = b.s;
+        } else {
+            Command cmd;
+            build_command(&cfg, &topo, r, raytrace, image, &cmd);
+            ChildResult res;
+            if (run_child(cmd.argv.v, cmd.env.v, &topo, r, cmd.bind, cfg.timeout_s, &res) != 0) {
+                status = "error";
+                detail = hx_strdup("fork/pipe failed");
+            } else {
+                executed++;
+                child_ms += res.wall_ms;
+                setf(vals, "wall_ms", "%.3f", res.wall_ms);
+                if (res.timed_out) {
+                    status = "timeout";
+                    hx_strlist_push(&timed_out, r->config_id);
+                    HxBuf b = {0};
+                    hx_buf_printf(&b, "killed after %g s (process group)", cfg.timeout_s);
+                    detail = b.s;
+                } else if (!res.exited) {
+                    status = "crash";
+                    const char *sn = signal_name(res.code);
+                    HxBuf b = {0};
+                    if (sn)
+                        hx_buf_put(&b, sn);
+                    else
+                        hx_buf_printf(&b, "signal %d", res.code);
+                    detail = b.s;
+                    setf(vals, "exit_code", "%d", 128 + res.code);
+                } else {
+                    setf(vals, "exit_code", "%d", res.code);
+                    /* the record is the last line starting with "record: " */
+                    char *rec = NULL;
+                    if (res.out.s) {
+                        for (char *p = res.out.s; (p = strstr(p, "record: ")) != NULL; p++)
+                            if (p == res.out.s || p[-1] == '\n')
+                                rec = p;
+                    }
+                    if (rec) {
+                        char *nl = strchr(rec, '\n');
+                        if (nl)
+                            *nl = '\0';
+                    }
+                    if (res.code != 0 || !rec) {
+                        status = "error";
+                        const char *e = res.err.s ? res.err.s : "";
+                        while (*e == '\n' || *e == ' ')
+                            e++;
+                        size_t n = strcspn(e, "\n");
+                        HxBuf b = {0};
+                        if (n)
+                            hx_buf_putn(&b, e, n);
+                        else if (res.code != 0)
+                            hx_buf_printf(&b, "exit %d, nothing on stderr", res.code);
+                        else
+                            hx_buf_put(&b, "exit 0 but no record line on stdout");
+                        detail = b.s;
+                    } else {
+                        hx_record_to_row(rec, vals);
+                        char *key = image_key(r->scene_path, r->v[HX_DIM_RESOLUTION],
+                                              r->v[HX_DIM_MAX_DEPTH]);
+                        status = gate(&refs, key, r->v[HX_DIM_BACKEND],
+                                      vals[hx_column_index("image_fnv1a")], r->run_id, &detail);
+                        free(key);
+                    }
+                }
+                hx_buf_free(&res.out);
+                hx_buf_free(&res.err);
+            }
+            command_free(&cmd);
+        }
+        set(vals, "pin_held", pin_held(r->cores_planned, vals[hx_column_index("cores_actual")]));
+        set(vals, "status", status);
+        set(vals, "status_detail", detail ? detail : "");
+        if (!r->warmup) {
+            if (hx_csv_append_row(fd, (const char *const *)vals) != 0) {
+                fprintf(stderr, "harness run: %s: write failed: %s\n", out_path, strerror(errno));
+                rc = 1;
+            }
+            for (int s = 0; s < 6; s++)
+                nstat[s] += strcmp(status, stat_names[s]) == 0;
+        }
+        if (!quiet) {
+            const char *rm = vals[hx_column_index("render_ms")];
+            fprintf(stderr, "[%zu/%zu] %s%s %s %s%s%s%s r%d: %s%s%s%s%s\n", i + 1, plan.n,
+                    r->warmup ? "warm-up " : "", r->scene_name, r->v[HX_DIM_BACKEND],
+                    r->v[HX_DIM_ACCEL],
+                    r->workers > 1 ? " x" : "", r->workers > 1 ? vals[hx_column_index("workers")] : "",
+                    strcmp(r->v[HX_DIM_BLOCK], "-") ? " block" : "", r->repeat, status,
+                    rm && *rm ? " render_ms=" : "", rm ? rm : "",
+                    detail ? ": " : "", detail ? detail : "");
+        }
+        free(detail);
+        for (int k = 0; k < hx_ncolumns; k++)
+            free(vals[k]);
+        free(vals);
+        if (rc)
+            break;
+    }
+    double total = hx_now_ms() - study_t0;
+    fprintf(stderr, "harness: %s: %zu rows (ok %zu, wrong-image %zu, timeout %zu, crash %zu, "
+                    "error %zu, refused %zu), %zu skipped (resume)\n", out_path,
+            nstat[0] + nstat[1] + nstat[2] + nstat[3] + nstat[4] + nstat[5], nstat[0], nstat[1],
+            nstat[2], nstat[3], nstat[4], nstat[5], skipped);
+    if (executed)
+        fprintf(stderr, "harness: %zu child runs, %.1f ms in children, %.1f ms total: "
+                        "harness overhead %.3f ms per run\n",
+                executed, child_ms, total, (total - child_ms) / (double)executed);
+    if (nstat[1])
+        fprintf(stderr, "harness: warning: %zu wrong-image row(s): left out of tables and plots\n",
+                nstat[1]);
+    ref_free(&refs);
+done_ids:
+    hx_strlist_free(&done_ids);
+    hx_strlist_free(&timed_out);
+    hx_buf_free(&defout);
+done:
+    if (fd >= 0)
+        close(fd);
+    if (image) {
+        unlink(image);
+        free(image);
+        rmdir(tmpdir);
+    }
+    free(raytrace);
+    hx_topo_free(&topo);
+    hx_plan_free(&plan);
+    hx_config_free(&cfg);
+    return rc;
+}

@@ -1,0 +1,270 @@
+/* topo.c: machine topology (hwloc) and the placement of each run's workers.
+ *
+ * Policies: `close` fills physical cores in hwloc's logical order; `spread`
+ * takes cores round-robin across packages (the same order as Open MPI's
+ * `--map-by socket`), so two threads on a two-socket machine land on two
+ * sockets; on one package it equals `close`. `none` leaves placement to the
+ * OS. One worker per physical core: SMT siblings share execution units, so
+ * putting two threads on one core would measure the core, not the scaling. */
+#include "hx.h"
+
+#include "config.h"
+
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#if HAVE_HWLOC
+#include <hwloc.h>
+#endif
+
+int hx_topo_load(HxTopo *t)
+{
+    memset(t, 0, sizeof *t);
+#if HAVE_HWLOC
+    hwloc_topology_t topo;
+    if (hwloc_topology_init(&topo) == 0 && hwloc_topology_load(topo) == 0) {
+        t->topo = topo;
+        t->have_hwloc = 1;
+        t->ncores = hwloc_get_nbobjs_by_type(topo, HWLOC_OBJ_CORE);
+        t->npus = hwloc_get_nbobjs_by_type(topo, HWLOC_OBJ_PU);
+        t->npackages = hwloc_get_nbobjs_by_type(topo, HWLOC_OBJ_PACKAGE);
+        t->numa_nodes = hwloc_get_nbobjs_by_type(topo, HWLOC_OBJ_NUMANODE);
+        if (t->ncores <= 0)
+            t->ncores = t->npus; /* some VMs report PUs only */
+        if (t->npackages <= 0)
+            t->npackages = 1;
+        t->core_os = hx_xmalloc((size_t)t->ncores * sizeof(int));
+        t->core_pus = hx_xmalloc((size_t)t->ncores * sizeof(char *));
+        int *pkg = hx_xmalloc((size_t)t->ncores * sizeof(int));
+        hwloc_obj_type_t ct = hwloc_get_nbobjs_by_type(topo, HWLOC_OBJ_CORE) > 0
+                                  ? HWLOC_OBJ_CORE : HWLOC_OBJ_PU;
+        for (int i = 0; i < t->ncores; i++) {
+            hwloc_obj_t c = hwloc_get_obj_by_type(topo, ct, (unsigned)i);
+            HxBuf b = {0};
+            int first = -1;
+            unsigned id;
+            hwloc_bitmap_foreach_begin(id, c->cpuset) {
+                if (first < 0)
+                    first = (int)id;
+                hx_buf_printf(&b, "%s%u", b.len ? "," : "", id);
+            } hwloc_bitmap_foreach_end();
+            t->core_os[i] = first;
+            t->core_pus[i] = b.s ? b.s : hx_strdup("?");
+            hwloc_obj_t p = hwloc_get_ancestor_obj_by_type(topo, HWLOC_OBJ_PACKAGE, c);
+            pkg[i] = p ? (int)p->logical_index : 0;
+        }
+        /* spread order: i-th core of each package in turn */
+        t->spread_order = hx_xmalloc((size_t)t->ncores * sizeof(int));
+        int k = 0;
+        for (int round = 0; k < t->ncores; round++) {
+            for (int p = 0; p < t->npackages; p++) {
+                int seen = 0;
+                for (int i = 0; i < t->ncores; i++) {
+                    if (pkg[i] != p)
+                        continue;
+                    if (seen++ == round) {
+                        t->spread_order[k++] = i;
+                        break;
+                    }
+                }
+            }
+            if (round > t->ncores)
+                break;
+        }
+        free(pkg);
+        return 0;
+    }
+#endif
+    /* Without hwloc: count online CPUs, plan but do not bind. */
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    t->ncores = t->npus = n > 0 ? (int)n : 1;
+    t->npackages = 1;
+    t->core_os = hx_xmalloc((size_t)t->ncores * sizeof(int));
+    t->core_pus = hx_xmalloc((size_t)t->ncores * sizeof(char *));
+    t->spread_order = hx_xmalloc((size_t)t->ncores * sizeof(int));
+    for (int i = 0; i < t->ncores; i++) {
+        char b[16];
+        snprintf(b, sizeof b, "%d", i);
+        t->core_os[i] = i;
+        t->core_pus[i] = hx_strdup(b);
+        t->spread_order[i] = i;
+    }
+    return 0;
+}
+
+void hx_topo_free(HxTopo *t)
+{
+#if HAVE_HWLOC
+    if (t->topo)
+        hwloc_topology_destroy((hwloc_topology_t)t->topo);
+#endif
+    for (int i = 0; i < t->ncores; i++)
+        free(t->core_pus[i]);
+    free(t->core_pus);
+    free(t->core_os);
+    free(t->spread_order);
+    memset(t, 0, sizeof *t);
+}
+
+void hx_plan_cores(const HxTopo *t, const HxConfig *cfg, HxPlan *plan)
+{
+    for (size_t i = 0; i < plan->n; i++) {
+        HxRun *r = &plan->runs[i];
+        free(r->cores);
+        free(r->cores_planned);
+        r->cores = NULL;
+        r->ncores = 0;
+        r->oversubscribed = r->workers > t->ncores;
+        r->refused = r->oversubscribed && !cfg->oversubscribe_allow;
+        if (strcmp(r->v[HX_DIM_PIN], "none") == 0 || r->refused) {
+            r->cores_planned = hx_strdup("-");
+            continue;
+        }
+        int spread = strcmp(r->v[HX_DIM_PIN], "spread") == 0;
+        r->ncores = r->workers;
+        r->cores = hx_xmalloc((size_t)r->workers * sizeof(int));
+        HxBuf b = {0};
+        for (int w = 0; w < r->workers; w++) {
+            /* oversubscribed: wrap around, two workers per core */
+            int k = w % t->ncores;
+            int c = spread ? t->spread_order[k] : k;
+            r->cores[w] = c;
+            hx_buf_printf(&b, "%s%d", w ? "," : "", t->core_os[c]);
+        }
+        r->cores_planned = b.s;
+    }
+}
+
+int hx_bind_child(const HxTopo *t, const HxRun *r)
+{
+#if HAVE_HWLOC
+    if (!t->have_hwloc || r->ncores == 0)
+        return 0;
+    hwloc_topology_t topo = (hwloc_topology_t)t->topo;
+    hwloc_bitmap_t set = hwloc_bitmap_alloc();
+    hwloc_obj_type_t ct = hwloc_get_nbobjs_by_type(topo, HWLOC_OBJ_CORE) > 0
+                              ? HWLOC_OBJ_CORE : HWLOC_OBJ_PU;
+    for (int w = 0; w < r->ncores; w++) {
+        hwloc_obj_t c = hwloc_get_obj_by_type(topo, ct, (unsigned)r->cores[w]);
+        if (c)
+            hwloc_bitmap_or(set, set, c->cpuset);
+    }
+    /* The whole process (and what it execs) is bound; OpenMP then places its
+     * threads on the places we give it inside this set. */
+    int rc = hwloc_set_cpubind(topo, set, HWLOC_CPUBIND_PROCESS);
+    hwloc_bitmap_free(set);
+    return rc;
+#else
+    (void)t;
+    (void)r;
+    return 0;
+#endif
+}
+
+char *hx_omp_places(const HxTopo *t, const HxRun *r)
+{
+    /* One place per planned core listing all its PUs; duplicates (when
+     * oversubscribed) are listed once. */
+    HxBuf b = {0};
+    for (int w = 0; w < r->ncores; w++) {
+        int dup = 0;
+        for (int k = 0; k < w; k++)
+            dup |= r->cores[k] == r->cores[w];
+        if (dup)
+            continue;
+        hx_buf_printf(&b, "%s{%s}", b.len ? "," : "", t->core_pus[r->cores[w]]);
+    }
+    return b.s ? b.s : hx_strdup("cores");
+}
+
+void hx_topo_print(const HxTopo *t, FILE *out)
+{
+    fprintf(out, "topology (%s): %d package(s), %d NUMA node(s), %d physical core(s), %d PU(s), SMT %s\n",
+            t->have_hwloc ? "hwloc" : "no hwloc: sysconf, no pinning",
+            t->npackages, t->numa_nodes, t->ncores, t->npus,
+            t->npus > t->ncores ? "on" : "off");
+#if HAVE_HWLOC
+    if (t->have_hwloc) {
+        hwloc_topology_t topo = (hwloc_topology_t)t->topo;
+        for (int d = 0; d < hwloc_topology_get_depth(topo); d++) {
+            hwloc_obj_t o = hwloc_get_obj_by_depth(topo, (unsigned)d, 0);
+            if (!o)
+                continue;
+            char type[64];
+            hwloc_obj_type_snprintf(type, sizeof type, o, 0);
+            int n = hwloc_get_nbobjs_by_depth(topo, (unsigned)d);
+            if (o->attr && hwloc_obj_type_is_cache(o->type))
+                fprintf(out, "  depth %d: %d x %s (%llu KiB)\n", d, n, type,
+                        (unsigned long long)(o->attr->cache.size / 1024));
+            else
+                fprintf(out, "  depth %d: %d x %s\n", d, n, type);
+        }
+    }
+#endif
+    fprintf(out, "cores (logical index: OS PUs):");
+    for (int i = 0; i < t->ncores; i++)
+        fprintf(out, " %d:{%s}", i, t->core_pus[i]);
+    fprintf(out, "\nspread order:");
+    for (int i = 0; i < t->ncores; i++)
+        fprintf(out, " %d", t->spread_order[i]);
+    fputc('\n', out);
+}
+
+/* ---- `harness topo [CONFIG]` ---- */
+#include <getopt.h>
+
+static void usage_topo(FILE *f)
+{
+    fputs("usage: harness topo [CONFIG]\n"
+          "Prints the hwloc topology summary and, with CONFIG, the cores each planned\n"
+          "run would be bound to (policy close/spread/none, oversubscription).\n"
+          "  -h, --help   this text\n", f);
+}
+
+int hx_cmd_topo(int argc, char **argv)
+{
+    static const struct option lo[] = {{"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
+    int c;
+    while ((c = getopt_long(argc, argv, "h", lo, NULL)) != -1) {
+        if (c == 'h') {
+            usage_topo(stdout);
+            return 0;
+        }
+        usage_topo(stderr);
+        return 1;
+    }
+    if (argc - optind > 1) {
+        fprintf(stderr, "harness topo: at most one CONFIG argument (see --help)\n");
+        return 1;
+    }
+    HxTopo t;
+    hx_topo_load(&t);
+    hx_topo_print(&t, stdout);
+    int rc = 0;
+    if (optind < argc) {
+        HxConfig cfg;
+        char err[1024];
+        if (hx_config_load(argv[optind], &cfg, err, sizeof err)) {
+            fprintf(stderr, "%s\n", err);
+            rc = 1;
+        } else {
+            HxPlan plan;
+            hx_expand(&cfg, &plan);
+            hx_plan_cores(&t, &cfg, &plan);
+            printf("planned cores for %s (%zu runs):\n", cfg.path, plan.n);
+            for (size_t i = 0; i < plan.n; i++) {
+                const HxRun *r = &plan.runs[i];
+                if (r->warmup)
+                    continue;
+                printf("  %-4zu %s  workers=%d cores=%s%s%s\n", i + 1, r->run_id, r->workers,
+                       r->cores_planned, r->oversubscribed ? " oversubscribed" : "",
+                       r->refused ? " REFUSED" : "");
+            }
+            hx_plan_free(&plan);
+        }
+        hx_config_free(&cfg);
+    }
+    hx_topo_free(&t);
+    return rc;
+}

@@ -1,0 +1,213 @@
+/* util.c: string lists, growable buffers and number parsing.
+ * Allocation failure aborts with a message: the harness is a short-lived
+ * command and has nothing sensible to do without memory. */
+#include "hx.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+void *hx_xmalloc(size_t n)
+{
+    void *p = malloc(n ? n : 1);
+    if (!p) {
+        fputs("harness: out of memory\n", stderr);
+        abort();
+    }
+    return p;
+}
+
+void *hx_xrealloc(void *p, size_t n)
+{
+    void *q = realloc(p, n ? n : 1);
+    if (!q) {
+        fputs("harness: out of memory\n", stderr);
+        abort();
+    }
+    return q;
+}
+
+char *hx_strndup(const char *s, size_t n)
+{
+    char *d = hx_xmalloc(n + 1);
+    memcpy(d, s, n);
+    d[n] = '\0';
+    return d;
+}
+
+char *hx_strdup(const char *s)
+{
+    return hx_strndup(s, strlen(s));
+}
+
+void hx_strlist_push(HxStrList *l, const char *s)
+{
+    if (l->n == l->cap) {
+        l->cap = l->cap ? 2 * l->cap : 8;
+        l->v = hx_xrealloc(l->v, l->cap * sizeof *l->v);
+    }
+    l->v[l->n++] = hx_strdup(s);
+}
+
+void hx_strlist_free(HxStrList *l)
+{
+    for (size_t i = 0; i < l->n; i++)
+        free(l->v[i]);
+    free(l->v);
+    l->v = NULL;
+    l->n = l->cap = 0;
+}
+
+int hx_strlist_find(const HxStrList *l, const char *s)
+{
+    for (size_t i = 0; i < l->n; i++)
+        if (strcmp(l->v[i], s) == 0)
+            return (int)i;
+    return -1;
+}
+
+static void buf_reserve(HxBuf *b, size_t extra)
+{
+    if (b->len + extra + 1 > b->cap) {
+        size_t c = b->cap ? b->cap : 256;
+        while (c < b->len + extra + 1)
+            c *= 2;
+        b->s = hx_xrealloc(b->s, c);
+        b->cap = c;
+    }
+}
+
+void hx_buf_putn(HxBuf *b, const char *s, size_t n)
+{
+    buf_reserve(b, n);
+    memcpy(b->s + b->len, s, n);
+    b->len += n;
+    b->s[b->len] = '\0';
+}
+
+void hx_buf_put(HxBuf *b, const char *s)
+{
+    hx_buf_putn(b, s, strlen(s));
+}
+
+void hx_buf_printf(HxBuf *b, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(NULL, 0, fmt, ap);
+    va_end(ap);
+    if (n < 0)
+        return;
+    buf_reserve(b, (size_t)n);
+    va_start(ap, fmt);
+    vsnprintf(b->s + b->len, (size_t)n + 1, fmt, ap);
+    va_end(ap);
+    b->len += (size_t)n;
+}
+
+void hx_buf_free(HxBuf *b)
+{
+    free(b->s);
+    b->s = NULL;
+    b->len = b->cap = 0;
+}
+
+char *hx_trim(char *s)
+{
+    while (isspace((unsigned char)*s))
+        s++;
+    size_t n = strlen(s);
+    while (n > 0 && isspace((unsigned char)s[n - 1]))
+        s[--n] = '\0';
+    return s;
+}
+
+int hx_parse_int(const char *s, long lo, long hi, long *out)
+{
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (errno || end == s || *end != '\0' || v < lo || v > hi)
+        return -1;
+    *out = v;
+    return 0;
+}
+
+int hx_parse_double(const char *s, double *out)
+{
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (errno || end == s || *end != '\0' || !isfinite(v))
+        return -1;
+    *out = v;
+    return 0;
+}
+
+int hx_parse_wxh(const char *s, long *w, long *h)
+{
+    const char *x = strchr(s, 'x');
+    if (!x)
+        return -1;
+    char a[32], b[32];
+    size_t na = (size_t)(x - s), nb = strlen(x + 1);
+    if (na == 0 || nb == 0 || na >= sizeof a || nb >= sizeof b)
+        return -1;
+    memcpy(a, s, na);
+    a[na] = '\0';
+    memcpy(b, x + 1, nb + 1);
+    return (hx_parse_int(a, 1, 1 << 20, w) || hx_parse_int(b, 1, 1 << 20, h)) ? -1 : 0;
+}
+
+double hx_now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
+
+int hx_file_exists(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+int hx_is_dir(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+char *hx_dirname(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    if (!slash)
+        return hx_strdup(".");
+    if (slash == path)
+        return hx_strdup("/");
+    return hx_strndup(path, (size_t)(slash - path));
+}
+
+char *hx_path_join(const char *a, const char *b)
+{
+    if (b[0] == '/' || a[0] == '\0' || strcmp(a, ".") == 0)
+        return hx_strdup(b);
+    HxBuf buf = {0};
+    hx_buf_put(&buf, a);
+    if (a[strlen(a) - 1] != '/')
+        hx_buf_put(&buf, "/");
+    hx_buf_put(&buf, b);
+    return buf.s;
+}
+
+int hx_cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}

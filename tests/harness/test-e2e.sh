@@ -1,0 +1,49 @@
+#!/bin/sh
+# End-to-end: runs configs/quick.conf for real with the built raytrace, then
+# checks the CSV rows, `harness table`, `harness compare` against itself and
+# that gnuplot made non-empty PNG (and SVG) files. Exit 77 (skip) only when
+# gnuplot is missing, after the parts that do not need it have run.
+# usage: test-e2e.sh HARNESS RAYTRACE SOURCE_ROOT
+set -u
+fail() { echo "FAIL: $*"; exit 1; }
+# meson passes build-relative paths; make them absolute before the cd
+abs() { (cd "$(dirname "$1")" && echo "$(pwd)/$(basename "$1")") || fail "no such file $1"; }
+H=$(abs "$1") RT=$(abs "$2") SRC=$3
+cd "$SRC" || fail "no source root $SRC"
+[ -f scenes/demo.txt ] || fail "scenes/demo.txt missing (the project's demo scene)"
+T=$(mktemp -d /tmp/hx-e2e-XXXXXX)
+trap 'rm -rf "$T"' EXIT
+# a build without OpenMP runs the serial part of the study only
+CONF=configs/quick.conf
+if "$RT" -V 2>/dev/null | grep -q 'openmp(not built)'; then
+  sed 's/^backend:.*/backend: serial/' configs/quick.conf > "$T/quick.conf"
+  CONF=$T/quick.conf
+fi
+"$H" run "$CONF" --raytrace "$RT" --dry-run > "$T/dry" || fail "dry-run failed"
+want=$(grep -c '^\[[0-9]*\] scene=' "$T/dry")
+[ "$want" -gt 0 ] || fail "dry-run lists no runs"
+"$H" run "$CONF" --raytrace "$RT" -o "$T/quick.csv" 2> "$T/log" || { cat "$T/log"; fail "run failed"; }
+cat "$T/log"
+rows=$(($(wc -l < "$T/quick.csv") - 1))
+[ "$rows" -eq "$want" ] || fail "CSV has $rows rows, dry-run planned $want"
+head -1 "$T/quick.csv" | grep -q '^study,run_id,repeat,utc,' || fail "CSV header"
+bad=$(grep -c -E ',(error|crash|timeout|wrong-image|refused),' "$T/quick.csv")
+[ "$bad" -eq 0 ] || { grep -E ',(error|crash|timeout|wrong-image|refused),' "$T/quick.csv" | head -3; fail "$bad failed rows"; }
+[ "$(grep -c -E ',ok,,0,' "$T/quick.csv")" -eq "$rows" ] || fail "not every row ok with exit 0"
+grep -q -E ',[0-9a-f]{16},' "$T/quick.csv" || fail "no image hash in the rows"
+grep -q 'harness overhead' "$T/log" || fail "no overhead line"
+"$H" table "$T/quick.csv" > "$T/table.md" || fail "table failed"
+cat "$T/table.md"
+grep -q '### Per configuration' "$T/table.md" || fail "no per-configuration table"
+grep -q '### Scenes x configurations' "$T/table.md" || fail "no cross table"
+grep -q '| demo | serial' "$T/table.md" || fail "no demo rows in the table"
+grep -q ' 3/3 ' "$T/table.md" || fail "expected 3 ok samples per configuration"
+"$H" compare "$T/quick.csv" "$T/quick.csv" > "$T/cmp" || { cat "$T/cmp"; fail "compare with itself failed"; }
+command -v gnuplot > /dev/null || { echo "gnuplot missing: plot check skipped"; exit 77; }
+"$H" plot "$T/quick.csv" -o "$T/quick" || fail "plot failed"
+for k in speedup efficiency scenes; do
+  for ext in png svg gp dat; do
+    [ -s "$T/quick-$k.$ext" ] || fail "quick-$k.$ext missing or empty"
+  done
+done
+echo "e2e test passed"

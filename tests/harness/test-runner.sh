@@ -1,0 +1,64 @@
+#!/bin/sh
+# Runner test with a fake raytrace: statuses (ok, crash with its signal,
+# timeout killing the whole process group, error with the first stderr line,
+# missing record, wrong-image), --resume, --dry-run, table and config errors.
+# usage: test-runner.sh HARNESS FAKE_RAYTRACE
+set -u
+H=$1 FAKE=$2
+T=$(mktemp -d /tmp/hx-runner-XXXXXX)
+trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+for s in ok crash hang fail wrong silent; do echo "# dummy" > "$T/$s.txt"; done
+cat > "$T/study.conf" <<CONF
+study: fake
+scene_dir: $T
+scenes: ok crash hang fail wrong silent
+backend: serial
+accel: bvh none
+repeats: 2
+timeout: 1
+raytrace: $FAKE
+CONF
+start=$(date +%s)
+"$H" run "$T/study.conf" -o "$T/out.csv" 2> "$T/log" || { cat "$T/log"; fail "run exited non-zero"; }
+end=$(date +%s)
+cat "$T/log"
+rows=$(($(wc -l < "$T/out.csv") - 1))
+[ "$rows" -eq 24 ] || fail "expected 24 rows, got $rows"
+n() { grep -c -- "$1" "$T/out.csv"; }
+[ "$(n ',ok,,0,')" -eq 6 ] || fail "ok rows: $(n ',ok,,0,')"
+[ "$(n ',crash,SIGSEGV,')" -eq 4 ] || fail "crash rows"
+[ "$(n ',timeout,killed after 1 s')" -eq 2 ] || fail "timeout rows (killed)"
+[ "$(n ',timeout,not run: an earlier repeat')" -eq 2 ] || fail "timeout rows (skipped)"
+[ "$(n ',error,raytrace: .*:3: bad thing,')" -eq 4 ] || fail "error rows with stderr line"
+[ "$(n ',error,exit 0 but no record line')" -eq 4 ] || fail "no-record rows"
+[ "$(n ',wrong-image,image_fnv1a 00000000000000bb != reference')" -eq 2 ] || fail "wrong-image rows"
+grep -q 'newkey=1' "$T/out.csv" || fail "unknown record key not kept in extra"
+grep -q ',yes,ok,' "$T/out.csv" || fail "pin_held=yes missing (cores_actual vs planned)"
+pgrep -f 'sleep 31' >/dev/null && fail "a grandchild of a timed-out run survived"
+[ $((end - start)) -lt 15 ] || fail "study took $((end - start)) s: timeouts not enforced"
+# resume: nothing left to do; then drop 3 rows and resume runs exactly 3
+"$H" run "$T/study.conf" -o "$T/out.csv" --resume -q 2> "$T/log2" || fail "resume failed"
+grep -q ' 0 rows' "$T/log2" || { cat "$T/log2"; fail "resume re-ran runs"; }
+head -n 22 "$T/out.csv" > "$T/cut.csv" && cp "$T/cut.csv" "$T/out.csv"
+"$H" run "$T/study.conf" -o "$T/out.csv" --resume -q 2> "$T/log3" || fail "resume 2 failed"
+[ $(($(wc -l < "$T/out.csv") - 1)) -eq 24 ] || fail "resume did not complete the study"
+# without --resume an existing CSV is refused
+"$H" run "$T/study.conf" -o "$T/out.csv" -q 2>/dev/null && fail "existing CSV overwritten silently"
+# dry run lists runs with planned cores, runs nothing
+"$H" run "$T/study.conf" --dry-run > "$T/dry" || fail "dry-run failed"
+grep -q 'cores=0' "$T/dry" || fail "dry-run shows no planned cores"
+# table: TLE in the cross table, wrong-image warning
+"$H" table "$T/out.csv" > "$T/table" 2> "$T/tlog" || fail "table failed"
+grep -q 'TLE' "$T/table" || fail "no TLE in the cross table"
+grep -q 'wrong-image' "$T/tlog" || fail "no wrong-image warning"
+"$H" table "$T/out.csv" --format csv | grep -q '^scene,configuration' || fail "table csv"
+# config errors: file:line, exit 1
+printf 'scenes: ok\nthreads: many\n' > "$T/bad.conf"
+out=$("$H" run "$T/bad.conf" 2>&1) && fail "bad config accepted"
+echo "$out" | grep -q "bad.conf:2: threads" || fail "error without file:line: $out"
+"$H" run 2>/dev/null && fail "run without CONFIG accepted"
+"$H" table /nonexistent.csv 2>/dev/null && fail "missing CSV accepted"
+"$H" bogus 2>/dev/null && fail "unknown command accepted"
+for c in run table plot compare topo; do "$H" $c --help > /dev/null || fail "$c --help"; done
+echo "runner test passed"
