@@ -167,9 +167,9 @@ static uint32_t build(Builder *b, uint32_t begin, uint32_t end, uint32_t depth)
     if (count > 1 && ext > 0.0f && depth < RT_BVH_SAH_DEPTH) {
         float best = RT_INF;
         int best_axis = -1, best_bin = 0, best_nb = RT_BVH_BINS;
-        /* Small nodes get fewer bins: 32 bins for 6 primitives cost more to
-         * sweep than they can gain. */
-        int nb = count < RT_BVH_BINS / 2 ? (int)count * 2 : RT_BVH_BINS;
+        /* Small nodes get one bin per primitive (at least 4): sweeping 32
+         * bins for 6 primitives costs more than it can gain. */
+        int nb = count < RT_BVH_BINS ? (count < 4 ? 4 : (int)count) : RT_BVH_BINS;
         for (int a = 0; a < 3; a++) {
             float w = cb.hi[a] - cb.lo[a];
             if (!(w > 0.0f))
