@@ -245,9 +245,8 @@ static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, f
             rt_box_enter2(&s->nodes[a], &s->nodes[b], &rb, hit->t, &ta, &tb);
             if (ta != RT_INF && tb != RT_INF) {
                 /* Near child first; the far one waits with its entry distance.
-                 * Shadow rays stop at any hit, so their order only matters
-                 * for speed: they skip the swap. */
-                if (!any && tb < ta) {
+                 * (Shadow rays too: the nearer box is likelier to block.) */
+                if (tb < ta) {
                     uint32_t tmpn = a; a = b; b = tmpn;
                     float tmpt = ta; ta = tb; tb = tmpt;
                 }
