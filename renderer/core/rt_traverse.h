@@ -153,11 +153,12 @@ static inline RT_HD float rt_box_enter(const RtBvhNode *n, const RtRayBox *rb, f
 #endif
 }
 
-/* Entry distances of the ray into two sibling boxes (RT_INF: missed). The SSE
- * path shares the lane reductions between the two boxes; it computes the same
- * values as two calls of rt_box_enter. */
-static inline RT_HD void rt_box_enter2(const RtBvhNode *na, const RtBvhNode *nb, const RtRayBox *rb, float tmax,
-                                       float *ta, float *tb)
+/* Which of two sibling boxes the ray enters (bit 0: a, bit 1: b) and the entry
+ * distances (valid where the bit is set). The SSE path shares the lane
+ * reductions between the two boxes; it computes the same values as two calls
+ * of rt_box_enter. Returning a mask spares the caller float compares. */
+static inline RT_HD int rt_box_enter2(const RtBvhNode *na, const RtBvhNode *nb, const RtRayBox *rb, float tmax,
+                                      float *ta, float *tb)
 {
 #if RT_SSE
     __m128 a0 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(na->lo), rb->o4), rb->inv4);
@@ -174,11 +175,13 @@ static inline RT_HD void rt_box_enter2(const RtBvhNode *na, const RtBvhNode *nb,
     n = _mm_max_ps(n, _mm_setzero_ps());
     f = _mm_min_ps(f, _mm_set1_ps(tmax));
     int hit = _mm_movemask_ps(_mm_cmple_ps(n, _mm_mul_ps(f, _mm_set1_ps(1.0000004f))));
-    *ta = (hit & 1) ? _mm_cvtss_f32(n) : RT_INF;
-    *tb = (hit & 4) ? _mm_cvtss_f32(_mm_movehl_ps(n, n)) : RT_INF;
+    *ta = _mm_cvtss_f32(n);
+    *tb = _mm_cvtss_f32(_mm_movehl_ps(n, n));
+    return (hit & 1) | ((hit >> 1) & 2);
 #else
     *ta = rt_box_enter(na, rb, 0.0f, tmax);
     *tb = rt_box_enter(nb, rb, 0.0f, tmax);
+    return (*ta != RT_INF ? 1 : 0) | (*tb != RT_INF ? 2 : 0);
 #endif
 }
 
@@ -242,8 +245,8 @@ static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, f
         } else {
             uint32_t a = ni + 1, b = n->index;
             float ta, tb;
-            rt_box_enter2(&s->nodes[a], &s->nodes[b], &rb, hit->t, &ta, &tb);
-            if (ta != RT_INF && tb != RT_INF) {
+            int mask = rt_box_enter2(&s->nodes[a], &s->nodes[b], &rb, hit->t, &ta, &tb);
+            if (mask == 3) {
                 /* Near child first; the far one waits with its entry distance.
                  * (Shadow rays too: the nearer box is likelier to block.) */
                 if (tb < ta) {
@@ -256,8 +259,8 @@ static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, f
                 ni = a;
                 continue;
             }
-            if (ta != RT_INF) { ni = a; continue; }
-            if (tb != RT_INF) { ni = b; continue; }
+            if (mask == 1) { ni = a; continue; }
+            if (mask == 2) { ni = b; continue; }
         }
         /* Pop, skipping nodes entered beyond the closest hit so far. Ties
          * (entry == hit->t) are still visited: an equal-t hit with a lower
