@@ -574,7 +574,7 @@ int hx_cmd_run(int argc, char **argv)
         for (size_t i = 0; i < plan.n; i++) {
             HxRun *r = &plan.runs[i];
             Command cmd;
-            build_command(&cfg, &topo, r, raytrace, "IMAGE.png", &cmd);
+            build_command(&cfg, &topo, r, raytrace, "IMAGE.ppm", &cmd);
             printf("[%zu] %s%s  cores=%s%s%s\n    ", i + 1, r->warmup ? "(warm-up) " : "",
                    r->run_id, r->cores_planned, r->oversubscribed ? " oversubscribed" : "",
                    r->refused ? " REFUSED" : "");
@@ -634,7 +634,7 @@ int hx_cmd_run(int argc, char **argv)
         rc = 1;
         goto done_ids;
     }
-    image = hx_path_join(tmpdir, "image.png");
+    image = hx_path_join(tmpdir, "image.ppm");
 
     int want_gpu = hx_strlist_find(&cfg.dim[HX_DIM_BACKEND], "cuda") >= 0;
     char *rtdir = hx_dirname(raytrace);

@@ -27,6 +27,7 @@ typedef struct Options {
     int device;
     int quiet;
     int verify;
+    const char *mpi_scene; /* NULL: the mpi backend's default */
 } Options;
 
 static const char *prog = "raytrace";
@@ -45,6 +46,8 @@ static void usage(FILE *fp)
             "      --tile WxH           tile size in pixels (default 32x32 serial, 16x16 openmp/mpi)\n"
             "      --schedule S         openmp: tiles (dynamic, default) or pixels (the report's collapse(2) static)\n"
             "      --mpi-schedule S     mpi: dynamic (default) or rows (the report's block rows + Gatherv)\n"
+            "      --mpi-scene HOW      mpi: every (each rank parses, as the report) or bcast (rank 0 parses\n"
+            "                           and broadcasts the arrays); default in docs/cpu-backends.md\n"
             "      --block BXxBY        cuda: thread block shape (default chosen by measurement)\n"
             "      --device N           cuda: device index (default 0)\n"
             "      --verify             poison the image first and fail unless every pixel is written\n"
@@ -89,13 +92,14 @@ static int opt_error(const char *opt, const char *val, const char *why)
 
 static int parse_options(int argc, char **argv, Options *o)
 {
-    enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY };
+    enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE };
     static const struct option longopts[] = {
         {"output", required_argument, NULL, 'o'},     {"backend", required_argument, NULL, 'b'},
         {"accel", required_argument, NULL, 'a'},      {"resolution", required_argument, NULL, 'r'},
         {"max-depth", required_argument, NULL, 'd'},  {"threads", required_argument, NULL, 't'},
         {"tile", required_argument, NULL, OPT_TILE},  {"schedule", required_argument, NULL, OPT_SCHEDULE},
         {"mpi-schedule", required_argument, NULL, OPT_MPI_SCHEDULE},
+        {"mpi-scene", required_argument, NULL, OPT_MPI_SCENE},
         {"block", required_argument, NULL, OPT_BLOCK}, {"device", required_argument, NULL, OPT_DEVICE},
         {"verify", no_argument, NULL, OPT_VERIFY},    {"quiet", no_argument, NULL, 'q'},
         {"help", no_argument, NULL, 'h'},             {"version", no_argument, NULL, 'V'},
@@ -141,6 +145,11 @@ static int parse_options(int argc, char **argv, Options *o)
             if (strcmp(optarg, "dynamic") == 0) o->mpi_schedule = RT_MPI_DYNAMIC;
             else if (strcmp(optarg, "rows") == 0) o->mpi_schedule = RT_MPI_ROWS;
             else return opt_error("--mpi-schedule", optarg, "expected dynamic or rows");
+            break;
+        case OPT_MPI_SCENE:
+            if (strcmp(optarg, "every") != 0 && strcmp(optarg, "bcast") != 0)
+                return opt_error("--mpi-scene", optarg, "expected every or bcast");
+            o->mpi_scene = optarg;
             break;
         case OPT_BLOCK:
             if (parse_wxh(optarg, 1024, &o->block_x, &o->block_y) != 0 || o->block_x * o->block_y > 1024)
@@ -225,11 +234,42 @@ static int check_output(const char *path, RtError *err)
     return 0;
 }
 
+/* The rank a launcher (mpirun, srun) gave this process, known before
+ * MPI_Init from its environment; 0 when not launched as one of several. */
+static int launcher_rank(void)
+{
+    static const char *const vars[] = {"OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK", "SLURM_PROCID"};
+    for (size_t i = 0; i < sizeof vars / sizeof vars[0]; i++) {
+        const char *v = getenv(vars[i]);
+        if (v && *v)
+            return atoi(v);
+    }
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     double t_start = rt_now_ms();
     Options o;
-    if (parse_options(argc, argv, &o) != 0)
+    /* Under mpirun every rank parses the same options: let only rank 0 say
+     * what is wrong with them (stderr is silenced meanwhile on the others). */
+    int saved_stderr = -1;
+    if (launcher_rank() != 0) {
+        fflush(stderr);
+        saved_stderr = dup(STDERR_FILENO);
+        FILE *null = fopen("/dev/null", "w");
+        if (null) {
+            dup2(fileno(null), STDERR_FILENO);
+            fclose(null);
+        }
+    }
+    int parsed = parse_options(argc, argv, &o);
+    if (saved_stderr >= 0) {
+        fflush(stderr);
+        dup2(saved_stderr, STDERR_FILENO);
+        close(saved_stderr);
+    }
+    if (parsed != 0)
         return 1;
     const RtBackend *be = rt_backend_find(o.backend);
     if (!be) {
@@ -246,6 +286,12 @@ int main(int argc, char **argv)
         fprintf(stderr, "%s: %s\n", prog, err.msg);
         return 1;
     }
+    /* Several processes (MPI): only the root prints, and every failure
+     * before rendering is agreed on by all ranks (col->agree) instead of
+     * ending one rank while the others wait for it in a collective call. */
+    const RtCollective *col = be->collective;
+    int is_root = col ? col->is_root() : 1;
+    int failed = 0;
     int rc = 1;
     RtScene scene;
     RtAccel accel;
@@ -256,8 +302,10 @@ int main(int argc, char **argv)
     const char *output = NULL;
 
     double t0 = rt_now_ms();
-    if (rt_scene_load(o.scene, &scene, o.quiet ? NULL : warn_cb, NULL, &err) != 0)
-        goto fail;
+    RtWarnFn warn = o.quiet || !is_root ? NULL : warn_cb;
+    if (col && col->scene_load ? col->scene_load(o.scene, o.mpi_scene, &scene, warn, NULL, &err) != 0
+                               : rt_scene_load(o.scene, &scene, warn, NULL, &err) != 0)
+        goto prep_fail;
     double parse_ms = rt_now_ms() - t0;
     if (o.width) {
         scene.width = o.width;
@@ -268,14 +316,15 @@ int main(int argc, char **argv)
         scene.max_depth = o.max_depth;
     RtCamera cam;
     if (rt_scene_camera(&scene, &cam, &err) != 0)
-        goto fail;
+        goto prep_fail;
     output = o.output ? o.output : scene.output;
-    if (check_output(output, &err) != 0)
-        goto fail;
+    /* only the root writes the image, so only its directory matters */
+    if (is_root && check_output(output, &err) != 0)
+        goto prep_fail;
 
     t0 = rt_now_ms();
     if (rt_accel_build(&scene, o.accel, &accel, &err) != 0 || rt_bvh_check(&accel, &err) != 0)
-        goto fail;
+        goto prep_fail;
     double build_ms = rt_now_ms() - t0;
 
     size_t npix = (size_t)cam.width * (size_t)cam.height;
@@ -284,8 +333,16 @@ int main(int argc, char **argv)
     if (!rgbf || !rgb) {
         rt_fail(&err, "out of memory for a %dx%d image (%.1f MiB)", cam.width, cam.height,
                 (double)npix * 15.0 / (1024.0 * 1024.0));
-        goto fail;
+        goto prep_fail;
     }
+    goto agree;
+prep_fail:
+    failed = 1;
+agree:
+    if (col && col->agree(failed, &err) != 0)
+        failed = 1;
+    if (failed)
+        goto fail;
     /* Poison: NaN in every channel, so an unwritten pixel cannot pass as black. */
     for (size_t i = 0; i < npix * 3; i++)
         rgbf[i] = NAN;
@@ -340,19 +397,20 @@ int main(int argc, char **argv)
     printf("record: scene=%s width=%d height=%d backend=%s accel=%s threads=%d ranks=%d parse_ms=%.3f "
            "build_ms=%.3f render_ms=%.3f write_ms=%.3f total_ms=%.3f rays=%llu primary_rays=%llu "
            "shadow_rays=%llu secondary_rays=%llu node_visits=%llu prim_tests=%llu mrays_per_s=%.3f "
-           "image_fnv1a=%016llx tile=%dx%d cores=%s%s\n",
+           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u%s\n",
            scene.name, cam.width, cam.height, be->name, rt_accel_name(o.accel), out.threads_used, out.ranks_used,
            parse_ms, build_ms, out.render_ms, write_ms, total_ms, (unsigned long long)rays,
            (unsigned long long)out.counters.primary_rays, (unsigned long long)out.counters.shadow_rays,
            (unsigned long long)out.counters.secondary_rays, (unsigned long long)out.counters.node_visits,
            (unsigned long long)out.counters.prim_tests,
            out.render_ms > 0.0 ? (double)rays / (out.render_ms * 1000.0) : 0.0, (unsigned long long)hash, tw, th,
-           out.cores[0] ? out.cores : "unknown", out.extra);
+           out.cores[0] ? out.cores : "unknown", accel.nprims, accel.nnodes, out.extra);
     fflush(stdout);
     rc = 0;
     goto done;
 fail:
-    fprintf(stderr, "%s\n", err.msg);
+    if (is_root)
+        fprintf(stderr, "%s\n", err.msg);
     rc = 1;
 done:
     free(rgbf);

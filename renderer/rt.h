@@ -138,7 +138,26 @@ typedef struct RtBackend {
     int (*render)(const RtRenderJob *job, RtRenderOut *out, RtError *err);
     /* optional: called before exit, also after errors */
     void (*finalize)(void);
+    /* optional: hooks of backends that run as several processes (MPI) */
+    const struct RtCollective *collective;
 } RtBackend;
+
+/* What main.c needs from a backend that runs as several processes, so that
+ * one rank speaks for all of them and no rank is left waiting in a
+ * collective call after another has failed. */
+typedef struct RtCollective {
+    /* 1 on the process that prints messages and the record (rank 0) */
+    int (*is_root)(void);
+    /* Collective: every process calls it once before rendering with its own
+     * status (err holds its message when failed != 0). Returns nonzero on
+     * every process if any failed; the root's err then holds the message of
+     * the lowest failing rank. */
+    int (*agree)(int failed, RtError *err);
+    /* optional: loads the scene on every process (replaces rt_scene_load);
+     * how is NULL (the backend's default) or a backend-specific mode. */
+    int (*scene_load)(const char *path, const char *how, RtScene *scene, RtWarnFn warn, void *warn_ctx,
+                      RtError *err);
+} RtCollective;
 
 const RtBackend *rt_backend_find(const char *name);
 /* NULL-terminated list of every backend this program knows. */
