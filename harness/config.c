@@ -8,6 +8,8 @@
 #include "hx.h"
 
 #include <dirent.h>
+#include <errno.h>
+#include <stdio.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
@@ -439,17 +441,12 @@ int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
 int hx_config_load(const char *path, HxConfig *cfg, char *err, size_t errlen)
 {
     memset(cfg, 0, sizeof *cfg);
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        snprintf(err, errlen, "%s: cannot open config", path);
+    HxBuf b = {0};
+    if (hx_read_file(path, &b) != 0) {
+        snprintf(err, errlen, "%s: cannot read config: %s", path, strerror(errno));
+        hx_buf_free(&b);
         return -1;
     }
-    HxBuf b = {0};
-    char chunk[4096];
-    size_t n;
-    while ((n = fread(chunk, 1, sizeof chunk, f)) > 0)
-        hx_buf_putn(&b, chunk, n);
-    fclose(f);
     int rc = hx_config_parse_string(path, b.s ? b.s : "", cfg, err, errlen);
     hx_buf_free(&b);
     return rc;

@@ -310,17 +310,12 @@ int hx_csv_parse(const char *text, HxCsv *csv, char *err, size_t errlen)
 int hx_csv_read(const char *path, HxCsv *csv, char *err, size_t errlen)
 {
     memset(csv, 0, sizeof *csv);
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        snprintf(err, errlen, "%s: cannot open: %s", path, strerror(errno));
+    HxBuf b = {0};
+    if (hx_read_file(path, &b) != 0) {
+        snprintf(err, errlen, "%s: cannot read: %s", path, strerror(errno));
+        hx_buf_free(&b);
         return -1;
     }
-    HxBuf b = {0};
-    char chunk[65536];
-    size_t n;
-    while ((n = fread(chunk, 1, sizeof chunk, f)) > 0)
-        hx_buf_putn(&b, chunk, n);
-    fclose(f);
     char e[256];
     int rc = hx_csv_parse(b.s ? b.s : "", csv, e, sizeof e);
     hx_buf_free(&b);

@@ -40,6 +40,8 @@ int hx_parse_double(const char *s, double *out);
 int hx_parse_wxh(const char *s, long *w, long *h);
 double hx_now_ms(void);                 /* CLOCK_MONOTONIC */
 int hx_file_exists(const char *path);
+/* Reads a whole file into b (NUL-terminated); -1 with errno set on failure. */
+int hx_read_file(const char *path, HxBuf *b);
 int hx_is_dir(const char *path);
 char *hx_dirname(const char *path);     /* malloc'd */
 char *hx_path_join(const char *a, const char *b);

@@ -214,6 +214,19 @@ static void plot_scaling(PlotCtx *c, const HxStudy *s, int efficiency)
 }
 
 /* time against CUDA block size, one line per scene and configuration */
+/* The series a group belongs to in the block-size plot: scene and label
+ * without the label's " B=..." part (the block is the x axis). */
+static void series_key(HxBuf *k, const HxGroup *g)
+{
+    hx_buf_printf(k, "%s %s", g->scene, g->label);
+    char *bp = strstr(k->s, " B=");
+    if (bp) {
+        char *end = strchr(bp + 1, ' ');
+        const char *rest = end ? end : bp + strlen(bp);
+        memmove(bp, rest, strlen(rest) + 1);
+    }
+}
+
 static void plot_blocks(PlotCtx *c, const HxStudy *s)
 {
     HxStrList blocks = {0}, series = {0};
@@ -224,13 +237,7 @@ static void plot_blocks(PlotCtx *c, const HxStudy *s)
         if (hx_strlist_find(&blocks, g->block) < 0)
             hx_strlist_push(&blocks, g->block);
         HxBuf k = {0};
-        hx_buf_printf(&k, "%s %s", g->scene, g->label);
-        /* the series name is the label without its B= part */
-        char *bp = strstr(k.s, " B=");
-        if (bp) {
-            char *end = strchr(bp + 1, ' ');
-            memmove(bp, end ? end : bp + strlen(bp), strlen(end ? end : bp + strlen(bp)) + 1);
-        }
+        series_key(&k, g);
         if (hx_strlist_find(&series, k.s) < 0)
             hx_strlist_push(&series, k.s);
         hx_buf_free(&k);
@@ -263,12 +270,7 @@ static void plot_blocks(PlotCtx *c, const HxStudy *s)
                 if (!g->nt || strcmp(g->block, blocks.v[b]))
                     continue;
                 HxBuf k = {0};
-                hx_buf_printf(&k, "%s %s", g->scene, g->label);
-                char *bp = strstr(k.s, " B=");
-                if (bp) {
-                    char *end = strchr(bp + 1, ' ');
-                    memmove(bp, end ? end : bp + strlen(bp), strlen(end ? end : bp + strlen(bp)) + 1);
-                }
+                series_key(&k, g);
                 if (strcmp(k.s, series.v[j]) == 0)
                     v = g->median;
                 hx_buf_free(&k);
