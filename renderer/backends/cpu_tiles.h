@@ -124,11 +124,14 @@ static inline void rt_region_tile(int rx0, int ry0, int rx1, int ry1, int tw, in
  * varies by orders of magnitude across an image (sky vs. a glass dragon), so
  * a static split leaves threads idle. rgb is the full image (stride = width). */
 static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtSceneView *v, int rx0, int ry0, int rx1, int ry1,
-                                       int tw, int th, int first, int count, float *rgb)
+                                       int tw, int th, int first, int count, float *rgb, RtProgressFn progress,
+                                       void *progress_ctx)
 {
+    int done = 0; /* tiles finished, for progress only */
 #pragma omp parallel num_threads(p->nthreads)
     {
-        RtCpuSlot *slot = rt_cpu_slot(p, rt_cpu_thread_id());
+        int tid = rt_cpu_thread_id();
+        RtCpuSlot *slot = rt_cpu_slot(p, tid);
         RtCounters cnt; /* on this thread's stack: the hot loop writes nothing shared */
         memset(&cnt, 0, sizeof cnt);
         rt_cpu_note(slot);
@@ -138,9 +141,20 @@ static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtSceneView *v, int r
             rt_region_tile(rx0, ry0, rx1, ry1, tw, th, t, &x0, &y0, &x1, &y1);
             rt_render_tile(v, x0, y0, x1, y1, rgb, &cnt);
             rt_cpu_note(slot);
+            if (progress) {
+                /* One atomic add per tile (hundreds of pixels); only thread 0
+                 * prints, so no thread ever waits for the terminal. */
+                int d;
+#pragma omp atomic capture
+                d = ++done;
+                if (tid == 0)
+                    progress(progress_ctx, (uint64_t)d, (uint64_t)count);
+            }
         }
         rt_counters_add(&slot->cnt, &cnt);
     }
+    if (progress)
+        progress(progress_ctx, (uint64_t)count, (uint64_t)count);
 }
 
 /* The report's OpenMP scheme: `collapse(2)` over the pixel loops of the

@@ -200,7 +200,7 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
         if (job->schedule == RT_SCHED_PIXELS)
             rt_cpu_render_pixels(pool, v, 0, y0, w, y1, rgb);
         else
-            rt_cpu_render_tiles(pool, v, 0, y0, w, y1, tw, th, 0, rt_tile_count(w, y1 - y0, tw, th), rgb);
+            rt_cpu_render_tiles(pool, v, 0, y0, w, y1, tw, th, 0, rt_tile_count(w, y1 - y0, tw, th), rgb, NULL, NULL);
     }
     if (g_rank == 0)
         RT_MPI_CHECK(MPI_Gatherv(MPI_IN_PLACE, 0, MPI_FLOAT, rgb, counts, displs, MPI_FLOAT, 0, MPI_COMM_WORLD));
@@ -280,7 +280,7 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
         if (first >= ntiles)
             break;
         int count = (int)(ntiles - first < claim ? ntiles - first : claim);
-        rt_cpu_render_tiles(pool, v, 0, 0, w, h, tw, th, (int)first, count, dst);
+        rt_cpu_render_tiles(pool, v, 0, 0, w, h, tw, th, (int)first, count, dst, NULL, NULL);
         for (int t = (int)first; put && t < first + count; t++) {
             int x0, y0, x1, y1;
             rt_tile_rect(w, h, tw, th, t, &x0, &y0, &x1, &y1);

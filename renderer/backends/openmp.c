@@ -33,10 +33,11 @@ static int render_openmp(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     if (job->schedule == RT_SCHED_PIXELS)
         rt_cpu_render_pixels(&pool, v, 0, 0, w, h, out->rgb);
     else
-        rt_cpu_render_tiles(&pool, v, 0, 0, w, h, tw, th, 0, rt_tile_count(w, h, tw, th), out->rgb);
+        rt_cpu_render_tiles(&pool, v, 0, 0, w, h, tw, th, 0, rt_tile_count(w, h, tw, th), out->rgb, job->progress,
+                            job->progress_ctx);
     out->render_ms = rt_now_ms() - t0;
-    if (job->progress) /* one call: a callback from inside the loop would serialise the threads */
-        job->progress(job->progress_ctx, 1, 1);
+    if (job->progress && job->schedule == RT_SCHED_PIXELS)
+        job->progress(job->progress_ctx, 1, 1); /* the report's static loop has no natural progress points */
 
     out->render_ms_min = out->render_ms;
     rt_cpu_pool_merge(&pool, &out->counters, out->cores, sizeof out->cores);
