@@ -206,6 +206,7 @@ static void config_defaults(HxConfig *cfg, const char *path)
     cfg->warmup = 0;
     cfg->timeout_s = 600;
     cfg->oversubscribe_allow = 0;
+    cfg->launcher = HX_LAUNCHER_MPIRUN;
 }
 
 static void fill_default_dims(HxConfig *cfg)
@@ -245,7 +246,23 @@ static int dim_of_key(const char *key)
 
 static const char *const scalar_keys[] = {
     "study", "scene_dir", "repeats", "warmup", "timeout", "oversubscribe",
-    "baseline", "raytrace", "mpirun", NULL};
+    "baseline", "raytrace", "mpirun", "launcher", NULL};
+
+int hx_launcher_parse(const char *name, HxLauncher *out)
+{
+    if (strcmp(name, "mpirun") == 0)
+        *out = HX_LAUNCHER_MPIRUN;
+    else if (strcmp(name, "srun") == 0)
+        *out = HX_LAUNCHER_SRUN;
+    else
+        return -1;
+    return 0;
+}
+
+const char *hx_launcher_name(HxLauncher l)
+{
+    return l == HX_LAUNCHER_SRUN ? "srun" : "mpirun";
+}
 
 /* Timeout: seconds, with an optional s/m/h suffix. */
 static int parse_timeout(const char *v, double *out)
@@ -390,6 +407,10 @@ int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
             cfg->raytrace = hx_strdup(v);
         } else if (strcmp(key, "mpirun") == 0) {
             cfg->mpirun = hx_strdup(v);
+        } else if (strcmp(key, "launcher") == 0) {
+            if (hx_launcher_parse(v, &cfg->launcher))
+                rc = set_err(err, errlen, path, lineno,
+                             "launcher: expected mpirun|srun, got '%s'", v);
         }
     next:
         hx_strlist_free(&vals);

@@ -70,6 +70,11 @@ enum {
 extern const char *const hx_dim_key[HX_NDIM];  /* config key ("scenes", ...) */
 extern const char *const hx_dim_col[HX_NDIM];  /* CSV column ("scene", ...) */
 
+/* How MPI runs are started: mpirun (Open MPI, the default, maps and binds
+ * ranks itself) or srun (inside a Slurm allocation, where mpirun would not
+ * see the allocation's nodes or would fight Slurm's own binding). */
+typedef enum { HX_LAUNCHER_MPIRUN, HX_LAUNCHER_SRUN } HxLauncher;
+
 typedef struct {
     char *path;                 /* config file as given */
     char *study;
@@ -83,6 +88,7 @@ typedef struct {
     char *baseline;             /* KEY=VALUE for `table`'s baseline (b) */
     char *raytrace;             /* NULL: $RAYTRACE or next to the harness */
     char *mpirun;
+    HxLauncher launcher;
     HxStrList extra_args;       /* passed verbatim to raytrace */
 } HxConfig;
 
@@ -112,6 +118,10 @@ int hx_config_load(const char *path, HxConfig *cfg, char *err, size_t errlen);
 int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
                            char *err, size_t errlen);
 void hx_config_free(HxConfig *cfg);
+/* "mpirun" or "srun" -> 0 and *out; anything else -1. One parser for the
+ * config key and `run --launcher`, so both accept exactly the same names. */
+int hx_launcher_parse(const char *name, HxLauncher *out);
+const char *hx_launcher_name(HxLauncher l);
 int hx_dim_applies(int dim, const char *backend);
 int hx_expand(const HxConfig *cfg, HxPlan *plan);
 void hx_plan_free(HxPlan *plan);
@@ -210,6 +220,7 @@ int hx_cmd_table(int argc, char **argv);
 int hx_cmd_plot(int argc, char **argv);
 int hx_cmd_compare(int argc, char **argv);
 int hx_cmd_topo(int argc, char **argv);
+int hx_cmd_slurm(int argc, char **argv);
 
 /* ---- shared analysis helpers (table.c) ---- */
 /* One configuration of one scene, with its ok samples. */

@@ -15,7 +15,8 @@ static void usage(FILE *f)
           "  table CSV                  statistics, speedups, Amdahl fit, cross table\n"
           "  plot CSV -o PREFIX         gnuplot PNG + SVG (scripts and data kept)\n"
           "  compare NEW.csv BASE.csv   regression check (exit 1 on regression)\n"
-          "  topo [CONFIG]              hwloc topology and planned cores per run\n\n"
+          "  topo [CONFIG]              hwloc topology and planned cores per run\n"
+          "  slurm CONFIG [-o FILE]     sbatch script running the study with srun\n\n"
           "`harness COMMAND --help` describes each command; docs/harness.md has the\n"
           "config format and CSV schema.\n", f);
 }
@@ -39,7 +40,8 @@ int main(int argc, char **argv)
         const char *name;
         int (*fn)(int, char **);
     } cmds[] = {{"run", hx_cmd_run}, {"table", hx_cmd_table}, {"plot", hx_cmd_plot},
-                {"compare", hx_cmd_compare}, {"topo", hx_cmd_topo}};
+                {"compare", hx_cmd_compare}, {"topo", hx_cmd_topo},
+                {"slurm", hx_cmd_slurm}};
     for (size_t i = 0; i < sizeof cmds / sizeof cmds[0]; i++)
         if (strcmp(cmd, cmds[i].name) == 0)
             return cmds[i].fn(argc - 1, argv + 1);

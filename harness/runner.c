@@ -207,7 +207,40 @@ static void build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *
     const char *be = r->v[HX_DIM_BACKEND];
     int is_mpi = strcmp(be, "mpi") == 0;
     int pinned = strcmp(r->v[HX_DIM_PIN], "none") != 0;
-    if (is_mpi) {
+    if (is_mpi && cfg->launcher == HX_LAUNCHER_SRUN) {
+        /* Inside a Slurm allocation srun places and binds the ranks: each
+         * task gets T consecutive cores (--cpus-per-task, block:block keeps
+         * a rank's cores and consecutive ranks together, like mpirun's
+         * slot:PE=T), and OpenMP pins its threads one per core inside them.
+         * Slurm >= 22.05 no longer hands the job's --cpus-per-task to srun,
+         * so it is given on the command line and in SRUN_CPUS_PER_TASK
+         * (which a nested srun would read). */
+        const char *t = strcmp(r->v[HX_DIM_THREADS], "-") != 0 ? r->v[HX_DIM_THREADS] : "1";
+        HxBuf a = {0};
+        hx_strlist_push(&c->argv, "srun");
+        hx_buf_printf(&a, "--ntasks=%s", r->v[HX_DIM_RANKS][0] == '-' ? "1" : r->v[HX_DIM_RANKS]);
+        hx_strlist_push(&c->argv, a.s);
+        a.len = 0;
+        hx_buf_printf(&a, "--cpus-per-task=%s", t);
+        hx_strlist_push(&c->argv, a.s);
+        hx_buf_free(&a);
+        hx_strlist_push(&c->argv, pinned ? "--cpu-bind=cores" : "--cpu-bind=none");
+        hx_strlist_push(&c->argv, "--distribution=block:block");
+        /* without it srun refuses (or waits for) more CPUs than allocated */
+        if (r->oversubscribed)
+            hx_strlist_push(&c->argv, "--overcommit");
+        hx_strlist_push(&c->env, "OMP_NUM_THREADS");
+        hx_strlist_push(&c->env, t);
+        if (pinned) {
+            /* pin none leaves placement to the OS, for threads as well */
+            hx_strlist_push(&c->env, "OMP_PLACES");
+            hx_strlist_push(&c->env, "cores");
+            hx_strlist_push(&c->env, "OMP_PROC_BIND");
+            hx_strlist_push(&c->env, "close");
+        }
+        hx_strlist_push(&c->env, "SRUN_CPUS_PER_TASK");
+        hx_strlist_push(&c->env, t);
+    } else if (is_mpi) {
         /* mpirun binds its ranks itself; binding mpirun would only shrink
          * the set it maps into. close = --map-by core, spread = --map-by
          * socket: the orders topo.c plans with. */
@@ -485,7 +518,7 @@ static char *find_raytrace(const HxConfig *cfg, const char *opt)
 static void usage_run(FILE *f)
 {
     fputs("usage: harness run CONFIG [-o FILE.csv] [--resume | --overwrite] [--dry-run]\n"
-          "                  [--raytrace PATH] [--quiet]\n"
+          "                  [--raytrace PATH] [--launcher mpirun|srun] [--quiet]\n"
           "Expands CONFIG into runs and executes them, appending one CSV row per run.\n"
           "  -o, --output FILE   CSV to append to (default: results/STUDY.csv if results/\n"
           "                      exists, else STUDY.csv)\n"
@@ -494,6 +527,8 @@ static void usage_run(FILE *f)
           "      --dry-run       list the runs, their command lines and planned cores\n"
           "      --raytrace PATH renderer binary (else config 'raytrace:', $RAYTRACE,\n"
           "                      or ../renderer/raytrace next to the harness)\n"
+          "      --launcher NAME how MPI runs start: mpirun, or srun inside a Slurm\n"
+          "                      allocation (overrides the config's 'launcher:')\n"
           "  -q, --quiet         no progress lines\n"
           "  -h, --help          this text\n", f);
 }
@@ -516,8 +551,11 @@ int hx_cmd_run(int argc, char **argv)
         {"output", required_argument, NULL, 'o'}, {"resume", no_argument, NULL, 'r'},
         {"overwrite", no_argument, NULL, 'w'}, {"dry-run", no_argument, NULL, 'n'},
         {"raytrace", required_argument, NULL, 't'}, {"quiet", no_argument, NULL, 'q'},
+        {"launcher", required_argument, NULL, 'l'},
         {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
     const char *out_path = NULL, *rt_opt = NULL;
+    HxLauncher launcher = HX_LAUNCHER_MPIRUN;
+    int launcher_set = 0;
     int resume = 0, overwrite = 0, dry = 0, quiet = 0, c;
     while ((c = getopt_long(argc, argv, "o:qh", lo, NULL)) != -1) {
         switch (c) {
@@ -526,6 +564,14 @@ int hx_cmd_run(int argc, char **argv)
         case 'w': overwrite = 1; break;
         case 'n': dry = 1; break;
         case 't': rt_opt = optarg; break;
+        case 'l':
+            if (hx_launcher_parse(optarg, &launcher)) {
+                fprintf(stderr, "harness run: --launcher: expected mpirun|srun, got '%s'\n",
+                        optarg);
+                return 1;
+            }
+            launcher_set = 1;
+            break;
         case 'q': quiet = 1; break;
         case 'h': usage_run(stdout); return 0;
         default: usage_run(stderr); return 1;
@@ -546,6 +592,10 @@ int hx_cmd_run(int argc, char **argv)
         hx_config_free(&cfg);
         return 1;
     }
+    /* the command line wins: the same config runs on a workstation with
+     * mpirun and in a Slurm job (harness slurm) with srun */
+    if (launcher_set)
+        cfg.launcher = launcher;
     HxPlan plan;
     hx_expand(&cfg, &plan);
     HxTopo topo;

@@ -107,17 +107,32 @@ void hx_topo_free(HxTopo *t)
     memset(t, 0, sizeof *t);
 }
 
+/* Nodes of the Slurm job the harness runs in, 1 outside one. */
+static int slurm_nodes(void)
+{
+    const char *s = getenv("SLURM_JOB_NUM_NODES");
+    long n;
+    return s && hx_parse_int(s, 1, 1000000, &n) == 0 ? (int)n : 1;
+}
+
 void hx_plan_cores(const HxTopo *t, const HxConfig *cfg, HxPlan *plan)
 {
+    int nodes = cfg->launcher == HX_LAUNCHER_SRUN ? slurm_nodes() : 1;
     for (size_t i = 0; i < plan->n; i++) {
         HxRun *r = &plan->runs[i];
         free(r->cores);
         free(r->cores_planned);
         r->cores = NULL;
         r->ncores = 0;
-        r->oversubscribed = r->workers > t->ncores;
+        /* srun spreads an MPI run over every node of the job; the harness
+         * only sees the first one, so it assumes the nodes are alike (whole
+         * nodes of one partition, as `harness slurm` asks for). */
+        int span = strcmp(r->v[HX_DIM_BACKEND], "mpi") == 0 ? nodes : 1;
+        r->oversubscribed = r->workers > t->ncores * span;
         r->refused = r->oversubscribed && !cfg->oversubscribe_allow;
-        if (strcmp(r->v[HX_DIM_PIN], "none") == 0 || r->refused) {
+        /* Cores on other nodes cannot be named here, and raytrace's cores=
+         * would mix CPU ids of several nodes: no plan, pin_held n/a. */
+        if (strcmp(r->v[HX_DIM_PIN], "none") == 0 || r->refused || span > 1) {
             r->cores_planned = hx_strdup("-");
             continue;
         }

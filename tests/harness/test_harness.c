@@ -99,7 +99,22 @@ static void test_config(void)
     CHECK_STR(cfg.dim[HX_DIM_BACKEND].v[0], "serial");
     CHECK_STR(cfg.dim[HX_DIM_PIN].v[0], "close");
     CHECK(cfg.repeats == 3);
+    CHECK(cfg.launcher == HX_LAUNCHER_MPIRUN);
     hx_config_free(&cfg);
+
+    /* launcher: mpirun (default) or srun; one parser for key and option */
+    rc = parse("scenes: a\nlauncher: srun\n", &cfg, err, sizeof err);
+    CHECK(rc == 0);
+    CHECK(cfg.launcher == HX_LAUNCHER_SRUN);
+    CHECK_STR(hx_launcher_name(cfg.launcher), "srun");
+    hx_config_free(&cfg);
+    rc = parse("scenes: a\nlauncher: mpirun\n", &cfg, err, sizeof err);
+    CHECK(rc == 0);
+    CHECK(cfg.launcher == HX_LAUNCHER_MPIRUN);
+    hx_config_free(&cfg);
+    HxLauncher l;
+    CHECK(hx_launcher_parse("srun", &l) == 0 && l == HX_LAUNCHER_SRUN);
+    CHECK(hx_launcher_parse("SRUN", &l) != 0);
 
     /* errors name the file and the line (scene_dir is line 1) */
     expect_error("scenes: a\nfoo: 1\n", "t.conf:3: unknown key 'foo'");
@@ -116,6 +131,11 @@ static void test_config(void)
     expect_error("accel: bvh\n", "missing required key 'scenes'");
     expect_error("scenes: a\nthreads: 2 2\n", "value '2' listed twice");
     expect_error("scenes: a\nbaseline: serial\n", "t.conf:3: baseline: expected KEY=VALUE");
+    expect_error("scenes: a\nlauncher: slurm\n",
+                 "t.conf:3: launcher: expected mpirun|srun, got 'slurm'");
+    expect_error("scenes: a\nlauncher: srun mpirun\n", "t.conf:3: key 'launcher' takes one value");
+    expect_error("scenes: a\nlauncher: srun\nlauncher: srun\n",
+                 "t.conf:4: key 'launcher' already set on line 3");
 
     /* a missing file is a one-line error, not a crash */
     rc = hx_config_load("/nonexistent/x.conf", &cfg, err, sizeof err);
@@ -182,6 +202,28 @@ static void test_expand(void)
     hx_plan_cores(&t, &cfg, &plan);
     CHECK(!plan.runs[0].refused);
     CHECK_STR(plan.runs[0].cores_planned, "0,1,0,1");
+    hx_plan_free(&plan);
+    hx_config_free(&cfg);
+
+    /* srun in a 2-node job: an MPI run may use both nodes' cores (4 on the
+     * fake 2-core nodes); its cores cannot be named, so no plan. OpenMP runs
+     * stay on the harness's node. */
+    rc = parse("scenes: a\nbackend: openmp mpi\nthreads: 4\nranks: 1\nrepeats: 1\n"
+               "launcher: srun\n", &cfg, err, sizeof err);
+    CHECK(rc == 0);
+    hx_expand(&cfg, &plan);
+    setenv("SLURM_JOB_NUM_NODES", "2", 1);
+    hx_plan_cores(&t, &cfg, &plan);
+    CHECK(plan.n == 2);
+    CHECK_STR(plan.runs[0].v[HX_DIM_BACKEND], "openmp");
+    CHECK(plan.runs[0].refused);
+    CHECK(!plan.runs[1].oversubscribed && !plan.runs[1].refused);
+    CHECK_STR(plan.runs[1].cores_planned, "-");
+    /* with mpirun the job's node count is not used */
+    cfg.launcher = HX_LAUNCHER_MPIRUN;
+    hx_plan_cores(&t, &cfg, &plan);
+    CHECK(plan.runs[1].refused);
+    unsetenv("SLURM_JOB_NUM_NODES");
     hx_plan_free(&plan);
     hx_config_free(&cfg);
 }
