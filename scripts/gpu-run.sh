@@ -7,17 +7,19 @@
 #            both schedules, every register cap (timings.csv)
 #   blocks   the block-size sweep on the report's scenes (blocks.csv)
 #   big      the dragon at 3840x2160 (in timings.csv)
-#   check    meson test --suite gpu: images and counters against serial on
-#            every course scene, compute-sanitizer (check.csv, test log)
+#   check    tests/gpu/gpu_check.sh on every course scene (images and counters
+#            against serial) and tests/gpu/gpu_sanitize.sh (check.csv, testlog.txt)
+#   exp      (not default) traversal variant x nvcc math flags x register cap
+#   ncu      (not default) Nsight Compute on one launch of dragon and arm-reach
 # STEPS defaults to "build time blocks big check". Results go to $OUT (the
-# device tool's folder; ./gpu-out when unset), at most 8 files:
-#   log.txt setup.txt ptxas.txt timings.csv blocks.csv check.csv testlog.txt
+# device tool's folder; /tmp/gpu-out when unset), at most 8 files:
+#   log.txt setup.txt ptxas.txt timings.csv blocks.csv check.csv testlog.txt ncu.txt
 # GPU_BUILD names the build folder (default build-dev).
 # Scenes: the course scenes, copied beforehand into .devcarry/scenes/course
 # (git-ignored, passed to the device tool with carry: [".devcarry"]).
 set -uo pipefail
 cd "$(dirname "$0")/.."
-OUT=${OUT:-$PWD/gpu-out}
+OUT=${OUT:-/tmp/gpu-out}
 mkdir -p "$OUT"
 STEPS=${*:-build time blocks big check}
 SC=${GPU_SCENES:-$PWD/.devcarry/scenes/course}
@@ -47,7 +49,7 @@ fi
 [ -x $RT ] || { echo "no $RT"; exit 1; }
 
 # one render -> one CSV row (selected record keys, plus the variable columns)
-KEYS="scene width height accel render_ms kernel_min_ms first_ms rays primary_rays shadow_rays secondary_rays node_visits prim_tests mrays_per_s block sched kernel_runs regs local_bytes bounds blocks_per_sm grid upload_ms download_ms wall_ms init_ms image_fnv1a gpu"
+KEYS="scene width height accel render_ms kernel_min_ms first_ms warmup_launches traversal rays primary_rays shadow_rays secondary_rays node_visits prim_tests mrays_per_s block sched kernel_runs regs local_bytes bounds blocks_per_sm grid upload_ms download_ms wall_ms init_ms image_fnv1a gpu"
 header() { echo "$KEYS" | tr ' ' ','; }
 row() { # CSV RECORD
     local csv=$1 rec=$2 line="" k v
@@ -61,7 +63,7 @@ scene_path() { ls "$SC"/*/"$1".txt; }
 render() { # CSV SCENE ARGS... (env passes RAYBENCH_CUDA_*)
     local csv=$1 s=$2; shift 2
     local rec
-    rec=$("$RT" -q --backend cuda -o /tmp/gpu-run.ppm "$@" "$(scene_path "$s")") || { echo "FAILED: $s $*"; return 1; }
+    rec=$("${RT}" -q --backend cuda -o /tmp/gpu-run.ppm "$@" "$(scene_path "$s")") || { echo "FAILED: $s $*"; return 1; }
     row "$csv" "$rec"
     printf '%-16s %-34s %s\n' "$s" "$*" "$(printf '%s\n' "$rec" | grep -o 'render_ms=[^ ]*\|kernel_min_ms=[^ ]*\|mrays_per_s=[^ ]*\|regs=[^ ]*\|blocks_per_sm=[^ ]*' | tr '\n' ' ')"
 }
@@ -107,6 +109,52 @@ if has big; then
     RAYBENCH_CUDA_RUNS=11 render /tmp/t.csv arm-reach --accel bvh -r 3840x2160 && sed -i '$s/^/4k-bvh,/' /tmp/t.csv
     RAYBENCH_CUDA_RUNS=1 render /tmp/t.csv dragon --accel none -r 3840x2160 && sed -i '$s/^/4k-none,/' /tmp/t.csv
     cat /tmp/t.csv >>$T; rm -f /tmp/t.csv
+fi
+
+if has exp; then
+    # Variants measured against each other in one call: the GPU traversal
+    # (RAYBENCH_CUDA_TRAVERSAL_LDG), nvcc math flags (NVCC_APPEND_FLAGS, a
+    # build folder each), register caps. Rows go to timings.csv.
+    echo "== exp: traversal x math flags x register cap"
+    T=$OUT/timings.csv; [ -s $T ] || header | sed 's/^/variant,/' >$T
+    for fl in default fastdiv; do
+        bd=$B; [ $fl = default ] || bd=$B-$fl
+        if [ $fl = fastdiv ] && [ ! -f $bd/build.ninja ]; then
+            meson setup $bd -Dharness=false -Dgpu_arch=9.0 -Dpng=auto -Dmpi=disabled >/dev/null 2>&1
+            NVCC_APPEND_FLAGS="-prec-div=false -prec-sqrt=false -ftz=true" ninja -C $bd >/dev/null 2>&1 || echo "build $fl failed"
+        fi
+        for s in dragon arm-reach bottle test_reasonable; do
+            for ldg in 0 1; do
+                for minb in 1 2 3; do
+                    RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=21 RAYBENCH_CUDA_TRAVERSAL_LDG=$ldg RAYBENCH_CUDA_MINB=$minb \
+                        render /tmp/t.csv $s --accel bvh && sed -i "\$s/^/exp-$fl-ldg$ldg-minb$minb,/" /tmp/t.csv
+                done
+                RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=21 RAYBENCH_CUDA_TRAVERSAL_LDG=$ldg RAYBENCH_CUDA_WARMUP_MS=0 \
+                    render /tmp/t.csv $s --accel bvh && sed -i "\$s/^/exp-$fl-ldg$ldg-minb1-nowarm,/" /tmp/t.csv
+            done
+        done
+        RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=11 RAYBENCH_CUDA_TRAVERSAL_LDG=1 render /tmp/t.csv dragon --accel bvh -r 3840x2160 \
+            && sed -i "\$s/^/exp-4k-$fl-ldg1,/" /tmp/t.csv
+        RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=5 RAYBENCH_CUDA_TRAVERSAL_LDG=1 render /tmp/t.csv dragon --accel none \
+            && sed -i "\$s/^/exp-none-$fl-ldg1,/" /tmp/t.csv
+        # correctness of the variant with this build (dragon, bottle, spheres2)
+        for sc in InterestingScenes/dragon InterestingScenes/bottle SphereExamples/spheres2; do
+            RAYBENCH_CUDA_TRAVERSAL_LDG=1 GPU_CHECK_BLOCKS="bvh:8x8 bvh:32x32" tests/gpu/gpu_check.sh $bd/renderer/raytrace \
+                $B/renderer/imgdiff "$SC" bvh $sc | sed "s/^/$fl ldg1: /"
+        done
+    done
+    cat /tmp/t.csv >>$T; rm -f /tmp/t.csv
+fi
+
+if has ncu; then
+    echo "== ncu: one launch of dragon and arm-reach"
+    for s in dragon arm-reach; do
+        RAYBENCH_CUDA_RUNS=1 timeout 200 ncu --launch-skip 1 --launch-count 1 --section SpeedOfLight --section Occupancy \
+            --section WarpStateStats --section MemoryWorkloadAnalysis --section LaunchStats --section SchedulerStats \
+            --section InstructionStats --metrics smsp__inst_executed.sum,smsp__thread_inst_executed.sum,sm__cycles_elapsed.avg,l1tex__t_bytes_pipe_lsu_mem_local_op_ld.sum \
+            $RT -q --backend cuda -o /tmp/ncu.ppm "$(scene_path $s)" >>$OUT/ncu.txt 2>&1
+    done
+    grep -E "Duration|Memory Throughput|Compute \(SM\)|Achieved Occupancy|Theoretical Occupancy|Stall|Issued Warp|No Eligible|L1/TEX Hit|L2 Hit|Warp Cycles Per Issued|inst_executed|cycles_elapsed|mem_local|Registers" $OUT/ncu.txt | head -60
 fi
 
 if has check; then

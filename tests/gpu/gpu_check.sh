@@ -1,0 +1,79 @@
+#!/bin/sh
+# gpu_check.sh RAYTRACE IMGDIFF SCENE_DIR MODE SCENE...
+#
+# The CUDA backend against the serial reference backend, per scene:
+#   image: PSNR >= 45 dB and at most 0.2% of pixels with a channel off by more
+#          than 2/255 (imgdiff --min-psnr 45 --max-over2 0.2);
+#   rays:  primary, shadow and secondary ray counts within 0.1% of serial.
+# MODE picks the renders compared with serial (bvh):
+#   full   cuda+bvh in blocks 8x8 16x16 32x8 32x32 13x7 128x1 (odd and
+#          1024-thread shapes included) and cuda+none in 16x16 and 32x32;
+#   bvh    cuda+bvh in 16x16 and 32x32 only (scenes whose brute force is slow);
+#   nogpu  expects `--backend cuda` to fail with one line and exit 1 (the
+#          CI machine has no GPU); skipped where a GPU is present.
+# SCENE is Group/name under SCENE_DIR (the course scenes, e.g.
+# InterestingScenes/dragon). Exit 77 (Meson's "skipped") without a GPU, or
+# when the course scenes are not beside the checkout. GPU_CHECK_CSV=FILE
+# appends one row per comparison; GPU_CHECK_BLOCKS overrides the bvh blocks.
+set -u
+RT=$1; DIFF=$2; DIR=$3; MODE=$4; shift 4
+
+have_gpu() {
+    command -v nvidia-smi >/dev/null 2>&1 && nvidia-smi -L 2>/dev/null | grep -q '^GPU '
+}
+
+if [ "$MODE" = nogpu ]; then
+    if have_gpu; then echo "SKIP: a GPU is present"; exit 77; fi
+    [ -d "$DIR" ] || { echo "SKIP: no course scenes at $DIR"; exit 77; }
+    msg=$("$RT" -q --backend cuda -o /tmp/gpu_check_nogpu.$$.ppm "$DIR/$1.txt" 2>&1 >/dev/null)
+    rc=$?
+    lines=$(printf '%s\n' "$msg" | wc -l)
+    echo "exit $rc, $lines line(s): $msg"
+    [ -e /tmp/gpu_check_nogpu.$$.ppm ] && { echo "FAIL: an image was written"; rm -f /tmp/gpu_check_nogpu.$$.ppm; exit 1; }
+    [ "$rc" -eq 1 ] && [ "$lines" -eq 1 ] && [ -n "$msg" ] || { echo "FAIL: expected one line and exit 1"; exit 1; }
+    exit 0
+fi
+
+if ! have_gpu; then echo "SKIP: no GPU (nvidia-smi finds none)"; exit 77; fi
+[ -d "$DIR" ] || { echo "SKIP: no course scenes at $DIR"; exit 77; }
+
+TMP=$(mktemp -d) || exit 1
+trap 'rm -rf "$TMP"' EXIT
+fail=0
+CSV=${GPU_CHECK_CSV:-}
+[ -n "$CSV" ] && [ ! -s "$CSV" ] && echo "scene,accel,block,psnr,over2_pct,maxdiff,rays_serial,rays_cuda,ray_diff_pct,node_visits_serial,node_visits_cuda,result" >"$CSV"
+
+# key=value from a record line
+field() { printf '%s\n' "$1" | tr ' ' '\n' | sed -n "s/^$2=//p"; }
+
+# |a-b|/a*100 <= 0.1 for each ray counter
+rays_ok() {
+    awk -v a="$1" -v b="$2" 'BEGIN { d = a > b ? a - b : b - a; if (a == 0) exit (b != 0); exit (d * 1000 > a) }'
+}
+
+for sc in "$@"; do
+    name=$(basename "$sc")
+    ref="$TMP/$name-serial.ppm"
+    rec_s=$("$RT" -q --backend serial --accel bvh -o "$ref" "$DIR/$sc.txt") || { echo "FAIL $name: serial render"; fail=1; continue; }
+    case $MODE in
+        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1} none:16x16 none:32x32" ;;
+        *) runs="${GPU_CHECK_BLOCKS:-bvh:16x16 bvh:32x32}" ;;
+    esac
+    for r in $runs; do
+        accel=${r%%:*}; blk=${r#*:}
+        img="$TMP/$name-cuda-$accel-$blk.ppm"
+        rec_c=$(RAYBENCH_CUDA_RUNS=1 "$RT" -q --verify --backend cuda --accel "$accel" --block "$blk" -o "$img" "$DIR/$sc.txt")
+        if [ $? -ne 0 ]; then echo "FAIL $name $accel $blk: cuda render"; fail=1; continue; fi
+        d=$("$DIFF" "$ref" "$img" --min-psnr 45 --max-over2 0.2); drc=$?
+        ok=ok; [ $drc -eq 0 ] || ok=image
+        for k in primary_rays shadow_rays secondary_rays; do
+            rays_ok "$(field "$rec_s" $k)" "$(field "$rec_c" $k)" || ok="$ok+$k"
+        done
+        [ "$ok" = ok ] || { ok=FAIL:$ok; fail=1; }
+        rs=$(field "$rec_s" rays); rcu=$(field "$rec_c" rays)
+        pct=$(awk -v a="$rs" -v b="$rcu" 'BEGIN { printf "%.4f", a ? (b - a) * 100 / a : 0 }')
+        echo "$name $accel $blk: $d rays $rs/$rcu ($pct%) $ok"
+        [ -n "$CSV" ] && echo "$name,$accel,$blk,$(field "$d" psnr),$(field "$d" over2 | tr -d %),$(field "$d" maxdiff),$rs,$rcu,$pct,$(field "$rec_s" node_visits),$(field "$rec_c" node_visits),$ok" >>"$CSV"
+    done
+done
+exit $fail
