@@ -57,113 +57,166 @@ static inline RT_HD RtSurface rt_surface(const RtSceneView *s, RtVec3 o, RtVec3 
     return sf;
 }
 
-/* Direct light from every light at the surface, with hard shadows. A light
- * whose contribution is exactly zero (behind a spot cone, or N.L <= 0 with no
- * specular lobe) casts no shadow ray: it could not change the colour. */
-static inline RT_HD RtVec3 rt_direct_light(const RtSceneView *s, const RtSurface *sf, const RtMaterial *m,
-                                           RtVec3 view, RtCounters *cnt)
+/* The unshadowed contribution of light li at the surface, and the shadow ray
+ * that decides whether it arrives (from just above the surface towards the
+ * light; any surface closer than the light blocks it, transparent or not).
+ * Returns 0 when the contribution is exactly zero (behind a spot cone, or
+ * N.L <= 0 with no specular lobe): such a light casts no shadow ray, since it
+ * could not change the colour. */
+static inline RT_HD int rt_light_sample(const RtSceneView *s, const RtSurface *sf, const RtMaterial *m, RtVec3 view,
+                                        uint32_t li, RtVec3 *contrib, RtVec3 *dir, float *dist)
 {
-    RtVec3 kd = rt_v3_load(m->kd), ks = rt_v3_load(m->ks);
-    RtVec3 sum = rt_mul(rt_v3_load(m->ka), s->ambient);
-    RtVec3 so = rt_madd(sf->p, sf->n, RT_SHADOW_OFFSET);
-    for (uint32_t li = 0; li < s->nlights; li++) {
-        const RtLight *lt = &s->lights[li];
-        RtVec3 I = rt_v3_load(lt->color);
-        RtVec3 L;
-        float dist;
-        if (lt->type == RT_LIGHT_DIRECTIONAL) {
-            L = rt_neg(rt_v3_load(lt->dir));
-            dist = RT_INF;
-        } else {
-            RtVec3 tl = rt_sub(rt_v3_load(lt->pos), sf->p);
-            dist = rt_length(tl);
-            if (!(dist > 0.0f))
-                continue;
-            L = rt_scale(tl, 1.0f / dist);
-            I = rt_scale(I, 1.0f / (dist * dist));
-            if (lt->type == RT_LIGHT_SPOT) {
-                float c = rt_dot(rt_v3_load(lt->dir), rt_neg(L));
-                c = c > 1.0f ? 1.0f : (c < -1.0f ? -1.0f : c);
-                float a = acosf(c) * (180.0f / 3.14159265358979f);
-                if (a > lt->angle2)
-                    continue;
-                if (a > lt->angle1)
-                    I = rt_scale(I, 1.0f - (a - lt->angle1) / (lt->angle2 - lt->angle1));
-            }
+    const RtLight *lt = &s->lights[li];
+    RtVec3 I = rt_v3_load(lt->color);
+    RtVec3 L;
+    float dl;
+    if (lt->type == RT_LIGHT_DIRECTIONAL) {
+        L = rt_neg(rt_v3_load(lt->dir));
+        dl = RT_INF;
+    } else {
+        RtVec3 tl = rt_sub(rt_v3_load(lt->pos), sf->p);
+        dl = rt_length(tl);
+        if (!(dl > 0.0f))
+            return 0;
+        L = rt_scale(tl, 1.0f / dl);
+        I = rt_scale(I, 1.0f / (dl * dl));
+        if (lt->type == RT_LIGHT_SPOT) {
+            float c = rt_dot(rt_v3_load(lt->dir), rt_neg(L));
+            c = c > 1.0f ? 1.0f : (c < -1.0f ? -1.0f : c);
+            float a = acosf(c) * (180.0f / 3.14159265358979f);
+            if (a > lt->angle2)
+                return 0;
+            if (a > lt->angle1)
+                I = rt_scale(I, 1.0f - (a - lt->angle1) / (lt->angle2 - lt->angle1));
         }
-        float ndl = rt_maxf(0.0f, rt_dot(sf->n, L));
-        RtVec3 H = rt_normalize(rt_add(L, view));
-        float ndh = rt_maxf(0.0f, rt_dot(sf->n, H));
-        float spec = powf(ndh, m->ns);
-        RtVec3 c = rt_add(rt_scale(kd, ndl), rt_scale(ks, spec));
-        c = rt_mul(c, I);
-        if (rt_is_zero(c))
-            continue;
-        /* Shadow ray: from just above the surface towards the light; any
-         * surface closer than the light blocks it, transparent or not. */
-        RtHit sh;
-        cnt->shadow_rays++;
-        if (rt_trace_ray(s, so, L, dist, 1, &sh, cnt))
-            continue;
-        sum = rt_add(sum, c);
     }
-    return sum;
+    float ndl = rt_maxf(0.0f, rt_dot(sf->n, L));
+    RtVec3 H = rt_normalize(rt_add(L, view));
+    float ndh = rt_maxf(0.0f, rt_dot(sf->n, H));
+    float spec = powf(ndh, m->ns);
+    RtVec3 c = rt_add(rt_scale(rt_v3_load(m->kd), ndl), rt_scale(rt_v3_load(m->ks), spec));
+    c = rt_mul(c, I);
+    if (rt_is_zero(c))
+        return 0;
+    *contrib = c;
+    *dir = L;
+    *dist = dl;
+    return 1;
 }
 
-/* The colour of one primary ray, unclamped. */
+/* Pushes the mirror and refracted children of a shaded hit (refraction
+ * first, so the mirror ray is traced first). */
+static inline RT_HD void rt_push_children(RtPending *stack, int *sp, const RtPending *r, const RtSurface *sf,
+                                          const RtMaterial *m)
+{
+    float dn = rt_dot(r->d, sf->n);
+    RtVec3 R = rt_normalize(rt_sub(r->d, rt_scale(sf->n, 2.0f * dn)));
+    RtVec3 wt = rt_mul(r->w, rt_v3_load(m->kt));
+    if (!rt_is_zero(wt)) {
+        float eta = sf->front ? 1.0f / m->ior : m->ior;
+        float cos_i = -dn;
+        float k = 1.0f - eta * eta * (1.0f - cos_i * cos_i);
+        RtVec3 T = R; /* total internal reflection */
+        if (k >= 0.0f)
+            T = rt_normalize(rt_add(rt_scale(r->d, eta), rt_scale(sf->n, eta * cos_i - sqrtf(k))));
+        stack[*sp].o = rt_madd(sf->p, T, RT_SECONDARY_OFFSET);
+        stack[*sp].d = T;
+        stack[*sp].w = wt;
+        stack[*sp].depth = r->depth - 1;
+        (*sp)++;
+    }
+    RtVec3 wr = rt_mul(r->w, rt_v3_load(m->ks));
+    if (!rt_is_zero(wr)) {
+        stack[*sp].o = rt_madd(sf->p, R, RT_SECONDARY_OFFSET);
+        stack[*sp].d = R;
+        stack[*sp].w = wr;
+        stack[*sp].depth = r->depth - 1;
+        (*sp)++;
+    }
+}
+
+/* The colour of one primary ray, unclamped.
+ *
+ * Every ray of the path -- camera, mirror, refracted and shadow -- goes
+ * through the one rt_trace_ray call in this loop: an iteration either pops a
+ * pending ray (closest hit) or traces the next shadow ray of the surface being
+ * lit (any hit). On a GPU the threads of a warp then share one traversal loop
+ * whatever kind of ray each of them holds, instead of splitting between two
+ * inlined copies; on a CPU it is the same work in the same order. The colour
+ * is summed exactly as trace(): ambient, then each light in order, then
+ * weight * local into the pixel. */
 static inline RT_HD RtVec3 rt_trace_path(const RtSceneView *s, RtRay primary, RtCounters *cnt)
 {
     RtPending stack[RT_RAY_STACK];
-    int sp = 0;
-    RtVec3 color = rt_v3(0.0f, 0.0f, 0.0f);
+    const RtVec3 zero = rt_v3(0.0f, 0.0f, 0.0f);
+    RtVec3 color = zero;
     if (s->max_depth <= 0)
         return color;
     stack[0].o = primary.o;
     stack[0].d = primary.d;
     stack[0].w = rt_v3(1.0f, 1.0f, 1.0f);
     stack[0].depth = s->max_depth;
-    sp = 1;
-    while (sp > 0) {
-        RtPending r = stack[--sp];
-        if (r.depth == s->max_depth)
-            cnt->primary_rays++;
-        else
-            cnt->secondary_rays++;
+    int sp = 1;
+    /* The surface being lit: its ray, hit, material, light sum so far. */
+    RtPending cur;
+    RtSurface sf;
+    const RtMaterial *m = s->materials;
+    RtVec3 local = zero, view = zero, so = zero, pending = zero;
+    uint32_t next_light = 0;
+    int lighting = 0;
+    cur = stack[0];
+    sf.p = sf.n = zero;
+    sf.front = 1;
+    sf.material = 0;
+    for (;;) {
+        RtVec3 o = zero, d = zero;
+        float tmax = RT_INF;
+        int any = 0;
+        if (lighting) {
+            /* the next light that can contribute, or the surface is done */
+            while (next_light < s->nlights &&
+                   !rt_light_sample(s, &sf, m, view, next_light, &pending, &d, &tmax))
+                next_light++;
+            if (next_light == s->nlights) {
+                lighting = 0;
+                color = rt_add(color, rt_mul(cur.w, local));
+                if (cur.depth > 1)
+                    rt_push_children(stack, &sp, &cur, &sf, m);
+                continue;
+            }
+            next_light++;
+            o = so;
+            any = 1;
+            cnt->shadow_rays++;
+        } else {
+            if (sp == 0)
+                break;
+            cur = stack[--sp];
+            if (cur.depth == s->max_depth)
+                cnt->primary_rays++;
+            else
+                cnt->secondary_rays++;
+            o = cur.o;
+            d = cur.d;
+        }
         RtHit h;
-        if (!rt_trace_ray(s, r.o, r.d, RT_INF, 0, &h, cnt)) {
-            color = rt_add(color, rt_mul(r.w, s->background));
+        int hit = rt_trace_ray(s, o, d, tmax, any, &h, cnt);
+        if (any) {
+            if (!hit)
+                local = rt_add(local, pending);
             continue;
         }
-        RtSurface sf = rt_surface(s, r.o, r.d, &h);
-        const RtMaterial *m = &s->materials[sf.material];
-        RtVec3 local = rt_direct_light(s, &sf, m, rt_neg(r.d), cnt);
-        color = rt_add(color, rt_mul(r.w, local));
-        if (r.depth <= 1)
+        if (!hit) {
+            color = rt_add(color, rt_mul(cur.w, s->background));
             continue;
-        float dn = rt_dot(r.d, sf.n);
-        RtVec3 R = rt_normalize(rt_sub(r.d, rt_scale(sf.n, 2.0f * dn)));
-        RtVec3 wt = rt_mul(r.w, rt_v3_load(m->kt));
-        if (!rt_is_zero(wt)) {
-            float eta = sf.front ? 1.0f / m->ior : m->ior;
-            float cos_i = -dn;
-            float k = 1.0f - eta * eta * (1.0f - cos_i * cos_i);
-            RtVec3 T = R; /* total internal reflection */
-            if (k >= 0.0f)
-                T = rt_normalize(rt_add(rt_scale(r.d, eta), rt_scale(sf.n, eta * cos_i - sqrtf(k))));
-            stack[sp].o = rt_madd(sf.p, T, RT_SECONDARY_OFFSET);
-            stack[sp].d = T;
-            stack[sp].w = wt;
-            stack[sp].depth = r.depth - 1;
-            sp++;
         }
-        RtVec3 wr = rt_mul(r.w, rt_v3_load(m->ks));
-        if (!rt_is_zero(wr)) {
-            stack[sp].o = rt_madd(sf.p, R, RT_SECONDARY_OFFSET);
-            stack[sp].d = R;
-            stack[sp].w = wr;
-            stack[sp].depth = r.depth - 1;
-            sp++;
-        }
+        sf = rt_surface(s, cur.o, cur.d, &h);
+        m = &s->materials[sf.material];
+        local = rt_mul(rt_v3_load(m->ka), s->ambient);
+        view = rt_neg(cur.d);
+        so = rt_madd(sf.p, sf.n, RT_SHADOW_OFFSET);
+        next_light = 0;
+        lighting = 1;
     }
     return color;
 }
