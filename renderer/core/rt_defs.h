@@ -18,14 +18,6 @@
 #define RT_RESTRICT __restrict
 #endif
 
-/* Inlining that must happen for constant arguments to specialise a function
- * (the host traversal per ray kind); a no-op where the compiler decides. */
-#if defined(__GNUC__) && !defined(__CUDACC__)
-#define RT_FORCEINLINE __attribute__((always_inline))
-#else
-#define RT_FORCEINLINE
-#endif
-
 /* Deepest recursion a scene may ask for; bounds the explicit ray stack. */
 #define RT_MAX_DEPTH 32
 /* Hits closer than this along a ray are ignored (RENDERING-RULES: t > 1e-4). */

@@ -186,7 +186,7 @@ static inline RT_HD int rt_box_enter2(const RtBvhNode *na, const RtBvhNode *nb, 
 }
 
 /* Closest hit (any = 0) or any hit closer than tmax (any = 1). Returns 1 on a hit. */
-static inline RT_HD RT_FORCEINLINE int rt_trace_ray_kind(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any,
+static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any,
                                      RtHit *hit, RtCounters *cnt)
 {
     hit->t = tmax;
@@ -278,21 +278,6 @@ done:
     cnt->node_visits += visits;
     cnt->prim_tests += tests;
     return found;
-}
-
-/* What the shading loop calls. On a GPU one traversal loop serves every kind
- * of ray, so the threads of a warp stay in the same code whatever ray each
- * holds. On a CPU there is no warp to keep together, so the loop is compiled
- * twice, specialised for closest and for any hit (no per-node test of `any`);
- * both copies are the same source and give the same results. */
-static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit,
-                                     RtCounters *cnt)
-{
-#if defined(__CUDA_ARCH__)
-    return rt_trace_ray_kind(s, o, d, tmax, any, hit, cnt);
-#else
-    return any ? rt_trace_ray_kind(s, o, d, tmax, 1, hit, cnt) : rt_trace_ray_kind(s, o, d, tmax, 0, hit, cnt);
-#endif
 }
 
 #endif
