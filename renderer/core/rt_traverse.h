@@ -249,14 +249,13 @@ static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, f
             if (mask == 3) {
                 /* Near child first; the far one waits with its entry distance.
                  * (Shadow rays too: the nearer box is likelier to block.) */
-                if (tb < ta) {
-                    uint32_t tmpn = a; a = b; b = tmpn;
-                    float tmpt = ta; ta = tb; tb = tmpt;
-                }
-                stack_node[sp] = b;
-                stack_t[sp] = tb;
+                /* Selects rather than swaps (conditional moves: the order
+                 * is a coin toss the branch predictor cannot learn). */
+                int bfirst = tb < ta;
+                stack_node[sp] = bfirst ? a : b;
+                stack_t[sp] = bfirst ? ta : tb;
                 sp++;
-                ni = a;
+                ni = bfirst ? b : a;
                 continue;
             }
             if (mask == 1) { ni = a; continue; }
