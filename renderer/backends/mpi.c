@@ -235,10 +235,10 @@ static MPI_Datatype tile_type(TileTypes *tt, int cw, int ch, int w)
     return tt->t[i];
 }
 
-/* Tiles per claim: one for a single-threaded rank (finest balance; a claim
- * costs about a microsecond on one node). With T threads per rank, 4*T tiles,
- * so the rank's threads share out a batch dynamically and the batch's last
- * tile does not leave them idle for long. */
+/* The smallest claim: one tile for a single-threaded rank (finest balance at
+ * the end of the frame). With T threads per rank, 4*T tiles, so the rank's
+ * threads share out a batch dynamically and the batch's last tile does not
+ * leave them idle for long. Earlier claims are larger (guided, below). */
 static int64_t tiles_per_claim(int threads) { return threads > 1 ? 4 * (int64_t)threads : 1; }
 
 static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int th, float *rgb, double *t_start)
@@ -270,15 +270,26 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
 
     float *dst = g_rank == 0 && direct ? img0 : rgb;
     int put = !(g_rank == 0 && direct);
-    int64_t claim = tiles_per_claim(pool->nthreads);
+    const int64_t min_claim = tiles_per_claim(pool->nthreads);
+    int64_t seen = 0; /* the counter as this rank last saw it */
     TileTypes tt;
     tt.n = 0;
     for (;;) {
+        /* Guided self-scheduling (Polychronopoulos & Kuck 1987): claim a
+         * share of what remained at the last look, 1/(4P), never less than
+         * min_claim. Early claims are large, so the counter on rank 0 is hit
+         * a few dozen times instead of once per tile; the last claims are
+         * single tiles, so the ranks still finish together. Which rank
+         * renders a tile never changes the image. */
+        int64_t claim = (ntiles - seen) / (4 * (int64_t)g_size);
+        if (claim < min_claim)
+            claim = min_claim;
         int64_t first;
         RT_MPI_CHECK(MPI_Fetch_and_op(&claim, &first, MPI_INT64_T, 0, 0, MPI_SUM, win));
         RT_MPI_CHECK(MPI_Win_flush(0, win));
         if (first >= ntiles)
             break;
+        seen = first + claim;
         int count = (int)(ntiles - first < claim ? ntiles - first : claim);
         rt_cpu_render_tiles(pool, v, 0, 0, w, h, tw, th, (int)first, count, dst, NULL, NULL);
         for (int t = (int)first; put && t < first + count; t++) {
