@@ -654,9 +654,22 @@ int hx_cmd_run(int argc, char **argv)
     /* What is already there: run ids to skip and image references. */
     HxStrList done_ids = {0}, timed_out = {0};
     RefTable refs = {0};
-    if (resume && hx_file_exists(out_path)) {
+    /* Open (and drop a torn last row) before reading what is done: a row cut
+     * short must be run again, not counted as done and then deleted. */
+    fd = hx_csv_open_append(out_path, overwrite, err, sizeof err);
+    if (fd < 0) {
+        fprintf(stderr, "harness run: %s\n", err);
+        rc = 1;
+        goto done_ids;
+    }
+    if (resume) {
         HxCsv old;
-        if (hx_csv_read(out_path, &old, err, sizeof err) == 0) {
+        if (hx_csv_read(out_path, &old, err, sizeof err) != 0) {
+            /* resuming from a file we cannot read would run everything again */
+            fprintf(stderr, "harness run: --resume: %s\n", err);
+            rc = 1;
+            goto done_ids;
+        } else {
             for (size_t i = 0; i < old.nrows; i++) {
                 hx_strlist_push(&done_ids, hx_csv_get(&old, i, "run_id"));
                 if (strcmp(hx_csv_get(&old, i, "status"), "ok") == 0) {
@@ -672,12 +685,6 @@ int hx_cmd_run(int argc, char **argv)
             }
             hx_csv_free(&old);
         }
-    }
-    fd = hx_csv_open_append(out_path, overwrite, err, sizeof err);
-    if (fd < 0) {
-        fprintf(stderr, "harness run: %s\n", err);
-        rc = 1;
-        goto done_ids;
     }
     if (!mkdtemp(tmpdir)) {
         fprintf(stderr, "harness run: cannot create a temporary directory: %s\n", strerror(errno));

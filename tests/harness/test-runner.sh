@@ -43,6 +43,14 @@ grep -q ' 0 rows' "$T/log2" || { cat "$T/log2"; fail "resume re-ran runs"; }
 head -n 22 "$T/out.csv" > "$T/cut.csv" && cp "$T/cut.csv" "$T/out.csv"
 "$H" run "$T/study.conf" -o "$T/out.csv" --resume -q 2> "$T/log3" || fail "resume 2 failed"
 [ $(($(wc -l < "$T/out.csv") - 1)) -eq 24 ] || fail "resume did not complete the study"
+# a torn last row (power loss mid-write) is dropped and its run redone,
+# whether the cut leaves the field count intact or not
+for cut in 20 400; do
+    truncate -s -$cut "$T/out.csv"
+    "$H" run "$T/study.conf" -o "$T/out.csv" --resume -q 2> "$T/log4" || { cat "$T/log4"; fail "resume after a cut of $cut bytes failed"; }
+    [ $(($(wc -l < "$T/out.csv") - 1)) -eq 24 ] || fail "resume after a cut of $cut bytes: $(($(wc -l < "$T/out.csv") - 1)) rows, want 24"
+    [ "$(cut -d, -f2 "$T/out.csv" | sort | uniq -d | wc -l)" -eq 0 ] || fail "duplicate run ids after a cut of $cut bytes"
+done
 # without --resume an existing CSV is refused
 "$H" run "$T/study.conf" -o "$T/out.csv" -q 2>/dev/null && fail "existing CSV overwritten silently"
 # dry run lists runs with planned cores, runs nothing
