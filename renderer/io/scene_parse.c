@@ -177,20 +177,51 @@ static int get_floats(Parser *p, const char *cmd, const char *v, float *out, int
     return 0;
 }
 
-/* Reads n non-negative integer indices (also written as 3.0 by exporters). */
+/* Reads n non-negative integer indices (also written as 3.0 by exporters).
+ * Parsed in double (or as plain digits), never through float: a float holds
+ * integers exactly only up to 2^24, and vertex pools may be larger. */
 static int get_indices(Parser *p, const char *cmd, const char *v, int64_t *out, int n)
 {
-    float f[6];
-    if (get_floats(p, cmd, v, f, n) != 0)
-        return -1;
+    const char *s = skip_ws(v);
     for (int i = 0; i < n; i++) {
-        if (f[i] != floorf(f[i]))
-            return perr(p, "%s: index %d is not an integer: %g", cmd, i + 1, (double)f[i]);
-        if (f[i] < 0.0f)
-            return perr(p, "%s: index %d is negative: %.0f", cmd, i + 1, (double)f[i]);
-        if (f[i] > 4294967295.0f)
-            return perr(p, "%s: index %d is out of range: %.0f", cmd, i + 1, (double)f[i]);
-        out[i] = (int64_t)f[i];
+        if (*s == '\0')
+            return perr(p, "%s: expected %d values, got %d", cmd, n, i);
+        const char *tok = s;
+        int len = 0;
+        while (tok[len] && tok[len] != ' ' && tok[len] != '\t')
+            len++;
+        double d = 0.0;
+        int digits = len > 0 && len <= 10;
+        for (int k = 0; digits && k < len; k++) {
+            if (tok[k] < '0' || tok[k] > '9')
+                digits = 0;
+            else
+                d = d * 10.0 + (double)(tok[k] - '0'); /* exact: < 2^53 */
+        }
+        char *end = (char *)tok + len;
+        errno = 0;
+        if (!digits) /* the common plain-digit case skips strtod */
+            d = strtod(tok, &end);
+        if (end != tok + len || errno == ERANGE || !isfinite(d))
+            return perr(p, "%s: value %d is not a finite number: '%.*s'", cmd, i + 1, len < 40 ? len : 40, tok);
+        if (d != floor(d))
+            return perr(p, "%s: index %d is not an integer: %.*s", cmd, i + 1, len < 40 ? len : 40, tok);
+        if (d < 0.0)
+            return perr(p, "%s: index %d is negative: %.*s", cmd, i + 1, len < 40 ? len : 40, tok);
+        if (d > 4294967295.0)
+            return perr(p, "%s: index %d is out of range: %.*s", cmd, i + 1, len < 40 ? len : 40, tok);
+        out[i] = (int64_t)d;
+        s = skip_ws(tok + len);
+    }
+    if (*s != '\0') {
+        int extra = 0;
+        while (*s) {
+            while (*s && *s != ' ' && *s != '\t')
+                s++;
+            s = skip_ws(s);
+            extra++;
+        }
+        return perr(p, "%s: expected %d values, got %d", cmd, n, n + extra);
     }
     return 0;
 }

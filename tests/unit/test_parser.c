@@ -183,6 +183,9 @@ static void test_bad_input(void)
     expect_error("vertex: 0 0 1e39\n", 1, "not a finite number");
     expect_error("vertex: 0 0 0\nvertex: 1 0 0\ntriangle: 0 1 2\n", 3, "vertex index 2 out of range");
     expect_error("vertex: 0 0 0\ntriangle: 0 -1 0\n", 2, "negative");
+    /* 2^32 rounds to a representable float; read exactly, it is out of range */
+    expect_error("vertex: 0 0 0\ntriangle: 0 0 4294967296\n", 2, "out of range");
+    expect_error("vertex: 0 0 0\ntriangle: 0 0 16777217\n", 2, "vertex index 16777217 out of range");
     expect_error("vertex: 0 0 0\ntriangle: 0 0.5 0\n", 2, "not an integer");
     expect_error("vertex: 0 0 0\nnormal: 0 0 1\nnormal_triangle: 0 0 0 0 0 1\n", 3, "normal index 1 out of range");
     expect_error("film_resolution: 0 480\n", 1, "positive integer");
