@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "config.h"
@@ -72,6 +73,8 @@ static int parse_int(const char *s, long lo, long hi, int *out)
 static int parse_wxh(const char *s, int maxside, int *w, int *h)
 {
     char buf[64];
+    if (strlen(s) >= sizeof buf) /* never judge a truncated copy */
+        return -1;
     snprintf(buf, sizeof buf, "%s", s);
     char *x = strchr(buf, 'x');
     if (!x)
@@ -229,6 +232,9 @@ static int check_output(const char *path, RtError *err)
         *slash = '\0';
     else
         snprintf(dir, sizeof dir, ".");
+    struct stat st;
+    if (stat(path, &st) == 0 && S_ISDIR(st.st_mode))
+        return rt_fail(err, "%s: is a directory", path);
     if (access(dir, W_OK) != 0)
         return rt_fail(err, "%s: cannot write into directory '%s': %s", path, dir, strerror(errno));
     return 0;

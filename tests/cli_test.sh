@@ -76,6 +76,15 @@ rm -f "$tmp/out.png"
 "$rt" -q -o "$tmp/no/such/dir/out.png" "$src/scenes/demo.txt" > /dev/null 2> "$tmp/stderr"
 [ $? -eq 1 ] && grep -q "cannot write" "$tmp/stderr" || fail "unwritable output accepted"
 
+mkdir -p "$tmp/isdir.png"
+"$rt" -q -o "$tmp/isdir.png" "$src/scenes/demo.txt" > /dev/null 2> "$tmp/stderr"
+[ $? -eq 1 ] && grep -q "is a directory" "$tmp/stderr" || fail "a directory as output accepted"
+bad "overlong option value" "--resolution" -r "64x$(printf '0%.0s' $(seq 58))640" "$src/scenes/demo.txt"
+
+# --- images get the usual permissions (0666 less the umask), not mkstemp's 0600
+(umask 022 && "$rt" -q -r 16x12 -o "$tmp/mode.png" "$src/scenes/demo.txt" > /dev/null) || fail "mode render"
+[ "$(stat -c %a "$tmp/mode.png")" = 644 ] || fail "image mode $(stat -c %a "$tmp/mode.png"), want 644"
+
 # --- an existing output survives a failed run untouched
 cp "$tmp/demo.png" "$tmp/keep.png"
 "$rt" -q -o "$tmp/keep.png" "$tmp/count.txt" > /dev/null 2>&1

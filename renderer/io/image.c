@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "config.h"
@@ -135,6 +136,17 @@ int rt_image_write(const char *path, const uint8_t *rgb, int w, int h, RtError *
         free(tmp);
         return rt_fail(err, "%s: cannot create: %s", path, strerror(e));
     }
+    /* mkstemp creates the file 0600; the image should get the mode any
+     * other new file gets (0666 less the umask). */
+    mode_t mask = umask(0);
+    umask(mask);
+    if (fchmod(fd, 0666 & ~mask) != 0) {
+        int e = errno;
+        close(fd);
+        unlink(tmp);
+        free(tmp);
+        return rt_fail(err, "%s: cannot set permissions: %s", path, strerror(e));
+    }
     FILE *fp = fdopen(fd, "wb");
     if (!fp) {
         int e = errno;
@@ -185,6 +197,7 @@ static int read_png(FILE *fp, const char *path, uint8_t **out, int *w, int *h, R
     png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &pe, png_error_cb, png_warn_cb);
     png_infop info = png ? png_create_info_struct(png) : NULL;
     uint8_t *volatile buf = NULL;
+    png_bytep *volatile rows = NULL; /* volatile: freed after a longjmp from libpng */
     if (!png || !info) {
         png_destroy_read_struct(&png, &info, NULL);
         return rt_fail(err, "%s: libpng: cannot create reader", path);
@@ -192,6 +205,7 @@ static int read_png(FILE *fp, const char *path, uint8_t **out, int *w, int *h, R
     if (setjmp(pe.jb)) {
         png_destroy_read_struct(&png, &info, NULL);
         free(buf);
+        free(rows);
         return rt_fail(err, "%s: libpng: %s", path, pe.msg);
     }
     png_init_io(png, fp);
@@ -214,7 +228,7 @@ static int read_png(FILE *fp, const char *path, uint8_t **out, int *w, int *h, R
         return rt_fail(err, "%s: unsupported PNG layout", path);
     }
     buf = malloc((size_t)pw * ph * 3);
-    png_bytep *rows = malloc(ph * sizeof *rows);
+    rows = malloc(ph * sizeof *rows);
     if (!buf || !rows) {
         free(rows);
         png_destroy_read_struct(&png, &info, NULL);
@@ -258,9 +272,9 @@ int rt_image_read(const char *path, uint8_t **out, int *w, int *h, RtError *err)
         uint8_t hdr[54];
         rc = -1;
         if (fread(hdr, 1, 54, fp) == 54 && get_le32(hdr + 14) >= 40 && hdr[28] == 24) {
-            int bw = (int)get_le32(hdr + 18), bh = (int)get_le32(hdr + 22);
+            int64_t bw = (int32_t)get_le32(hdr + 18), bh = (int32_t)get_le32(hdr + 22);
             int flip = bh > 0;
-            bh = bh < 0 ? -bh : bh;
+            bh = bh < 0 ? -bh : bh; /* in 64 bits: -INT32_MIN does not overflow */
             if (bw > 0 && bh > 0 && bw <= RT_MAX_SIDE && bh <= RT_MAX_SIDE &&
                 fseek(fp, (long)get_le32(hdr + 10), SEEK_SET) == 0) {
                 size_t stride = ((size_t)bw * 3 + 3) & ~(size_t)3;
@@ -280,7 +294,7 @@ int rt_image_read(const char *path, uint8_t **out, int *w, int *h, RtError *err)
                 }
                 free(row);
                 if (rc == 0) {
-                    *out = buf; *w = bw; *h = bh;
+                    *out = buf; *w = (int)bw; *h = (int)bh;
                 } else {
                     free(buf);
                 }
