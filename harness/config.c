@@ -101,8 +101,8 @@ static int check_dim_value(int dim, const char *v, char *why, size_t n)
         }
         return 0;
     case HX_DIM_MAX_DEPTH:
-        if (hx_parse_int(v, 0, 1000, &a)) {
-            snprintf(why, n, "expected an integer 0..1000, got '%s'", v);
+        if (hx_parse_int(v, 0, 32, &a)) { /* raytrace's RT_MAX_DEPTH */
+            snprintf(why, n, "expected an integer 0..32, got '%s'", v);
             return -1;
         }
         return 0;
@@ -111,6 +111,19 @@ static int check_dim_value(int dim, const char *v, char *why, size_t n)
     case HX_DIM_RESOLUTION:
         if (hx_parse_wxh(v, &a, &b)) {
             snprintf(why, n, "expected WxH (e.g. 16x16), got '%s'", v);
+            return -1;
+        }
+        /* the renderer's own limits, so a study fails here, not run by run */
+        if (dim == HX_DIM_RESOLUTION && (a > 32768 || b > 32768 || a * b > (1L << 28))) {
+            snprintf(why, n, "resolution %s exceeds raytrace's limit (32768 per side, 2^28 pixels)", v);
+            return -1;
+        }
+        if (dim == HX_DIM_TILE && (a > 4096 || b > 4096)) {
+            snprintf(why, n, "tile %s exceeds raytrace's limit (4096 per side)", v);
+            return -1;
+        }
+        if (dim == HX_DIM_BLOCK && a * b > 1024) {
+            snprintf(why, n, "block %s has more than 1024 threads", v);
             return -1;
         }
         return 0;

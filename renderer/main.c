@@ -258,32 +258,43 @@ int main(int argc, char **argv)
     double t_start = rt_now_ms();
     Options o;
     /* Under mpirun every rank parses the same options: let only rank 0 say
-     * what is wrong with them (stderr is silenced meanwhile on the others). */
-    int saved_stderr = -1;
-    if (launcher_rank() != 0) {
+     * what is wrong with them, or print --help and --version (stdout and
+     * stderr are silenced meanwhile on the others). */
+    int other_rank = launcher_rank() != 0;
+    int saved_stderr = -1, saved_stdout = -1;
+    if (other_rank) {
+        fflush(stdout);
         fflush(stderr);
+        saved_stdout = dup(STDOUT_FILENO);
         saved_stderr = dup(STDERR_FILENO);
         FILE *null = fopen("/dev/null", "w");
         if (null) {
+            dup2(fileno(null), STDOUT_FILENO);
             dup2(fileno(null), STDERR_FILENO);
             fclose(null);
         }
     }
     int parsed = parse_options(argc, argv, &o);
-    if (saved_stderr >= 0) {
+    if (other_rank) {
+        fflush(stdout);
         fflush(stderr);
+        dup2(saved_stdout, STDOUT_FILENO);
         dup2(saved_stderr, STDERR_FILENO);
+        close(saved_stdout);
         close(saved_stderr);
     }
     if (parsed != 0)
         return 1;
     const RtBackend *be = rt_backend_find(o.backend);
     if (!be) {
-        fprintf(stderr, "%s: option --backend '%s': unknown backend (serial, openmp, mpi, cuda)\n", prog, o.backend);
+        if (!other_rank)
+            fprintf(stderr, "%s: option --backend '%s': unknown backend (serial, openmp, mpi, cuda)\n", prog,
+                    o.backend);
         return 1;
     }
     if (be->unavailable) {
-        fprintf(stderr, "%s: --backend %s: %s\n", prog, be->name, be->unavailable);
+        if (!other_rank)
+            fprintf(stderr, "%s: --backend %s: %s\n", prog, be->name, be->unavailable);
         return 1;
     }
     RtError err;

@@ -24,7 +24,8 @@ expect_one_error() { # NAME PATTERN ARGS...
     echo "$name: exit $rc after $ms ms, stderr:"; sed 's/^/  | /' "$tmp/err"
     if [ $rc != 1 ]; then echo "FAIL $name: exit status $rc, expected 1"; fails=$((fails + 1)); fi
     # the ranks end at once; mpirun itself needs up to ~2.3 s after an exit(1)
-    if [ $ms -gt 4000 ]; then echo "FAIL $name: took $ms ms"; fails=$((fails + 1)); fi
+    # (more on a loaded machine): the bound catches a hang, not mpirun's pace
+    if [ $ms -gt 6000 ]; then echo "FAIL $name: took $ms ms"; fails=$((fails + 1)); fi
     if [ "$lines" != 1 ]; then echo "FAIL $name: $lines stderr lines, expected 1"; fails=$((fails + 1)); fi
     if ! grep -q -- "$pat" "$tmp/err"; then echo "FAIL $name: message lacks '$pat'"; fails=$((fails + 1)); fi
     if grep -q '^record:' "$tmp/out"; then echo "FAIL $name: printed a record"; fails=$((fails + 1)); fi
