@@ -150,6 +150,8 @@ int hx_cmd_compare(int argc, char **argv)
         for (size_t i = 0; i < fpn.n; i++)
             printf("  new:  %s\n", fpn.v[i]);
     }
+    /* COLUMN/calib: times in units of the machine's speed at that moment */
+    const char *unit = strchr(metric, '/') ? "x calib" : "ms";
     int regressions = 0, compared = 0;
     for (size_t i = 0; i < base.ng; i++) {
         const HxGroup *b = &base.g[i];
@@ -200,7 +202,7 @@ int hx_cmd_compare(int argc, char **argv)
         regressions += counter_bad;
         /* noise-aware time rule */
         double ratio = n->median / b->median, rmin = n->min / b->min;
-        if (b->median < min_ms) {
+        if (!strchr(metric, '/') && b->median < min_ms) {
             printf("ok %s %s: times %.3f -> %.3f ms too short to judge (< %.3g ms)\n", b->scene,
                    name, b->median, n->median, min_ms);
             continue;
@@ -219,8 +221,8 @@ int hx_cmd_compare(int argc, char **argv)
             snprintf(how, sizeof how, "min ratio %.2f, n=%zu/%zu (too few for a test)", rmin,
                      n->nt, b->nt);
         }
-        printf("%s %s %s: median %.3f -> %.3f ms, ratio %.2f (%s)%s\n",
-               slow ? "REGRESSION" : "ok", b->scene, name, b->median, n->median, ratio, how,
+        printf("%s %s %s: median %.3f -> %.3f %s, ratio %.2f (%s)%s\n",
+               slow ? "REGRESSION" : "ok", b->scene, name, b->median, n->median, unit, ratio, how,
                slow && fp_differs ? " [different machines]" : "");
         regressions += slow;
     }

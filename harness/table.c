@@ -67,6 +67,36 @@ static char *row_label(const HxCsv *csv, size_t r, int with_workers, const int *
     return b.s;
 }
 
+/* The metric of row r: a numeric column, or "COLUMN/calib": the column
+ * divided by the row's calib_ms (raytrace --calibrate, kept in `extra`), a
+ * time in units of the machine's speed at that moment. */
+static int row_metric(const HxCsv *csv, size_t r, const char *metric, double *out)
+{
+    const char *slash = strchr(metric, '/');
+    if (!slash)
+        return hx_parse_double(hx_csv_get(csv, r, metric), out);
+    char col[64];
+    size_t n = (size_t)(slash - metric);
+    if (n >= sizeof col)
+        return -1;
+    memcpy(col, metric, n);
+    col[n] = '\0';
+    double v, c;
+    const char *extra = hx_csv_get(csv, r, "extra");
+    const char *k = strstr(extra, "calib_ms=");
+    if (hx_parse_double(hx_csv_get(csv, r, col), &v) != 0 || !k)
+        return -1;
+    char num[32];
+    size_t m = 0;
+    for (k += 9; *k && *k != ';' && m + 1 < sizeof num; k++)
+        num[m++] = *k;
+    num[m] = '\0';
+    if (hx_parse_double(num, &c) != 0 || !(c > 0.0))
+        return -1;
+    *out = v / c;
+    return 0;
+}
+
 int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, size_t errlen)
 {
     memset(s, 0, sizeof *s);
@@ -79,8 +109,9 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
             snprintf(err, errlen, "%s: no '%s' column (not a harness CSV?)", path, need[i]);
             return -1;
         }
-    if (hx_csv_col(csv, metric) < 0) {
-        snprintf(err, errlen, "%s: no column '%s' for --metric", path, metric);
+    const char *slash = strchr(metric, '/');
+    if (slash ? (strcmp(slash, "/calib") != 0 || hx_csv_col(csv, "extra") < 0) : hx_csv_col(csv, metric) < 0) {
+        snprintf(err, errlen, "%s: no column '%s' for --metric (a column, or COLUMN/calib)", path, metric);
         return -1;
     }
     /* gate, pass 1: reference hash per image (scene, resolution, depth) */
@@ -182,7 +213,7 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
         double t;
         if (s->row_status_wrong[r]) {
             g->nwrong++;
-        } else if (strcmp(st, "ok") == 0 && hx_parse_double(hx_csv_get(csv, r, metric), &t) == 0) {
+        } else if (strcmp(st, "ok") == 0 && row_metric(csv, r, metric, &t) == 0) {
             g->t[g->nt++] = t;
             g->nok++;
         } else if (strcmp(st, "timeout") == 0) {

@@ -28,6 +28,7 @@ typedef struct Options {
     int device;
     int quiet;
     int verify;
+    int calibrate;
     const char *mpi_scene; /* NULL: the mpi backend's default */
 } Options;
 
@@ -52,6 +53,7 @@ static void usage(FILE *fp)
             "      --block BXxBY        cuda: thread block shape (default chosen by measurement)\n"
             "      --device N           cuda: device index (default 0)\n"
             "      --verify             poison the image first and fail unless every pixel is written\n"
+            "      --calibrate          time a fixed CPU workload before rendering (record key calib_ms)\n"
             "  -q, --quiet              no progress output\n"
             "  -h, --help               this text\n"
             "  -V, --version            version and the backends in this build\n\n"
@@ -95,7 +97,7 @@ static int opt_error(const char *opt, const char *val, const char *why)
 
 static int parse_options(int argc, char **argv, Options *o)
 {
-    enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE };
+    enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE };
     static const struct option longopts[] = {
         {"output", required_argument, NULL, 'o'},     {"backend", required_argument, NULL, 'b'},
         {"accel", required_argument, NULL, 'a'},      {"resolution", required_argument, NULL, 'r'},
@@ -104,7 +106,7 @@ static int parse_options(int argc, char **argv, Options *o)
         {"mpi-schedule", required_argument, NULL, OPT_MPI_SCHEDULE},
         {"mpi-scene", required_argument, NULL, OPT_MPI_SCENE},
         {"block", required_argument, NULL, OPT_BLOCK}, {"device", required_argument, NULL, OPT_DEVICE},
-        {"verify", no_argument, NULL, OPT_VERIFY},    {"quiet", no_argument, NULL, 'q'},
+        {"verify", no_argument, NULL, OPT_VERIFY},    {"calibrate", no_argument, NULL, OPT_CALIBRATE},    {"quiet", no_argument, NULL, 'q'},
         {"help", no_argument, NULL, 'h'},             {"version", no_argument, NULL, 'V'},
         {NULL, 0, NULL, 0}};
     memset(o, 0, sizeof *o);
@@ -163,6 +165,7 @@ static int parse_options(int argc, char **argv, Options *o)
                 return opt_error("--device", optarg, "expected a device index");
             break;
         case OPT_VERIFY: o->verify = 1; break;
+        case OPT_CALIBRATE: o->calibrate = 1; break;
         case 'q': o->quiet = 1; break;
         case 'h': usage(stdout); exit(0);
         case 'V': {
@@ -383,6 +386,8 @@ agree:
         job.progress = progress_cb;
         job.progress_ctx = &prog_state;
     }
+    /* Right before the render, on the same core: the machine's speed now. */
+    double calib_ms = o.calibrate ? rt_calibrate_ms() : 0.0;
     RtRenderOut out;
     memset(&out, 0, sizeof out);
     out.rgb = rgbf;
@@ -411,17 +416,20 @@ agree:
     uint64_t rays = rt_counters_rays(&out.counters);
     int tw = o.tile_w ? o.tile_w : (strcmp(be->name, "serial") == 0 ? 32 : 16);
     int th = o.tile_h ? o.tile_h : tw;
+    char calib_key[48] = "";
+    if (o.calibrate)
+        snprintf(calib_key, sizeof calib_key, " calib_ms=%.3f", calib_ms);
     printf("record: scene=%s width=%d height=%d backend=%s accel=%s threads=%d ranks=%d parse_ms=%.3f "
            "build_ms=%.3f render_ms=%.3f write_ms=%.3f total_ms=%.3f rays=%llu primary_rays=%llu "
            "shadow_rays=%llu secondary_rays=%llu node_visits=%llu prim_tests=%llu mrays_per_s=%.3f "
-           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u%s\n",
+           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u%s%s\n",
            scene.name, cam.width, cam.height, be->name, rt_accel_name(o.accel), out.threads_used, out.ranks_used,
            parse_ms, build_ms, out.render_ms, write_ms, total_ms, (unsigned long long)rays,
            (unsigned long long)out.counters.primary_rays, (unsigned long long)out.counters.shadow_rays,
            (unsigned long long)out.counters.secondary_rays, (unsigned long long)out.counters.node_visits,
            (unsigned long long)out.counters.prim_tests,
            out.render_ms > 0.0 ? (double)rays / (out.render_ms * 1000.0) : 0.0, (unsigned long long)hash, tw, th,
-           out.cores[0] ? out.cores : "unknown", accel.nprims, accel.nnodes, out.extra);
+           out.cores[0] ? out.cores : "unknown", accel.nprims, accel.nnodes, out.extra, calib_key);
     fflush(stdout);
     rc = 0;
     goto done;

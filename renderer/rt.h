@@ -166,6 +166,9 @@ const RtBackend *const *rt_backend_list(void);
 /* ---------------------------------------------------------------- helpers */
 
 double rt_now_ms(void);
+/* Milliseconds a fixed CPU workload takes on the calling thread now: a
+ * measure of the machine's current speed (record key calib_ms). */
+double rt_calibrate_ms(void);
 /* Tiles of tw x th covering the image, row-major. */
 static inline int rt_tile_count(int w, int h, int tw, int th)
 {

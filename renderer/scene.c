@@ -152,3 +152,30 @@ void rt_image_quantize(const float *rgbf, uint8_t *rgb, size_t npixels)
     for (size_t i = 0; i < 3 * npixels; i++)
         rgb[i] = rt_quantize(rgbf[i]);
 }
+
+double rt_calibrate_ms(void)
+{
+    /* A fixed workload shaped like traversal: dependent loads from a 64 KB
+     * table (L1/L2), a data-dependent branch and float arithmetic. Its time
+     * tracks how fast this core runs right now, so a benchmark can divide
+     * its render time by it and compare runs made while a shared machine was
+     * faster or slower (harness compare --metric render_ms/calib). */
+    enum { N = 16384, ITERS = 4000000 }; /* about 10 ms on the development VM */
+    static float table[N];
+    uint32_t s = 12345u;
+    for (int i = 0; i < N; i++) {
+        s = s * 1664525u + 1013904223u;
+        table[i] = (float)(s >> 8) * (1.0f / 16777216.0f);
+    }
+    double t0 = rt_now_ms();
+    float acc = 0.0f;
+    uint32_t idx = 0;
+    for (int k = 0; k < ITERS; k++) {
+        float v = table[idx];
+        idx = (idx * 1103515245u + 12345u + (v > 0.5f ? 7u : 0u)) & (N - 1);
+        acc = acc * 0.999f + v * v;
+    }
+    volatile float sink = acc;
+    (void)sink;
+    return rt_now_ms() - t0;
+}

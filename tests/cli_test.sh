@@ -36,6 +36,7 @@ printf 'sphere: 0 0 -5 1\nfilm_resolution: 16 12\n' > "$tmp/noname.txt"
 out=$("$rt" -q -r 40x30 -d 1 -o "$tmp/small.png" "$src/scenes/demo.txt") || fail "overrides"
 echo "$out" | grep -q "width=40 height=30" || fail "--resolution ignored"
 echo "$out" | grep -q "secondary_rays=0 " || fail "--max-depth 1 still traced secondary rays"
+"$rt" -q --calibrate -r 16x12 -o "$tmp/cal.png" "$src/scenes/demo.txt" | grep -q ' calib_ms=[0-9.]*$' || fail "--calibrate adds no calib_ms"
 "$rt" --version | grep -q "raybench" || fail "--version"
 "$rt" --help | grep -q -- "--accel" || fail "--help"
 
