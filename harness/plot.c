@@ -283,7 +283,7 @@ static void plot_blocks(PlotCtx *c, const HxStudy *s)
         fputc('\n', dat);
     }
     script_head(gp, c, "blocks", "Time against CUDA block size");
-    fprintf(gp, "set datafile missing '?'\nset xlabel 'block size'\nset ylabel 'median time (ms)'\n");
+    fprintf(gp, "set datafile missing '?'\nset xlabel 'block size'\nset ylabel 'median time (ms)'\nset xtics rotate by -45\n");
     fprintf(gp, "set logscale y\nset offsets 0.3, 0.3, 0, 0\n");
     fprintf(gp, "plot for [i=2:%zu] '%s-blocks.dat' using 0:i:xtic(1) with linespoints pt 7 title columnheader(i)\n",
             series.n + 1, c->base);
