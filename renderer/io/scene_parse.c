@@ -148,6 +148,21 @@ static const char *skip_ws(const char *s)
     return s;
 }
 
+/* After n values: anything left on the line is an error that counts it. */
+static int expect_end(Parser *p, const char *cmd, const char *s, int n)
+{
+    int extra = 0;
+    while (*s) {
+        while (*s && *s != ' ' && *s != '\t')
+            s++;
+        s = skip_ws(s);
+        extra++;
+    }
+    if (extra)
+        return perr(p, "%s: expected %d values, got %d", cmd, n, n + extra);
+    return 0;
+}
+
 /* Reads exactly n numbers from the value text. */
 static int get_floats(Parser *p, const char *cmd, const char *v, float *out, int n)
 {
@@ -164,17 +179,7 @@ static int get_floats(Parser *p, const char *cmd, const char *v, float *out, int
         }
         s = skip_ws(s);
     }
-    if (*s != '\0') {
-        int extra = 0;
-        while (*s) {
-            while (*s && *s != ' ' && *s != '\t')
-                s++;
-            s = skip_ws(s);
-            extra++;
-        }
-        return perr(p, "%s: expected %d values, got %d", cmd, n, n + extra);
-    }
-    return 0;
+    return expect_end(p, cmd, s, n);
 }
 
 /* Reads n non-negative integer indices (also written as 3.0 by exporters).
@@ -213,17 +218,7 @@ static int get_indices(Parser *p, const char *cmd, const char *v, int64_t *out, 
         out[i] = (int64_t)d;
         s = skip_ws(tok + len);
     }
-    if (*s != '\0') {
-        int extra = 0;
-        while (*s) {
-            while (*s && *s != ' ' && *s != '\t')
-                s++;
-            s = skip_ws(s);
-            extra++;
-        }
-        return perr(p, "%s: expected %d values, got %d", cmd, n, n + extra);
-    }
-    return 0;
+    return expect_end(p, cmd, s, n);
 }
 
 static int check_index(Parser *p, const char *cmd, int64_t idx, uint32_t n, const char *pool)
