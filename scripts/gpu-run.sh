@@ -10,6 +10,7 @@
 #   check    tests/gpu/gpu_check.sh on every course scene (images and counters
 #            against serial) and tests/gpu/gpu_sanitize.sh (check.csv, testlog.txt)
 #   exp      (not default) traversal variant x nvcc math flags x register cap
+#   wave     (not default) wavefront vs per-pixel path x register cap x block
 #   ncu      (not default) Nsight Compute on one launch of dragon and arm-reach
 # STEPS defaults to "build time blocks big check". Results go to $OUT (the
 # device tool's folder; /tmp/gpu-out when unset), at most 8 files:
@@ -49,7 +50,7 @@ fi
 [ -x $RT ] || { echo "no $RT"; exit 1; }
 
 # one render -> one CSV row (selected record keys, plus the variable columns)
-KEYS="scene width height accel render_ms kernel_min_ms first_ms warmup_launches traversal rays primary_rays shadow_rays secondary_rays node_visits prim_tests mrays_per_s block sched kernel_runs regs local_bytes bounds blocks_per_sm grid upload_ms download_ms wall_ms init_ms image_fnv1a gpu"
+KEYS="scene width height accel render_ms kernel_min_ms first_ms warmup_launches path levels traversal rays primary_rays shadow_rays secondary_rays node_visits prim_tests mrays_per_s block sched kernel_runs regs local_bytes bounds blocks_per_sm grid upload_ms download_ms wall_ms init_ms image_fnv1a gpu"
 header() { echo "$KEYS" | tr ' ' ','; }
 row() { # CSV RECORD
     local csv=$1 rec=$2 line="" k v
@@ -141,6 +142,35 @@ if has exp; then
         for sc in InterestingScenes/dragon InterestingScenes/bottle SphereExamples/spheres2; do
             RAYBENCH_CUDA_TRAVERSAL_LDG=1 GPU_CHECK_BLOCKS="bvh:8x8 bvh:32x32" tests/gpu/gpu_check.sh $bd/renderer/raytrace \
                 $B/renderer/imgdiff "$SC" bvh $sc | sed "s/^/$fl ldg1: /"
+        done
+    done
+    cat /tmp/t.csv >>$T; rm -f /tmp/t.csv
+fi
+
+if has wave; then
+    # The wavefront path against the per-pixel kernel, in one call: both
+    # paths x register caps x two block shapes on the report's scenes, and
+    # the dragon at 4K. Rows go to timings.csv, variant PATH-minbN-BLOCK.
+    echo "== wave: wavefront vs per-pixel"
+    T=$OUT/timings.csv; [ -s $T ] || header | sed 's/^/variant,/' >$T
+    for s in $REPORT spheres2; do
+        for path in wave pixel; do
+            for minb in 1 2 3 4; do
+                for blk in 16x16 8x8; do
+                    RAYBENCH_CUDA_PATH=$path RAYBENCH_CUDA_MINB=$minb RAYBENCH_CUDA_RUNS=21 \
+                        render /tmp/t.csv $s --accel bvh --block $blk && sed -i "\$s/^/$path-minb$minb-$blk,/" /tmp/t.csv
+                done
+            done
+        done
+        for path in wave pixel; do
+            RAYBENCH_CUDA_PATH=$path RAYBENCH_CUDA_RUNS=5 render /tmp/t.csv $s --accel none \
+                && sed -i "\$s/^/none-$path,/" /tmp/t.csv
+        done
+    done
+    for path in wave pixel; do
+        for minb in 1 4; do
+            RAYBENCH_CUDA_PATH=$path RAYBENCH_CUDA_MINB=$minb RAYBENCH_CUDA_RUNS=11 render /tmp/t.csv dragon --accel bvh \
+                --block 8x8 -r 3840x2160 && sed -i "\$s/^/4k-$path-minb$minb-8x8,/" /tmp/t.csv
         done
     done
     cat /tmp/t.csv >>$T; rm -f /tmp/t.csv

@@ -104,6 +104,19 @@ static inline RT_HD int rt_light_sample(const RtSceneView *s, const RtSurface *s
     return 1;
 }
 
+/* The start of a hit's local colour (ka * ambient_light) and where its
+ * shadow rays leave from (just above the surface, along the normal). Every
+ * shading loop -- the per-pixel one below, the CUDA wavefront -- uses these. */
+static inline RT_HD RtVec3 rt_ambient_term(const RtSceneView *s, const RtMaterial *m)
+{
+    return rt_mul(rt_v3_load(m->ka), s->ambient);
+}
+
+static inline RT_HD RtVec3 rt_shadow_origin(const RtSurface *sf)
+{
+    return rt_madd(sf->p, sf->n, RT_SHADOW_OFFSET);
+}
+
 /* Pushes the mirror and refracted children of a shaded hit (refraction
  * first, so the mirror ray is traced first). */
 static inline RT_HD void rt_push_children(RtPending *stack, int *sp, const RtPending *r, const RtSurface *sf,
@@ -170,8 +183,8 @@ static inline RT_HD RtVec3 rt_trace_path(const RtSceneView *s, RtRay primary, Rt
         RtSurface sf = rt_surface(s, r.o, r.d, &h);
         const RtMaterial *m = &s->materials[sf.material];
         RtVec3 view = rt_neg(r.d);
-        RtVec3 so = rt_madd(sf.p, sf.n, RT_SHADOW_OFFSET);
-        RtVec3 local = rt_mul(rt_v3_load(m->ka), s->ambient);
+        RtVec3 so = rt_shadow_origin(&sf);
+        RtVec3 local = rt_ambient_term(s, m);
         for (uint32_t li = 0; li < s->nlights; li++) {
             RtVec3 c, L;
             float dist;
