@@ -68,6 +68,8 @@ typedef struct RtAccel {
     uint32_t nprims;
     RtBvhNode *nodes;    /* nnodes (0 for none) */
     uint32_t nnodes;
+    RtBvh4Node *wide;    /* the 4-wide copy of nodes (NULL for none) */
+    uint32_t nwide;
     uint32_t depth;      /* deepest leaf */
     uint32_t leaves;
 } RtAccel;

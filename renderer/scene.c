@@ -78,6 +78,8 @@ RtSceneView rt_scene_view(const RtScene *s, const RtAccel *a, const RtCamera *ca
     v.nprims = a->nprims;
     v.nodes = a->nnodes ? a->nodes : NULL;
     v.nnodes = a->nnodes;
+    v.wide = a->nwide ? a->wide : NULL;
+    v.nwide = a->nwide;
     v.vertices = s->vertices;
     v.normals = s->normals;
     v.spheres = s->spheres;

@@ -10,7 +10,8 @@
 #   check    tests/gpu/gpu_check.sh on every course scene (images and counters
 #            against serial) and tests/gpu/gpu_sanitize.sh (check.csv, testlog.txt)
 #   exp      (not default) traversal variant x nvcc math flags x register cap
-#   wave     (not default) wavefront vs per-pixel path x register cap x block
+#   trav     (not default) wide vs binary traversal x register cap x block
+#   tune     (not default) tile order x L1 carveout x block; image sizes
 #   ncu      (not default) Nsight Compute on one launch of dragon and arm-reach
 # STEPS defaults to "build time blocks big check". Results go to $OUT (the
 # device tool's folder; /tmp/gpu-out when unset), at most 8 files:
@@ -50,7 +51,7 @@ fi
 [ -x $RT ] || { echo "no $RT"; exit 1; }
 
 # one render -> one CSV row (selected record keys, plus the variable columns)
-KEYS="scene width height accel render_ms kernel_min_ms first_ms warmup_launches path levels traversal rays primary_rays shadow_rays secondary_rays node_visits prim_tests mrays_per_s block sched kernel_runs regs local_bytes bounds blocks_per_sm grid upload_ms download_ms wall_ms init_ms image_fnv1a gpu"
+KEYS="scene width height accel render_ms kernel_min_ms first_ms warmup_launches traversal order carveout rays primary_rays shadow_rays secondary_rays node_visits prim_tests mrays_per_s block sched kernel_runs regs local_bytes bounds blocks_per_sm grid upload_ms download_ms wall_ms init_ms image_fnv1a gpu"
 header() { echo "$KEYS" | tr ' ' ','; }
 row() { # CSV RECORD
     local csv=$1 rec=$2 line="" k v
@@ -114,7 +115,7 @@ fi
 
 if has exp; then
     # Variants measured against each other in one call: the GPU traversal
-    # (RAYBENCH_CUDA_TRAVERSAL_LDG), nvcc math flags (NVCC_APPEND_FLAGS, a
+    # (RAYBENCH_CUDA_TRAVERSAL shared|ldg), nvcc math flags (NVCC_APPEND_FLAGS, a
     # build folder each), register caps. Rows go to timings.csv.
     echo "== exp: traversal x math flags x register cap"
     T=$OUT/timings.csv; [ -s $T ] || header | sed 's/^/variant,/' >$T
@@ -125,52 +126,74 @@ if has exp; then
             NVCC_APPEND_FLAGS="-prec-div=false -prec-sqrt=false -ftz=true" ninja -C $bd >/dev/null 2>&1 || echo "build $fl failed"
         fi
         for s in dragon arm-reach bottle test_reasonable; do
-            for ldg in 0 1; do
+            for trav in shared ldg; do
                 for minb in 1 2 3; do
-                    RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=21 RAYBENCH_CUDA_TRAVERSAL_LDG=$ldg RAYBENCH_CUDA_MINB=$minb \
-                        render /tmp/t.csv $s --accel bvh && sed -i "\$s/^/exp-$fl-ldg$ldg-minb$minb,/" /tmp/t.csv
+                    RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=21 RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_MINB=$minb \
+                        render /tmp/t.csv $s --accel bvh && sed -i "\$s/^/exp-$fl-$trav-minb$minb,/" /tmp/t.csv
                 done
-                RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=21 RAYBENCH_CUDA_TRAVERSAL_LDG=$ldg RAYBENCH_CUDA_WARMUP_MS=0 \
-                    render /tmp/t.csv $s --accel bvh && sed -i "\$s/^/exp-$fl-ldg$ldg-minb1-nowarm,/" /tmp/t.csv
+                RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=21 RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_WARMUP_MS=0 \
+                    render /tmp/t.csv $s --accel bvh && sed -i "\$s/^/exp-$fl-$trav-minb1-nowarm,/" /tmp/t.csv
             done
         done
-        RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=11 RAYBENCH_CUDA_TRAVERSAL_LDG=1 render /tmp/t.csv dragon --accel bvh -r 3840x2160 \
+        RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=11 RAYBENCH_CUDA_TRAVERSAL=ldg render /tmp/t.csv dragon --accel bvh -r 3840x2160 \
             && sed -i "\$s/^/exp-4k-$fl-ldg1,/" /tmp/t.csv
-        RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=5 RAYBENCH_CUDA_TRAVERSAL_LDG=1 render /tmp/t.csv dragon --accel none \
+        RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=5 RAYBENCH_CUDA_TRAVERSAL=ldg render /tmp/t.csv dragon --accel none \
             && sed -i "\$s/^/exp-none-$fl-ldg1,/" /tmp/t.csv
         # correctness of the variant with this build (dragon, bottle, spheres2)
         for sc in InterestingScenes/dragon InterestingScenes/bottle SphereExamples/spheres2; do
-            RAYBENCH_CUDA_TRAVERSAL_LDG=1 GPU_CHECK_BLOCKS="bvh:8x8 bvh:32x32" tests/gpu/gpu_check.sh $bd/renderer/raytrace \
+            RAYBENCH_CUDA_TRAVERSAL=ldg GPU_CHECK_BLOCKS="bvh:8x8 bvh:32x32" tests/gpu/gpu_check.sh $bd/renderer/raytrace \
                 $B/renderer/imgdiff "$SC" bvh $sc | sed "s/^/$fl ldg1: /"
         done
     done
     cat /tmp/t.csv >>$T; rm -f /tmp/t.csv
 fi
 
-if has wave; then
-    # The wavefront path against the per-pixel kernel, in one call: both
-    # paths x register caps x two block shapes on the report's scenes, and
-    # the dragon at 4K. Rows go to timings.csv, variant PATH-minbN-BLOCK.
-    echo "== wave: wavefront vs per-pixel"
+if has tune; then
+    # Tile order x L1 carveout x block on the report's scenes (the 4-wide
+    # traversal), and the dragon and arm-reach over image sizes. Variant
+    # ORDER-cCARVEOUT-BLOCK; size rows size-WxH.
+    echo "== tune: tile order, carveout, block; image size"
     T=$OUT/timings.csv; [ -s $T ] || header | sed 's/^/variant,/' >$T
-    for s in $REPORT spheres2; do
-        for path in wave pixel; do
-            for minb in 1 2 3 4; do
-                for blk in 16x16 8x8; do
-                    RAYBENCH_CUDA_PATH=$path RAYBENCH_CUDA_MINB=$minb RAYBENCH_CUDA_RUNS=21 \
-                        render /tmp/t.csv $s --accel bvh --block $blk && sed -i "\$s/^/$path-minb$minb-$blk,/" /tmp/t.csv
+    for s in $REPORT; do
+        for order in tiles scatter; do
+            for co in -1 0; do
+                for blk in 16x16 8x8 4x8; do
+                    RAYBENCH_CUDA_ORDER=$order RAYBENCH_CUDA_CARVEOUT=$co RAYBENCH_CUDA_RUNS=21 \
+                        render /tmp/t.csv $s --accel bvh --block $blk && sed -i "\$s/^/$order-c$co-$blk,/" /tmp/t.csv
                 done
             done
         done
-        for path in wave pixel; do
-            RAYBENCH_CUDA_PATH=$path RAYBENCH_CUDA_RUNS=5 render /tmp/t.csv $s --accel none \
-                && sed -i "\$s/^/none-$path,/" /tmp/t.csv
+    done
+    for s in dragon arm-reach; do
+        for r in 128x96 256x192 512x384 800x600 1024x768 2048x1536; do
+            RAYBENCH_CUDA_RUNS=11 render /tmp/t.csv $s --accel bvh -r $r && sed -i "\$s/^/size-$r,/" /tmp/t.csv
         done
     done
-    for path in wave pixel; do
-        for minb in 1 4; do
-            RAYBENCH_CUDA_PATH=$path RAYBENCH_CUDA_MINB=$minb RAYBENCH_CUDA_RUNS=11 render /tmp/t.csv dragon --accel bvh \
-                --block 8x8 -r 3840x2160 && sed -i "\$s/^/4k-$path-minb$minb-8x8,/" /tmp/t.csv
+    cat /tmp/t.csv >>$T; rm -f /tmp/t.csv
+fi
+
+if has trav; then
+    # The 4-wide traversal against the binary tree's GPU variant, in one call:
+    # traversal x register cap x block on the report's scenes, and the dragon
+    # and arm-reach at 4K. Rows go to timings.csv, variant TRAV-minbN-BLOCK.
+    echo "== trav: wide vs binary (ldg) traversal"
+    T=$OUT/timings.csv; [ -s $T ] || header | sed 's/^/variant,/' >$T
+    for s in $REPORT spheres2; do
+        for trav in wide ldg; do
+            for minb in 1 2 3 4; do
+                for blk in 16x16 8x8 4x8; do
+                    RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_MINB=$minb RAYBENCH_CUDA_RUNS=21 \
+                        render /tmp/t.csv $s --accel bvh --block $blk && sed -i "\$s/^/$trav-minb$minb-$blk,/" /tmp/t.csv
+                done
+            done
+        done
+    done
+    for s in dragon arm-reach; do
+        for trav in wide ldg; do
+            for minb in 1 4; do
+                RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_MINB=$minb RAYBENCH_CUDA_RUNS=11 render /tmp/t.csv $s --accel bvh \
+                    --block 8x8 -r 3840x2160 && sed -i "\$s/^/4k-$trav-minb$minb-8x8,/" /tmp/t.csv
+            done
         done
     done
     cat /tmp/t.csv >>$T; rm -f /tmp/t.csv

@@ -266,6 +266,106 @@ static uint32_t build(Builder *b, uint32_t begin, uint32_t end, uint32_t depth)
     return ni;
 }
 
+/* ---- The 4-wide copy -------------------------------------------------------
+ * Each wide node takes a binary node's two children and keeps opening the
+ * inner child of largest surface area until it holds four (or only leaves
+ * remain): the collapse of Wald et al. 2008 / pbrt's MBVH. Every box in it is
+ * a binary node's box, bit for bit, so the wide traversal culls no primitive
+ * the binary one would test and finds the same closest hit. Leaves are not
+ * nodes here: a child reference holds the leaf's primitive range. */
+typedef struct Widen {
+    const RtBvhNode *bin;
+    RtBvh4Node *wide;
+    uint32_t n;
+} Widen;
+
+static float node_area(const RtBvhNode *n)
+{
+    float dx = n->hi[0] - n->lo[0], dy = n->hi[1] - n->lo[1], dz = n->hi[2] - n->lo[2];
+    return dx * dy + dy * dz + dz * dx;
+}
+
+static uint32_t widen_ref(Widen *w, uint32_t bi);
+
+/* Fills wide node wi with the binary nodes cand[0..nc). */
+static void widen_fill(Widen *w, uint32_t wi, const uint32_t *cand, int nc)
+{
+    uint32_t refs[4];
+    for (int k = 0; k < nc; k++)
+        refs[k] = widen_ref(w, cand[k]); /* (may append nodes: index, not pointer) */
+    RtBvh4Node *o = &w->wide[wi];
+    memset(o, 0, sizeof *o);
+    for (int k = 0; k < 4; k++) {
+        if (k < nc) {
+            const RtBvhNode *c = &w->bin[cand[k]];
+            o->lo_x[k] = c->lo[0]; o->lo_y[k] = c->lo[1]; o->lo_z[k] = c->lo[2];
+            o->hi_x[k] = c->hi[0]; o->hi_y[k] = c->hi[1]; o->hi_z[k] = c->hi[2];
+            o->child[k] = refs[k];
+        } else {
+            o->child[k] = RT_WIDE_EMPTY;
+        }
+    }
+    o->count = (uint32_t)nc;
+}
+
+/* The reference to binary node bi in the wide tree: a leaf range, or a new
+ * wide node collapsed from bi's subtree. */
+static uint32_t widen_ref(Widen *w, uint32_t bi)
+{
+    const RtBvhNode *b = &w->bin[bi];
+    uint32_t count = b->meta & 0xffu;
+    if (count)
+        return RT_WIDE_LEAF | (b->index << 3) | (count - 1);
+    uint32_t cand[4] = {bi + 1, b->index, 0, 0};
+    int nc = 2;
+    while (nc < 4) {
+        int best = -1;
+        float best_area = -1.0f;
+        for (int k = 0; k < nc; k++) {
+            const RtBvhNode *c = &w->bin[cand[k]];
+            if ((c->meta & 0xffu) == 0 && node_area(c) > best_area) {
+                best = k;
+                best_area = node_area(c);
+            }
+        }
+        if (best < 0)
+            break;
+        uint32_t c = cand[best];
+        cand[best] = c + 1;
+        cand[nc++] = w->bin[c].index;
+    }
+    uint32_t wi = w->n++;
+    widen_fill(w, wi, cand, nc);
+    return wi;
+}
+
+/* Builds a->wide from a->nodes. A tree that is one leaf gets a root with one
+ * child. Fails only for lack of memory or more than 2^28 primitives (the
+ * reference encoding); then the view simply has no wide tree. */
+static int widen(RtAccel *a)
+{
+    if (a->nnodes == 0 || a->nprims >= RT_WIDE_MAX_FIRST)
+        return -1;
+    Widen w;
+    w.bin = a->nodes;
+    w.n = 0;
+    /* At most one wide node per binary inner node, plus the root. */
+    w.wide = malloc(((size_t)a->nnodes + 1) * sizeof *w.wide);
+    if (!w.wide)
+        return -1;
+    if (a->nodes[0].meta & 0xffu) {
+        uint32_t root = 0;
+        w.n = 1;
+        widen_fill(&w, 0, &root, 1);
+    } else {
+        widen_ref(&w, 0);
+    }
+    RtBvh4Node *shrunk = realloc(w.wide, (size_t)w.n * sizeof *w.wide);
+    a->wide = shrunk ? shrunk : w.wide;
+    a->nwide = w.n;
+    return 0;
+}
+
 int rt_accel_build(const RtScene *s, RtAccelKind kind, RtAccel *a, RtError *err)
 {
     memset(a, 0, sizeof *a);
@@ -316,6 +416,7 @@ int rt_accel_build(const RtScene *s, RtAccelKind kind, RtAccel *a, RtError *err)
     a->prims = ordered;
     a->depth = b.max_depth;
     a->leaves = b.leaves;
+    widen(a); /* optional: without it the GPU traverses the binary tree */
     return 0;
 }
 
@@ -323,6 +424,7 @@ void rt_accel_free(RtAccel *a)
 {
     free(a->prims);
     free(a->nodes);
+    free(a->wide);
     memset(a, 0, sizeof *a);
 }
 
@@ -332,6 +434,82 @@ static int inside(const RtBvhNode *c, const RtBvhNode *p)
         if (c->lo[i] < p->lo[i] || c->hi[i] > p->hi[i])
             return 0;
     return 1;
+}
+
+/* The wide tree: every node reached once from the root, 1..4 children in
+ * use and the rest empty, every primitive slot in exactly one leaf range, and
+ * every child box inside the box its parent gave it (the tree nests). */
+static int wide_check(const RtAccel *a, RtError *err)
+{
+    uint8_t *seen_node = calloc(a->nwide, 1), *seen_prim = calloc(a->nprims, 1);
+    /* each entry: node index, and its box as the parent saw it */
+    typedef struct { uint32_t node; float lo[3], hi[3]; } Entry;
+    Entry *stack = malloc(((size_t)a->nwide + 1) * sizeof *stack);
+    int rc = 0, sp = 0;
+    if (!seen_node || !seen_prim || !stack) {
+        rc = rt_fail(err, "BVH check: out of memory");
+        goto out;
+    }
+    stack[sp].node = 0;
+    for (int k = 0; k < 3; k++) {
+        stack[sp].lo[k] = a->nodes[0].lo[k];
+        stack[sp].hi[k] = a->nodes[0].hi[k];
+    }
+    sp++;
+    while (sp > 0 && rc == 0) {
+        Entry e = stack[--sp];
+        const RtBvh4Node *n = &a->wide[e.node];
+        if (seen_node[e.node]++) {
+            rc = rt_fail(err, "BVH check: wide node %u reached twice", e.node);
+            break;
+        }
+        if (n->count < 1 || n->count > 4) {
+            rc = rt_fail(err, "BVH check: wide node %u has %u children", e.node, n->count);
+            break;
+        }
+        for (uint32_t k = 0; k < 4 && rc == 0; k++) {
+            uint32_t c = n->child[k];
+            if (k >= n->count) {
+                if (c != RT_WIDE_EMPTY)
+                    rc = rt_fail(err, "BVH check: wide node %u: child slot %u past its count is used", e.node, k);
+                continue;
+            }
+            const float lo[3] = {n->lo_x[k], n->lo_y[k], n->lo_z[k]}, hi[3] = {n->hi_x[k], n->hi_y[k], n->hi_z[k]};
+            for (int x = 0; x < 3; x++)
+                if (lo[x] < e.lo[x] || hi[x] > e.hi[x])
+                    rc = rt_fail(err, "BVH check: wide node %u: child %u lies outside its parent", e.node, k);
+            if (rc)
+                break;
+            if (c & RT_WIDE_LEAF) {
+                uint32_t first = (c & ~RT_WIDE_LEAF) >> 3, count = (c & 7u) + 1u;
+                if ((uint64_t)first + count > a->nprims) {
+                    rc = rt_fail(err, "BVH check: wide leaf [%u, +%u) past %u primitives", first, count, a->nprims);
+                    break;
+                }
+                for (uint32_t p = first; p < first + count && rc == 0; p++)
+                    if (seen_prim[p]++)
+                        rc = rt_fail(err, "BVH check: primitive slot %u in two wide leaves", p);
+            } else if (c >= a->nwide || c == 0) {
+                rc = rt_fail(err, "BVH check: wide node %u: child %u -> node %u of %u", e.node, k, c, a->nwide);
+            } else if (sp >= (int)a->nwide) {
+                rc = rt_fail(err, "BVH check: the wide tree has a cycle");
+            } else {
+                stack[sp].node = c;
+                memcpy(stack[sp].lo, lo, sizeof lo);
+                memcpy(stack[sp].hi, hi, sizeof hi);
+                sp++;
+            }
+        }
+    }
+    for (uint32_t k = 0; rc == 0 && k < a->nprims; k++)
+        if (!seen_prim[k])
+            rc = rt_fail(err, "BVH check: primitive slot %u is in no wide leaf", k);
+    for (uint32_t k = 0; rc == 0 && k < a->nwide; k++)
+        if (!seen_node[k])
+            rc = rt_fail(err, "BVH check: wide node %u is unreachable", k);
+out:
+    free(seen_node); free(seen_prim); free(stack);
+    return rc;
 }
 
 int rt_bvh_check(const RtAccel *a, RtError *err)
@@ -402,6 +580,8 @@ int rt_bvh_check(const RtAccel *a, RtError *err)
     for (uint32_t k = 0; rc == 0 && k < a->nnodes; k++)
         if (!seen_node[k])
             rc = rt_fail(err, "BVH check: node %u is unreachable", k);
+    if (rc == 0 && a->wide)
+        rc = wide_check(a, err);
 out:
     free(seen_prim); free(seen_node); free(seen_id); free(stack); free(sdepth);
     return rc;

@@ -75,16 +75,32 @@ typedef struct RtBvhNode {
     uint32_t meta;   /* bits 0-7: primitive count (0 = interior); bits 8-9: split axis */
 } RtBvhNode;
 
+/* A node of the 4-wide BVH: the binary tree collapsed (rt_accel_build does
+ * it, accel.c), each node holding the boxes of up to four children -- the
+ * binary tree's own boxes, unchanged -- in SoA order, so a node is one
+ * 128-byte cache line and one visit tests four boxes, independently (Wald et
+ * al., "Getting rid of packets", 2008; the GPU's traversal, docs/gpu.md). */
+#define RT_WIDE_EMPTY 0xffffffffu /* child[k]: no child */
+#define RT_WIDE_LEAF 0x80000000u  /* child[k]: RT_WIDE_LEAF | first prim << 3 | (count - 1) */
+#define RT_WIDE_MAX_FIRST (1u << 28)
+typedef struct RtBvh4Node {
+    float lo_x[4], hi_x[4], lo_y[4], hi_y[4], lo_z[4], hi_z[4];
+    uint32_t child[4]; /* inner child: node index */
+    uint32_t count;    /* children in use (the first `count` entries) */
+    uint32_t pad[3];
+} RtBvh4Node;         /* 128 bytes */
+
 typedef struct RtSceneView {
     const RtPrim *prims;          /* nprims records, in BVH order for bvh */
     const RtBvhNode *nodes;       /* nnodes nodes; NULL/0: brute force */
+    const RtBvh4Node *wide;       /* nwide nodes of the 4-wide copy (root 0); NULL: none */
     const RtVec3 *vertices;       /* vertex pool */
     const RtVec3 *normals;        /* normal pool */
     const RtSphere *spheres;      /* nspheres */
     const RtTriangle *triangles;  /* ntriangles */
     const RtMaterial *materials;  /* nmaterials */
     const RtLight *lights;        /* nlights */
-    uint32_t nprims, nnodes, nspheres, ntriangles, nmaterials, nlights;
+    uint32_t nprims, nnodes, nwide, nspheres, ntriangles, nmaterials, nlights;
     RtCamera cam;
     RtVec3 background;            /* colour of rays that hit nothing */
     RtVec3 ambient;               /* ambient light intensity */

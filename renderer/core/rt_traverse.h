@@ -185,6 +185,22 @@ static inline RT_HD int rt_box_enter2(const RtBvhNode *na, const RtBvhNode *nb, 
 #endif
 }
 
+/* A primitive record into registers. On the GPU: five 8-byte read-only loads
+ * (the records are 40 bytes, 8-byte aligned) instead of ten 4-byte ones. */
+static inline RT_HD void rt_prim_fetch(const RtPrim *p, RtPrim *out)
+{
+#if defined(__CUDA_ARCH__)
+    const float2 *q = (const float2 *)p;
+    float2 a = __ldg(q), b = __ldg(q + 1), c = __ldg(q + 2), d = __ldg(q + 3), e = __ldg(q + 4);
+    out->p0[0] = a.x; out->p0[1] = a.y; out->p0[2] = b.x;
+    out->e1[0] = b.y; out->e1[1] = c.x; out->e1[2] = c.y;
+    out->e2[0] = d.x; out->e2[1] = d.y; out->e2[2] = e.x;
+    out->id = __float_as_uint(e.y);
+#else
+    *out = *p;
+#endif
+}
+
 /* Closest hit (any = 0) or any hit closer than tmax (any = 1). Returns 1 on a hit. */
 static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any,
                                      RtHit *hit, RtCounters *cnt)
@@ -272,6 +288,118 @@ static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, f
                 break;
         }
         ni = stack_node[sp];
+    }
+done:
+    cnt->node_visits += visits;
+    cnt->prim_tests += tests;
+    return found;
+}
+
+/* The same query on the 4-wide tree (RtBvh4Node): one visit tests the four
+ * child boxes (the binary tree's boxes, same slab arithmetic as rt_box_enter
+ * without SSE, tmin = 0), sorts the entered ones by entry distance, goes on
+ * with the nearest and stacks the others with their distances; leaf children
+ * are primitive ranges. Same hits as rt_trace_ray: the closest t, ties to the
+ * lower index, any hit strictly closer than tmax. node_visits counts wide
+ * nodes and leaves (fewer than the binary tree's). The GPU's default traversal
+ * (docs/gpu.md); its four box tests are independent work, which hides latency. */
+#define RT_WIDE_STACK (3 * RT_BVH_MAX_DEPTH + 4)
+
+static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit,
+                                          RtCounters *cnt)
+{
+    hit->t = tmax;
+    hit->u = hit->v = 0.0f;
+    hit->id = 0xffffffffu;
+    int found = 0;
+    float u = 0.0f, v = 0.0f;
+    const RtRayBox rb = rt_raybox(o, d);
+    uint32_t st_ref[RT_WIDE_STACK];
+    float st_t[RT_WIDE_STACK];
+    int sp = 0;
+    uint32_t ref = 0; /* the root node */
+    uint32_t visits = 0, tests = 0;
+    for (;;) {
+        visits++;
+        if (!(ref & RT_WIDE_LEAF)) {
+            float lx[4], hx[4], ly[4], hy[4], lz[4], hz[4];
+            uint32_t c[4];
+#if defined(__CUDA_ARCH__)
+            const float4 *q = (const float4 *)&s->wide[ref];
+            float4 a;
+            a = __ldg(q + 0); lx[0] = a.x; lx[1] = a.y; lx[2] = a.z; lx[3] = a.w;
+            a = __ldg(q + 1); hx[0] = a.x; hx[1] = a.y; hx[2] = a.z; hx[3] = a.w;
+            a = __ldg(q + 2); ly[0] = a.x; ly[1] = a.y; ly[2] = a.z; ly[3] = a.w;
+            a = __ldg(q + 3); hy[0] = a.x; hy[1] = a.y; hy[2] = a.z; hy[3] = a.w;
+            a = __ldg(q + 4); lz[0] = a.x; lz[1] = a.y; lz[2] = a.z; lz[3] = a.w;
+            a = __ldg(q + 5); hz[0] = a.x; hz[1] = a.y; hz[2] = a.z; hz[3] = a.w;
+            const uint4 cc = __ldg((const uint4 *)(q + 6));
+            c[0] = cc.x; c[1] = cc.y; c[2] = cc.z; c[3] = cc.w;
+#else
+            const RtBvh4Node *n = &s->wide[ref];
+            for (int k = 0; k < 4; k++) {
+                lx[k] = n->lo_x[k]; hx[k] = n->hi_x[k];
+                ly[k] = n->lo_y[k]; hy[k] = n->hi_y[k];
+                lz[k] = n->lo_z[k]; hz[k] = n->hi_z[k];
+                c[k] = n->child[k];
+            }
+#endif
+            float t[4];
+#if defined(__CUDA_ARCH__)
+#pragma unroll
+#endif
+            for (int k = 0; k < 4; k++) {
+                float tx0 = (lx[k] - rb.o.x) * rb.inv.x, tx1 = (hx[k] - rb.o.x) * rb.inv.x;
+                float ty0 = (ly[k] - rb.o.y) * rb.inv.y, ty1 = (hy[k] - rb.o.y) * rb.inv.y;
+                float tz0 = (lz[k] - rb.o.z) * rb.inv.z, tz1 = (hz[k] - rb.o.z) * rb.inv.z;
+                float t0 = rt_maxf(rt_maxf(rt_minf(tx0, tx1), rt_minf(ty0, ty1)), rt_maxf(rt_minf(tz0, tz1), 0.0f));
+                float t1 = rt_minf(rt_minf(rt_maxf(tx0, tx1), rt_maxf(ty0, ty1)), rt_minf(rt_maxf(tz0, tz1), hit->t));
+                t[k] = (c[k] != RT_WIDE_EMPTY && t0 <= t1 * 1.0000004f) ? t0 : RT_INF;
+            }
+            /* Sort by entry distance (a 5-exchange network; misses are RT_INF
+             * and sink to the end). */
+#define RT_WIDE_CX(i, j)                                                       \
+    if (t[j] < t[i]) {                                                         \
+        float tt_ = t[i]; t[i] = t[j]; t[j] = tt_;                             \
+        uint32_t cc_ = c[i]; c[i] = c[j]; c[j] = cc_;                          \
+    }
+            RT_WIDE_CX(0, 1) RT_WIDE_CX(2, 3) RT_WIDE_CX(0, 2) RT_WIDE_CX(1, 3) RT_WIDE_CX(1, 2)
+#undef RT_WIDE_CX
+            if (t[3] < RT_INF) { st_ref[sp] = c[3]; st_t[sp] = t[3]; sp++; }
+            if (t[2] < RT_INF) { st_ref[sp] = c[2]; st_t[sp] = t[2]; sp++; }
+            if (t[1] < RT_INF) { st_ref[sp] = c[1]; st_t[sp] = t[1]; sp++; }
+            if (t[0] < RT_INF) {
+                ref = c[0];
+                continue;
+            }
+        } else {
+            const uint32_t first = (ref & ~RT_WIDE_LEAF) >> 3, count = (ref & 7u) + 1u;
+            for (uint32_t k = 0; k < count; k++) {
+                RtPrim pr;
+                rt_prim_fetch(&s->prims[first + k], &pr);
+                tests++;
+                float tp = rt_prim_intersect(&pr, o, d, &u, &v);
+                if (any) {
+                    if (tp < hit->t) {
+                        hit->t = tp; hit->u = u; hit->v = v; hit->id = pr.id;
+                        found = 1;
+                        goto done;
+                    }
+                } else if (tp <= hit->t && tp < RT_INF) {
+                    rt_hit_update(hit, &pr, tp, u, v);
+                    found = 1;
+                }
+            }
+        }
+        /* Pop, skipping entries beyond the closest hit (ties are visited). */
+        for (;;) {
+            if (sp == 0)
+                goto done;
+            sp--;
+            if (st_t[sp] <= hit->t)
+                break;
+        }
+        ref = st_ref[sp];
     }
 done:
     cnt->node_visits += visits;

@@ -5,11 +5,11 @@
 #   image: PSNR >= 45 dB and at most 0.2% of pixels with a channel off by more
 #          than 2/255 (imgdiff --min-psnr 45 --max-over2 0.2);
 #   rays:  primary, shadow and secondary ray counts within 0.1% of serial.
-# MODE picks the renders compared with serial (bvh), ACCEL:BLOCK[:PATH] with
-# PATH the CUDA path (pixel, the default, or wave: RAYBENCH_CUDA_PATH):
+# MODE picks the renders compared with serial (bvh), each ACCEL:BLOCK[:TRAV]
+# with TRAV the GPU traversal (RAYBENCH_CUDA_TRAVERSAL; default wide):
 #   full   cuda+bvh in blocks 8x8 16x16 32x8 32x32 13x7 128x1 (odd and
-#          1024-thread shapes included) on the per-pixel path and 16x16, 32x32
-#          on the wavefront path; cuda+none in 16x16 (pixel), 32x32 (wave);
+#          1024-thread shapes included), the binary tree's traversals (ldg,
+#          shared) in 16x16, and cuda+none in 16x16 and 32x32;
 #   bvh    cuda+bvh in 16x16 and 32x32 only (scenes whose brute force is slow);
 #   nogpu  expects `--backend cuda` to fail with one line and exit 1 (the
 #          CI machine has no GPU); skipped where a GPU is present.
@@ -43,7 +43,7 @@ TMP=$(mktemp -d) || exit 1
 trap 'rm -rf "$TMP"' EXIT
 fail=0
 CSV=${GPU_CHECK_CSV:-}
-[ -n "$CSV" ] && [ ! -s "$CSV" ] && echo "scene,accel,block,psnr,over2_pct,maxdiff,rays_serial,rays_cuda,ray_diff_pct,node_visits_serial,node_visits_cuda,result,path" >"$CSV"
+[ -n "$CSV" ] && [ ! -s "$CSV" ] && echo "scene,accel,block,psnr,over2_pct,maxdiff,rays_serial,rays_cuda,ray_diff_pct,node_visits_serial,node_visits_cuda,result,traversal" >"$CSV"
 
 # key=value from a record line
 field() { printf '%s\n' "$1" | tr ' ' '\n' | sed -n "s/^$2=//p"; }
@@ -58,16 +58,18 @@ for sc in "$@"; do
     ref="$TMP/$name-serial.ppm"
     rec_s=$("$RT" -q --backend serial --accel bvh -o "$ref" "$DIR/$sc.txt") || { echo "FAIL $name: serial render"; fail=1; continue; }
     case $MODE in
-        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:16x16:wave bvh:32x32:wave} none:16x16 none:32x32:wave" ;;
+        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:16x16:ldg bvh:16x16:shared} none:16x16 none:32x32" ;;
         *) runs="${GPU_CHECK_BLOCKS:-bvh:16x16 bvh:32x32}" ;;
     esac
     for r in $runs; do
-        accel=${r%%:*}; blk=${r#*:}; path=pixel
-        case $blk in *:*) path=${blk#*:}; blk=${blk%%:*} ;; esac
-        img="$TMP/$name-cuda-$accel-$blk-$path.ppm"
-        rec_c=$(RAYBENCH_CUDA_PATH=$path RAYBENCH_CUDA_RUNS=1 "$RT" -q --verify --backend cuda --accel "$accel" --block "$blk" -o "$img" "$DIR/$sc.txt")
-        if [ $? -ne 0 ]; then echo "FAIL $name $accel $blk $path: cuda render"; fail=1; continue; fi
-        case $rec_c in *" path=$path"*) ;; *) echo "FAIL $name $accel $blk: the record does not say path=$path"; fail=1; continue ;; esac
+        accel=${r%%:*}; blk=${r#*:}; trav=wide
+        case $blk in *:*) trav=${blk#*:}; blk=${blk%%:*} ;; esac
+        img="$TMP/$name-cuda-$accel-$blk-$trav.ppm"
+        rec_c=$(RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_RUNS=1 "$RT" -q --verify --backend cuda --accel "$accel" --block "$blk" -o "$img" "$DIR/$sc.txt")
+        if [ $? -ne 0 ]; then echo "FAIL $name $accel $blk $trav: cuda render"; fail=1; continue; fi
+        # brute force has no tree: its record says ldg
+        want=$trav; [ "$accel" = none ] && want=ldg
+        case $rec_c in *" traversal=$want "*) ;; *) echo "FAIL $name $accel $blk: the record does not say traversal=$want"; fail=1; continue ;; esac
         d=$("$DIFF" "$ref" "$img" --min-psnr 45 --max-over2 0.2); drc=$?
         ok=ok; [ $drc -eq 0 ] || ok=image
         for k in primary_rays shadow_rays secondary_rays; do
@@ -76,8 +78,8 @@ for sc in "$@"; do
         [ "$ok" = ok ] || { ok=FAIL:$ok; fail=1; }
         rs=$(field "$rec_s" rays); rcu=$(field "$rec_c" rays)
         pct=$(awk -v a="$rs" -v b="$rcu" 'BEGIN { printf "%.4f", a ? (b - a) * 100 / a : 0 }')
-        echo "$name $accel $blk $path: $d rays $rs/$rcu ($pct%) $ok"
-        [ -n "$CSV" ] && echo "$name,$accel,$blk,$(field "$d" psnr),$(field "$d" over2 | tr -d %),$(field "$d" maxdiff),$rs,$rcu,$pct,$(field "$rec_s" node_visits),$(field "$rec_c" node_visits),$ok,$path" >>"$CSV"
+        echo "$name $accel $blk $trav: $d rays $rs/$rcu ($pct%) $ok"
+        [ -n "$CSV" ] && echo "$name,$accel,$blk,$(field "$d" psnr),$(field "$d" over2 | tr -d %),$(field "$d" maxdiff),$rs,$rcu,$pct,$(field "$rec_s" node_visits),$(field "$rec_c" node_visits),$ok,$want" >>"$CSV"
     done
 done
 exit $fail

@@ -1,6 +1,6 @@
 #!/bin/sh
 # gpu_sanitize.sh RAYTRACE SCENE_DIR - compute-sanitizer memcheck and
-# racecheck, both CUDA paths (wavefront and per-pixel), on two scenes (a glass/mirror sphere scene, deepest ray stacks, and
+# racecheck on two scenes (a glass/mirror sphere scene, deepest ray stacks, and
 # the dragon mesh through the BVH, both accels), at a reduced resolution:
 # the tools slow kernels down a hundredfold or more. Any report fails the test.
 # Exit 77 without a GPU or without compute-sanitizer.
@@ -13,12 +13,12 @@ TMP=$(mktemp -d) || exit 1
 trap 'rm -rf "$TMP"' EXIT
 fail=0
 for tool in memcheck racecheck; do
-    for run in "SphereExamples/spheres2 bvh 16x16 160x120 wave" "InterestingScenes/dragon bvh 13x7 128x96 wave" \
-               "InterestingScenes/dragon none 32x32 64x48 wave" "SphereExamples/spheres2 none 32x8 160x120 wave" \
-               "SphereExamples/spheres2 bvh 16x16 160x120 pixel" "InterestingScenes/dragon bvh 13x7 128x96 pixel"; do
+    for run in "SphereExamples/spheres2 bvh 16x16 160x120 wide" "InterestingScenes/dragon bvh 13x7 128x96 wide" \
+               "InterestingScenes/dragon bvh 32x8 128x96 ldg" "InterestingScenes/dragon none 32x32 64x48 ldg" \
+               "SphereExamples/spheres2 none 32x8 160x120 ldg"; do
         set -- $run
         log="$TMP/log"
-        RAYBENCH_CUDA_PATH=$5 RAYBENCH_CUDA_RUNS=1 "$CS" --tool "$tool" --error-exitcode 3 "$RT" -q --backend cuda --accel "$2" \
+        RAYBENCH_CUDA_TRAVERSAL=$5 RAYBENCH_CUDA_RUNS=1 "$CS" --tool "$tool" --error-exitcode 3 "$RT" -q --backend cuda --accel "$2" \
             --block "$3" -r "$4" -o "$TMP/out.ppm" "$DIR/$1.txt" >"$log" 2>&1
         rc=$?
         summary=$(grep -E "ERROR SUMMARY|RACECHECK SUMMARY" "$log" | tail -1)

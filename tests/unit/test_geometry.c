@@ -136,7 +136,7 @@ static void test_bvh_random(void)
         RtCamera cam;
         memset(&cam, 0, sizeof cam);
         RtSceneView vb = rt_scene_view(&s, &bvh, &cam), vn = rt_scene_view(&s, &none, &cam);
-        int mismatches = 0, hits = 0;
+        int mismatches = 0, wide_mismatches = 0, hits = 0;
         for (int k = 0; k < 2000; k++) {
             RtVec3 o = rt_v3(check_randf(&seed, -15, 15), check_randf(&seed, -15, 15), check_randf(&seed, -15, 15));
             RtVec3 d = rt_normalize(rt_v3(check_randf(&seed, -1, 1), check_randf(&seed, -1, 1), check_randf(&seed, -1, 1)));
@@ -152,6 +152,11 @@ static void test_bvh_random(void)
             hits += fn;
             if (fb != fn || (fn && (hb.t != hn.t || hb.id != hn.id || hb.u != hn.u || hb.v != hn.v)))
                 mismatches++;
+            /* the 4-wide tree finds the very same hit */
+            RtHit hw;
+            int fw = rt_trace_ray_wide(&vb, o, d, RT_INF, 0, &hw, &c);
+            if (fw != fn || (fn && (hw.t != hn.t || hw.id != hn.id || hw.u != hn.u || hw.v != hn.v)))
+                wide_mismatches++;
             /* any-hit with a finite tmax agrees with the closest hit */
             float tmax = check_randf(&seed, 0.1f, 30.0f);
             int ab = rt_trace_ray(&vb, o, d, tmax, 1, &hb, &c);
@@ -161,8 +166,14 @@ static void test_bvh_random(void)
             int want = fn && hc.t < tmax;
             if (ab != want || an != want)
                 mismatches++;
+            if (rt_trace_ray_wide(&vb, o, d, tmax, 1, &hw, &c) != want)
+                wide_mismatches++;
         }
         CHECK(mismatches == 0, "round %d: %d rays disagree between bvh and brute force", round, mismatches);
+        CHECK(vb.wide && vb.nwide >= 1 && vb.nwide <= bvh.nnodes, "round %d: wide tree of %u nodes for %u binary nodes",
+              round, vb.nwide, bvh.nnodes);
+        CHECK(wide_mismatches == 0, "round %d: %d rays disagree between the wide tree and brute force", round,
+              wide_mismatches);
         CHECK(ntri + nsph < 50 || hits > 0, "round %d: no ray hit anything", round);
         rt_accel_free(&bvh);
         rt_accel_free(&none);
@@ -216,6 +227,23 @@ static void test_bvh_check_catches(void)
             a.nodes[i].meta = meta;
             break;
         }
+    /* the wide copy: a leaf range referenced twice, a bad child index, a box
+     * outside its parent */
+    CHECK(a.wide && a.nwide > 1, "a wide tree with inner nodes");
+    uint32_t c0 = a.wide[0].child[0], c1 = a.wide[0].child[1];
+    a.wide[0].child[1] = c0;
+    CHECK(rt_bvh_check(&a, &e) != 0, "wide child referenced twice not caught");
+    a.wide[0].child[1] = a.nwide + 7;
+    CHECK(rt_bvh_check(&a, &e) != 0, "wide child out of range not caught");
+    a.wide[0].child[1] = c1;
+    CHECK(rt_bvh_check(&a, &e) == 0, "restored wide tree refused: %s", e.msg);
+    for (uint32_t i = 1; i < a.nwide; i++) {
+        float saved = a.wide[i].hi_x[0];
+        a.wide[i].hi_x[0] = 1e30f;
+        CHECK(rt_bvh_check(&a, &e) != 0, "wide child outside its parent not caught");
+        a.wide[i].hi_x[0] = saved;
+        break;
+    }
     a.nodes[0].hi[0] = a.nodes[0].lo[0]; /* children now stick out */
     CHECK(rt_bvh_check(&a, &e) != 0, "child outside parent not caught");
     rt_accel_free(&a);

@@ -28,19 +28,26 @@
 
 #include <cuda_runtime.h>
 
-/* A GPU variant of rt_trace_ray (RAYBENCH_CUDA_TRAVERSAL_LDG=1, the default), kept
- * because it measured faster (docs/gpu.md): the shared traversal is compiled under
- * another name, and rt_shade.h -- included next, unchanged -- then calls the
- * dispatcher below. The variant does the same arithmetic in the same order
- * and counts the same visits and tests; only the loads differ: 16-byte
- * read-only loads of the 32-byte nodes (__ldg float4), 8-byte loads of the
- * 40-byte primitives, and one 8-byte stack entry instead of two arrays. */
+/* Traversals (RAYBENCH_CUDA_TRAVERSAL, docs/gpu.md):
+ *   wide (default): rt_trace_ray_wide, shared code (rt_traverse.h), on the
+ *     4-wide copy of the BVH that rt_accel_build collapses from the binary
+ *     tree: 6-20% less kernel time than ldg on the H100, same hits;
+ *   ldg: a GPU variant of the shared binary traversal, kept for brute force
+ *     and for comparison: the same arithmetic in the same order, the same
+ *     visits and tests; only the loads differ (16-byte read-only loads of the
+ *     32-byte nodes, 8-byte loads of the 40-byte primitives, one 8-byte stack
+ *     entry instead of two arrays);
+ *   shared: the shared binary traversal as the CPU runs it.
+ * The shared binary traversal is compiled under another name, and rt_shade.h
+ * -- included next, unchanged -- then calls the dispatcher below. */
 #define rt_trace_ray rt_trace_ray_shared
 #include "core/rt_traverse.h"
 #undef rt_trace_ray
 
-/* 1: the ldg variant; set once per render with cudaMemcpyToSymbol. */
-__constant__ int rt_cuda_traversal_ldg;
+/* Which traversal the kernels run (RAYBENCH_CUDA_TRAVERSAL), set once per
+ * render with cudaMemcpyToSymbol. */
+enum { RT_TRAV_SHARED = 0, RT_TRAV_LDG = 1, RT_TRAV_WIDE = 2 };
+__constant__ int rt_cuda_traversal;
 
 #if defined(__CUDA_ARCH__)
 static __device__ __forceinline__ float rt_cuda_box(float4 lo, float4 hi, const RtRayBox &rb, float tmax)
@@ -52,16 +59,6 @@ static __device__ __forceinline__ float rt_cuda_box(float4 lo, float4 hi, const 
     float t0 = rt_maxf(rt_maxf(rt_minf(tx0, tx1), rt_minf(ty0, ty1)), rt_maxf(rt_minf(tz0, tz1), 0.0f));
     float t1 = rt_minf(rt_minf(rt_maxf(tx0, tx1), rt_maxf(ty0, ty1)), rt_minf(rt_maxf(tz0, tz1), tmax));
     return t0 <= t1 * 1.0000004f ? t0 : RT_INF;
-}
-
-static __device__ __forceinline__ void rt_cuda_load_prim(const RtPrim *p, RtPrim *out)
-{
-    const float2 *q = (const float2 *)p; /* 40-byte records, 8-byte aligned */
-    float2 a = __ldg(q), b = __ldg(q + 1), c = __ldg(q + 2), d = __ldg(q + 3), e = __ldg(q + 4);
-    out->p0[0] = a.x; out->p0[1] = a.y; out->p0[2] = b.x;
-    out->e1[0] = b.y; out->e1[1] = c.x; out->e1[2] = c.y;
-    out->e2[0] = d.x; out->e2[1] = d.y; out->e2[2] = e.x;
-    out->id = __float_as_uint(e.y);
 }
 
 static __device__ int rt_trace_ray_ldg(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit,
@@ -77,7 +74,7 @@ static __device__ int rt_trace_ray_ldg(const RtSceneView *s, RtVec3 o, RtVec3 d,
         uint64_t tests = 0;
         for (uint32_t i = 0; i < s->nprims; i++) {
             tests++;
-            rt_cuda_load_prim(&s->prims[i], &pr);
+            rt_prim_fetch(&s->prims[i], &pr);
             t = rt_prim_intersect(&pr, o, d, &u, &v);
             if (t < hit->t) {
                 hit->t = t; hit->u = u; hit->v = v; hit->id = pr.id;
@@ -109,7 +106,7 @@ static __device__ int rt_trace_ray_ldg(const RtSceneView *s, RtVec3 o, RtVec3 d,
             const RtPrim *p = &s->prims[__float_as_uint(lo.w)];
             for (uint32_t k = 0; k < count; k++) {
                 tests++;
-                rt_cuda_load_prim(&p[k], &pr);
+                rt_prim_fetch(&p[k], &pr);
                 t = rt_prim_intersect(&pr, o, d, &u, &v);
                 if (any) {
                     if (t < hit->t) {
@@ -158,12 +155,16 @@ done:
 }
 #endif
 
-/* What rt_shade.h calls: the shared traversal, or on the GPU the variant. */
+/* What rt_shade.h calls: on the GPU the 4-wide traversal (the default; shared
+ * code, rt_traverse.h) or the binary tree's GPU variant; else the shared
+ * binary traversal. Brute force has no wide tree and goes to the latter two. */
 static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit,
                                      RtCounters *cnt)
 {
 #if defined(__CUDA_ARCH__)
-    if (rt_cuda_traversal_ldg)
+    if (rt_cuda_traversal == RT_TRAV_WIDE && s->wide)
+        return rt_trace_ray_wide(s, o, d, tmax, any, hit, cnt);
+    if (rt_cuda_traversal != RT_TRAV_SHARED)
         return rt_trace_ray_ldg(s, o, d, tmax, any, hit, cnt);
 #endif
     return rt_trace_ray_shared(s, o, d, tmax, any, hit, cnt);
@@ -185,9 +186,10 @@ extern "C" {
 #define RT_CUDA_DEFAULT_WARMUP_MS 50
 /* Register cap of the default kernel: 65536 / (256 * MINB) registers per thread. */
 #define RT_CUDA_DEFAULT_MINB 1
-/* 1: the GPU traversal variant (rt_trace_ray_ldg) by default: 6-12% less
- * kernel time than the shared traversal on the H100 (docs/gpu.md). */
-#define RT_CUDA_DEFAULT_LDG 1
+/* Tile order of the persistent schedule: 0 row-major, 1 scattered. */
+#define RT_CUDA_DEFAULT_SCATTER 0
+/* The default traversal: the 4-wide tree (docs/gpu.md). */
+#define RT_CUDA_DEFAULT_TRAVERSAL RT_TRAV_WIDE
 /* Timed launches stop once they have used this much kernel time in total, so a
  * brute-force render of a large image does not run 21 times. */
 #define RT_CUDA_TIME_BUDGET_MS 4000.0
@@ -199,6 +201,8 @@ typedef struct RtCudaGrid {
     uint32_t tile_items;   /* bx * by: work items per tile */
     uint32_t total_items;  /* tiles_x * tiles_y * tile_items (edge tiles overhang the image) */
     int32_t persistent;    /* 1: warps fetch work from *next_item; 0: block b renders tile b */
+    uint32_t ntiles;       /* tiles in the image */
+    uint32_t tile_mask;    /* scatter order: 2^k - 1 >= ntiles - 1; 0: tiles in row-major order */
 } RtCudaGrid;
 
 enum { RT_NCOUNTERS = 5 }; /* fields of RtCounters, all uint64_t, in order */
@@ -210,6 +214,15 @@ static __device__ __forceinline__ int rt_cuda_item_pixel(const RtSceneView &view
 {
     uint32_t tile = item / g.tile_items;
     uint32_t local = item - tile * g.tile_items;
+    if (g.tile_mask) {
+        /* Scatter order: the n-th tile handed out is a pseudo-random tile (an
+         * affine bijection mod 2^k, cycle-walked into [0, ntiles)), so the
+         * last tiles of a frame -- its tail -- are a sample of the whole image,
+         * not its bottom rows. */
+        do
+            tile = (tile * 0x2545F491u + 0x9E3779B9u) & g.tile_mask;
+        while (tile >= g.ntiles);
+    }
     *px = (int)(tile % (uint32_t)g.tiles_x) * g.bx + (int)(local % (uint32_t)g.bx);
     *py = (int)(tile / (uint32_t)g.tiles_x) * g.by + (int)(local / (uint32_t)g.bx);
     return *px < view.cam.width && *py < view.cam.height;
@@ -296,223 +309,14 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
     rt_cuda_flush_counters(cnt, block_cnt, counters, mask, lane, tid);
 }
 
-/* ---- The wavefront path (path=wave, the default) -------------------------
- *
- * The per-pixel kernel above gives one thread a pixel's whole ray tree: on
- * the course images (0.2-0.8 M pixels) that is only a few warps of work per
- * resident warp, the lanes of a warp sit in different traversals (closest hit,
- * shadow ray) and the last, longest warps run alone (Nsight Compute: 10.8 of
- * 32 lanes active, SMs idle for a third of the launch). Here every ray is its
- * own work item (Laine, Karras & Aila, "Megakernels considered harmful:
- * wavefront path tracing on GPUs", HPG 2013): launch k traces
- *   - the shadow rays emitted by level k-1 (any hit: unblocked -> its
- *     contribution is added to its pixel), and
- *   - the level-k rays (closest hit, then the shared shading: rt_surface,
- *     rt_ambient_term, rt_light_sample per light -> one shadow ray each into
- *     the next shadow queue, rt_push_children -> reflected and refracted rays
- *     into the next ray queue).
- * Level 0 makes its primary rays from the pixel index (no queue), so a frame is
- * max_depth + 1 launches. Items are fetched by warps from one counter per level
- * (persistent threads) and queues are appended with one atomic per warp, so a
- * warp always holds 32 rays of one kind in one traversal. Every ray's weight
- * is carried in its record; the pixel receives weight * (ambient term) at its
- * hit and weight * (light term) when the shadow ray comes back unblocked, the
- * same terms the per-pixel loop sums, in another order (float sums agree to a
- * few ulp; the 8-bit images are compared in tests/gpu). Counters are counted
- * where the rays are traced, exactly as in rt_trace_path. */
-
-/* Queue records: three float4 each (48 bytes, 16-byte loads and stores).
- * ray:    (o, pixel) (d, -) (w, -)
- * shadow: (o, pixel) (L, distance to the light) (weight * light term, -) */
-typedef struct RtWaveLevel {
-    int32_t level;            /* k: 0 = primary rays from pixels */
-    int32_t depth;            /* depth of the level-k rays: max_depth - k */
-    const float4 *ray_in;     /* level-k rays (k >= 1) */
-    const float4 *shadow_in;  /* shadow rays of level k-1 */
-    float4 *ray_out;          /* level-(k+1) rays */
-    float4 *shadow_out;       /* shadow rays of level k */
-    const unsigned *n_ray_in, *n_shadow_in; /* counts; may exceed the capacity (overflow) */
-    unsigned *n_ray_out, *n_shadow_out;
-    unsigned *next_item;      /* work counter of this launch */
-    uint32_t ray_cap, shadow_cap;
-    RtCudaGrid g;             /* level 0: pixel items in tiles */
-} RtWaveLevel;
-
-/* Appends the records of the lanes with pred set, one atomic per warp. All
- * lanes of `mask` call it together. A record past the capacity is dropped; the
- * count still grows, so the host sees the overflow and retries with larger
- * queues. */
-static __device__ __forceinline__ void rt_wave_emit(unsigned mask, unsigned lane, int pred, float4 *q,
-                                                    unsigned *count, uint32_t cap, float4 a, float4 b, float4 c)
-{
-    const unsigned bal = __ballot_sync(mask, pred);
-    if (bal == 0u)
-        return;
-    const unsigned leader = __ffs(bal) - 1;
-    unsigned base = 0;
-    if (lane == leader)
-        base = atomicAdd(count, (unsigned)__popc(bal));
-    base = __shfl_sync(mask, base, leader);
-    if (pred) {
-        const unsigned idx = base + (unsigned)__popc(bal & ((1u << lane) - 1u));
-        if (idx < cap) {
-            q[3 * (size_t)idx] = a;
-            q[3 * (size_t)idx + 1] = b;
-            q[3 * (size_t)idx + 2] = c;
-        }
-    }
-}
-
-static __device__ __forceinline__ void rt_wave_add(float *rgb, uint32_t pix, RtVec3 c)
-{
-    atomicAdd(&rgb[3 * (size_t)pix], c.x);
-    atomicAdd(&rgb[3 * (size_t)pix + 1], c.y);
-    atomicAdd(&rgb[3 * (size_t)pix + 2], c.z);
-}
-
-template <int MAXT, int MINB>
-__global__ void __launch_bounds__(MAXT, MINB) rt_wave_kernel(const __grid_constant__ RtSceneView view, float *rgb,
-                                                             unsigned long long *counters,
-                                                             const __grid_constant__ RtWaveLevel L)
-{
-    __shared__ unsigned long long block_cnt[RT_NCOUNTERS];
-    const unsigned tid = threadIdx.y * blockDim.x + threadIdx.x;
-    const unsigned lane = tid & 31u;
-    const unsigned mask = __activemask();
-    if (tid < RT_NCOUNTERS)
-        block_cnt[tid] = 0;
-    __syncthreads();
-
-    RtCounters cnt;
-    cnt.primary_rays = cnt.shadow_rays = cnt.secondary_rays = cnt.node_visits = cnt.prim_tests = 0;
-    uint32_t nshadow = 0, total;
-    if (L.level == 0) {
-        total = L.g.total_items;
-    } else {
-        const unsigned ns = *L.n_shadow_in, nr = *L.n_ray_in;
-        nshadow = ns < L.shadow_cap ? ns : L.shadow_cap;
-        total = nshadow + (nr < L.ray_cap ? nr : L.ray_cap);
-    }
-    const unsigned leader = __ffs(mask) - 1;
-    const unsigned nact = __popc(mask);
-    const unsigned rank = __popc(mask & ((1u << lane) - 1u));
-    for (;;) {
-        unsigned base = 0;
-        if (lane == leader)
-            base = atomicAdd(L.next_item, nact);
-        base = __shfl_sync(mask, base, leader);
-        if (base >= total)
-            break;
-        const uint32_t item = base + rank;
-        /* kind: 0 nothing (past the end, or an edge tile's overhang), 1 ray, 2 shadow ray */
-        int kind = 0;
-        RtPending r;
-        uint32_t pix = 0;
-        float tmax = RT_INF;
-        if (item < total) {
-            if (L.level == 0) {
-                int px, py;
-                if (rt_cuda_item_pixel(view, L.g, item, &px, &py)) {
-                    pix = (uint32_t)py * (uint32_t)view.cam.width + (uint32_t)px;
-                    RtRay pr = rt_camera_ray(&view.cam, px, py);
-                    r.o = pr.o;
-                    r.d = pr.d;
-                    r.w = rt_v3(1.0f, 1.0f, 1.0f);
-                    kind = 1;
-                    if (view.max_depth <= 0) { /* trace() of depth 0 is black */
-                        rgb[3 * (size_t)pix] = rgb[3 * (size_t)pix + 1] = rgb[3 * (size_t)pix + 2] = 0.0f;
-                        kind = 0;
-                    }
-                }
-            } else {
-                const float4 *rec = item < nshadow ? L.shadow_in + 3 * (size_t)item
-                                                   : L.ray_in + 3 * (size_t)(item - nshadow);
-                const float4 a = rec[0], b = rec[1], c = rec[2];
-                r.o = rt_v3(a.x, a.y, a.z);
-                r.d = rt_v3(b.x, b.y, b.z);
-                r.w = rt_v3(c.x, c.y, c.z);
-                pix = __float_as_uint(a.w);
-                kind = item < nshadow ? 2 : 1;
-                if (kind == 2)
-                    tmax = b.w;
-            }
-        }
-        r.depth = L.depth;
-        RtHit hit;
-        int found = 0;
-        if (kind == 2)
-            cnt.shadow_rays++;
-        else if (kind == 1 && L.level == 0)
-            cnt.primary_rays++;
-        else if (kind == 1)
-            cnt.secondary_rays++;
-        if (kind)
-            found = rt_trace_ray(&view, r.o, r.d, tmax, kind == 2, &hit, &cnt);
-        if (kind == 2 && !found)
-            rt_wave_add(rgb, pix, r.w);
-
-        const int shade = kind == 1 && found;
-        RtSurface sf;
-        const RtMaterial *m = NULL;
-        if (kind == 1) {
-            RtVec3 c;
-            if (found) {
-                sf = rt_surface(&view, r.o, r.d, &hit);
-                m = &view.materials[sf.material];
-                c = rt_mul(r.w, rt_ambient_term(&view, m));
-            } else {
-                c = rt_mul(r.w, view.background);
-            }
-            if (L.level == 0) { /* the pixel's first term: a store (the image starts poisoned) */
-                rgb[3 * (size_t)pix] = c.x;
-                rgb[3 * (size_t)pix + 1] = c.y;
-                rgb[3 * (size_t)pix + 2] = c.z;
-            } else {
-                rt_wave_add(rgb, pix, c);
-            }
-        }
-        if (!__any_sync(mask, shade))
-            continue;
-        /* Emission: every lane of the warp takes part (ballots), lanes
-         * without a shaded hit with pred = 0. */
-        const RtVec3 view_dir = rt_neg(r.d);
-        const RtVec3 so = shade ? rt_shadow_origin(&sf) : r.o;
-        const float4 so4 = make_float4(so.x, so.y, so.z, __uint_as_float(pix));
-        for (uint32_t li = 0; li < view.nlights; li++) {
-            RtVec3 c = rt_v3(0.0f, 0.0f, 0.0f), Ld = c;
-            float dist = 0.0f;
-            const int e = shade && rt_light_sample(&view, &sf, m, view_dir, li, &c, &Ld, &dist);
-            const RtVec3 wc = rt_mul(r.w, c);
-            rt_wave_emit(mask, lane, e, L.shadow_out, L.n_shadow_out, L.shadow_cap, so4,
-                         make_float4(Ld.x, Ld.y, Ld.z, dist), make_float4(wc.x, wc.y, wc.z, 0.0f));
-        }
-        if (L.depth > 1) {
-            RtPending kids[2];
-            int nk = 0;
-            if (shade)
-                rt_push_children(kids, &nk, &r, &sf, m);
-            for (int k = 0; k < 2; k++) {
-                const RtPending *q = &kids[k < nk ? k : 0];
-                rt_wave_emit(mask, lane, k < nk, L.ray_out, L.n_ray_out, L.ray_cap,
-                             make_float4(q->o.x, q->o.y, q->o.z, __uint_as_float(pix)),
-                             make_float4(q->d.x, q->d.y, q->d.z, 0.0f), make_float4(q->w.x, q->w.y, q->w.z, 0.0f));
-            }
-        }
-    }
-    rt_cuda_flush_counters(cnt, block_cnt, counters, mask, lane, tid);
-}
-
-typedef void (*RtWaveKernel)(const RtSceneView, float *, unsigned long long *, const RtWaveLevel);
-
 typedef void (*RtCudaKernel)(const RtSceneView, float *, unsigned long long *, unsigned int *, const RtCudaGrid);
 
 typedef struct RtCudaVariant {
     int maxt, minb;
-    RtCudaKernel kernel; /* path=pixel */
-    RtWaveKernel wave;   /* path=wave */
+    RtCudaKernel kernel;
 } RtCudaVariant;
 
-#define RT_CUDA_VARIANT(T, B) {T, B, rt_render_kernel<T, B>, rt_wave_kernel<T, B>}
+#define RT_CUDA_VARIANT(T, B) {T, B, rt_render_kernel<T, B>}
 static const RtCudaVariant rt_cuda_variants[] = {
     RT_CUDA_VARIANT(256, 1), RT_CUDA_VARIANT(256, 2), RT_CUDA_VARIANT(256, 3), RT_CUDA_VARIANT(256, 4),
     RT_CUDA_VARIANT(512, 1), RT_CUDA_VARIANT(512, 2), RT_CUDA_VARIANT(1024, 1),
@@ -544,7 +348,7 @@ typedef struct RtCudaPart {
     size_t offset;
 } RtCudaPart;
 
-enum { P_PRIMS, P_NODES, P_VERTS, P_NORMALS, P_SPHERES, P_TRIS, P_MATS, P_LIGHTS, P_IMAGE, P_COUNTERS, P_WORK, P_COUNT };
+enum { P_PRIMS, P_NODES, P_WIDE, P_VERTS, P_NORMALS, P_SPHERES, P_TRIS, P_MATS, P_LIGHTS, P_IMAGE, P_COUNTERS, P_WORK, P_COUNT };
 
 static size_t rt_cuda_layout(RtCudaPart *parts)
 {
@@ -583,35 +387,6 @@ static int rt_cuda_env_int(const char *name, int lo, int hi, int def)
     return (*end == '\0' && v >= lo && v <= hi) ? (int)v : def;
 }
 
-/* The wavefront's queues in one allocation: two ray queues and two shadow
- * queues (levels alternate between them), 48-byte records. */
-static int rt_wave_alloc(unsigned char **queues, uint32_t ray_cap, uint32_t shadow_cap, float4 **qray,
-                         float4 **qshadow, int w, int h, int dev, const char *gpu, RtError *err)
-{
-    const size_t rec = 3 * sizeof(float4);
-    const size_t rb = (size_t)ray_cap * rec, sb = (size_t)shadow_cap * rec;
-    const size_t bytes = 2 * rb + 2 * sb;
-    size_t free_b = 0, total_b = 0;
-    cudaError_t e = cudaMalloc((void **)queues, bytes);
-    if (e != cudaSuccess) {
-        *queues = NULL;
-        if (e != cudaErrorMemoryAllocation)
-            return rt_cuda_fail(err, e, "cudaMalloc(wavefront queues)", __FILE__, __LINE__);
-        cudaGetLastError();
-        cudaMemGetInfo(&free_b, &total_b);
-        return rt_fail(err, "cuda: out of device memory: the wavefront queues of a %dx%d image (%u rays, %u shadow "
-                            "rays per level) need %zu bytes (%.1f MiB) on device %d (%s), which has %.1f MiB free; "
-                            "RAYBENCH_CUDA_PATH=pixel renders without them",
-                       w, h, ray_cap, shadow_cap, bytes, (double)bytes / 1048576.0, dev, gpu,
-                       (double)free_b / 1048576.0);
-    }
-    qray[0] = (float4 *)*queues;
-    qray[1] = (float4 *)(*queues + rb);
-    qshadow[0] = (float4 *)(*queues + 2 * rb);
-    qshadow[1] = (float4 *)(*queues + 2 * rb + sb);
-    return 0;
-}
-
 static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 {
     /* All locals first: RT_CUDA_CHECK jumps to fail:, and C++ forbids jumping
@@ -620,24 +395,13 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     const RtSceneView *hv = &job->view;
     const int w = hv->cam.width, h = hv->cam.height;
     const int dev = job->device;
-    int rc = -1, ndev = 0, traversal_ldg = 0, warmup_ms = 0, warmups = 0;
+    int rc = -1, ndev = 0, traversal = 0, order_scatter = 0, carveout = -1, warmup_ms = 0, warmups = 0;
     int blocks_per_sm = 0, nblocks = 0, runs = 0, max_runs = 0;
     int bx = job->block_x > 0 ? job->block_x : RT_CUDA_DEFAULT_BX;
     int by = job->block_y > 0 ? job->block_y : RT_CUDA_DEFAULT_BY;
     const int threads = bx * by;
     const char *sched_env = getenv("RAYBENCH_CUDA_SCHED");
     const int persistent = !(sched_env && strcmp(sched_env, "grid") == 0);
-    const char *path_env = getenv("RAYBENCH_CUDA_PATH");
-    /* The wavefront needs the persistent schedule; grid is the per-pixel kernel. */
-    int wave = persistent && path_env && strcmp(path_env, "wave") == 0;
-    const char *wave_note = "";
-    /* Wavefront: levels 0..max_depth, one launch each; queue counts per level. */
-    const int levels = (hv->max_depth > 0 ? hv->max_depth : 0) + 1;
-    unsigned char *queues = NULL;
-    float4 *qray[2] = {NULL, NULL}, *qshadow[2] = {NULL, NULL};
-    uint32_t ray_cap = 0, shadow_cap = 0;
-    unsigned *qcount = NULL; /* device: n_ray[levels + 1], n_shadow[levels + 1], next_item[levels + 1] */
-    unsigned hq[3 * (RT_MAX_DEPTH + 2)];
     cudaError_t e = cudaSuccess;
     cudaDeviceProp prop;
     cudaFuncAttributes fa;
@@ -688,10 +452,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     }
     variant = rt_cuda_pick_kernel(threads, rt_cuda_env_int("RAYBENCH_CUDA_MINB", 1, 4, RT_CUDA_DEFAULT_MINB));
     kernel = variant->kernel;
-    if (wave)
-        RT_CUDA_CHECK(cudaFuncGetAttributes(&fa, variant->wave));
-    else
-        RT_CUDA_CHECK(cudaFuncGetAttributes(&fa, kernel));
+    RT_CUDA_CHECK(cudaFuncGetAttributes(&fa, kernel));
     if (threads > fa.maxThreadsPerBlock) {
         rt_fail(err,
                 "cuda: block %dx%d (%d threads): the kernel uses %d registers per thread, so at most %d threads "
@@ -699,10 +460,12 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
                 bx, by, threads, fa.numRegs, fa.maxThreadsPerBlock, gpu, prop.regsPerBlock);
         goto fail;
     }
-    if (wave)
-        RT_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&blocks_per_sm, variant->wave, threads, 0));
-    else
-        RT_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&blocks_per_sm, kernel, threads, 0));
+    /* Shared memory / L1 split (percent of the most shared memory; 0 = the
+     * largest L1). Unset: the driver's choice. */
+    carveout = rt_cuda_env_int("RAYBENCH_CUDA_CARVEOUT", -1, 100, -1);
+    if (carveout >= 0)
+        RT_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributePreferredSharedMemoryCarveout, carveout));
+    RT_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&blocks_per_sm, kernel, threads, 0));
     if (blocks_per_sm < 1) {
         rt_fail(err, "cuda: block %dx%d (%d threads): no such block fits on a multiprocessor of %s (%d registers, "
                      "%zu bytes of local memory per thread)",
@@ -722,18 +485,27 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         }
         g.total_items = (uint32_t)(tiles * (unsigned long long)threads);
         g.persistent = persistent;
+        g.ntiles = (uint32_t)tiles;
+        {
+            const char *ord = getenv("RAYBENCH_CUDA_ORDER");
+            order_scatter = ord ? strcmp(ord, "scatter") == 0 : RT_CUDA_DEFAULT_SCATTER;
+        }
+        if (order_scatter && persistent)
+            while (g.tile_mask < g.ntiles - 1)
+                g.tile_mask = (g.tile_mask << 1) | 1u;
+        else
+            order_scatter = 0;
         /* Persistent: exactly the blocks that are resident at once, never more
          * than there are tiles. */
         nblocks = persistent ? blocks_per_sm * prop.multiProcessorCount : (int)tiles;
-        /* (The wavefront's later levels may hold more items than there are
-         * pixels: its grid is never capped.) */
-        if (persistent && !wave && (unsigned long long)nblocks > tiles)
+        if (persistent && (unsigned long long)nblocks > tiles)
             nblocks = (int)tiles;
     }
 
     /* One allocation: the arrays exactly as the host holds them. */
     parts[P_PRIMS].host = hv->prims;         parts[P_PRIMS].bytes = (size_t)hv->nprims * sizeof(RtPrim);
     parts[P_NODES].host = hv->nodes;         parts[P_NODES].bytes = (size_t)hv->nnodes * sizeof(RtBvhNode);
+    parts[P_WIDE].host = hv->wide;           parts[P_WIDE].bytes = hv->wide ? (size_t)hv->nwide * sizeof(RtBvh4Node) : 0;
     parts[P_VERTS].host = hv->vertices;      parts[P_VERTS].bytes = (size_t)job->scene->nvertices * sizeof(RtVec3);
     parts[P_NORMALS].host = hv->normals;     parts[P_NORMALS].bytes = (size_t)job->scene->nnormals * sizeof(RtVec3);
     parts[P_SPHERES].host = hv->spheres;     parts[P_SPHERES].bytes = (size_t)hv->nspheres * sizeof(RtSphere);
@@ -742,9 +514,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     parts[P_LIGHTS].host = hv->lights;       parts[P_LIGHTS].bytes = (size_t)hv->nlights * sizeof(RtLight);
     parts[P_IMAGE].bytes = npix * 3 * sizeof(float);
     parts[P_COUNTERS].bytes = RT_NCOUNTERS * sizeof(unsigned long long);
-    /* The per-pixel kernel's work counter; the wavefront's queue counts and
-     * work counters per level (3 x (levels + 1)). Zeroed with the counters. */
-    parts[P_WORK].bytes = 3 * (size_t)(levels + 1) * sizeof(unsigned int);
+    parts[P_WORK].bytes = sizeof(unsigned int);
     arena_bytes = rt_cuda_layout(parts);
     e = cudaMalloc((void **)&arena, arena_bytes);
     if (e != cudaSuccess) {
@@ -769,6 +539,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     /* The device copy of the view: same constants, device pointers. */
     dv.prims = (const RtPrim *)(arena + parts[P_PRIMS].offset);
     dv.nodes = hv->nnodes ? (const RtBvhNode *)(arena + parts[P_NODES].offset) : NULL;
+    dv.wide = hv->wide ? (const RtBvh4Node *)(arena + parts[P_WIDE].offset) : NULL;
     dv.vertices = (const RtVec3 *)(arena + parts[P_VERTS].offset);
     dv.normals = (const RtVec3 *)(arena + parts[P_NORMALS].offset);
     dv.spheres = (const RtSphere *)(arena + parts[P_SPHERES].offset);
@@ -779,19 +550,19 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * never writes cannot pass as black in --verify or the tests. */
     RT_CUDA_CHECK(cudaMemset(arena + parts[P_IMAGE].offset, 0xff, parts[P_IMAGE].bytes));
 
-    if (wave) {
-        /* Queues for one level's rays and shadow rays, twice (read one, write
-         * the other). First guess: a ray and a shadow ray per pixel; the first
-         * frame's counts tell whether that was enough (see the loop). */
-        ray_cap = npix > 0 ? (uint32_t)npix : 1u;
-        shadow_cap = ray_cap;
-        if (rt_wave_alloc(&queues, ray_cap, shadow_cap, qray, qshadow, w, h, dev, gpu, err) != 0)
-            goto fail;
-        qcount = (unsigned *)(arena + parts[P_WORK].offset);
+    {
+        const char *tv = getenv("RAYBENCH_CUDA_TRAVERSAL");
+        traversal = RT_CUDA_DEFAULT_TRAVERSAL;
+        if (tv && strcmp(tv, "shared") == 0)
+            traversal = RT_TRAV_SHARED;
+        else if (tv && strcmp(tv, "ldg") == 0)
+            traversal = RT_TRAV_LDG;
+        else if (tv && strcmp(tv, "wide") == 0)
+            traversal = RT_TRAV_WIDE;
+        if (traversal == RT_TRAV_WIDE && !hv->wide)
+            traversal = RT_TRAV_LDG; /* brute force, or no wide tree */
     }
-
-    traversal_ldg = rt_cuda_env_int("RAYBENCH_CUDA_TRAVERSAL_LDG", 0, 1, RT_CUDA_DEFAULT_LDG);
-    RT_CUDA_CHECK(cudaMemcpyToSymbol(rt_cuda_traversal_ldg, &traversal_ldg, sizeof traversal_ldg));
+    RT_CUDA_CHECK(cudaMemcpyToSymbol(rt_cuda_traversal, &traversal, sizeof traversal));
     RT_CUDA_CHECK(cudaEventCreate(&ev0));
     RT_CUDA_CHECK(cudaEventCreate(&ev1));
     max_runs = rt_cuda_env_int("RAYBENCH_CUDA_RUNS", 1, 64, RT_CUDA_DEFAULT_RUNS);
@@ -803,67 +574,19 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * Then up to max_runs timed launches, each from zeroed counters; the
      * image and counters of the last one are kept. */
     t0 = rt_now_ms();
-    for (int run = 0, again = 0;; run++) {
-        const int warm = runs == 0 && (run == 0 || again || rt_now_ms() - t0 < (double)warmup_ms);
-        again = 0;
-        /* Counters and the work counters that follow them, in one memset. */
+    for (int run = 0;; run++) {
+        const int warm = runs == 0 && (run == 0 || rt_now_ms() - t0 < (double)warmup_ms);
+        /* Counters and the work counter that follows them, in one memset. */
         RT_CUDA_CHECK(cudaMemsetAsync(arena + parts[P_COUNTERS].offset, 0,
                                       parts[P_WORK].offset + parts[P_WORK].bytes - parts[P_COUNTERS].offset));
         RT_CUDA_CHECK(cudaEventRecord(ev0));
-        if (wave) {
-            for (int k = 0; k < levels; k++) {
-                RtWaveLevel L;
-                L.level = k;
-                L.depth = hv->max_depth - k;
-                L.ray_in = qray[k & 1];
-                L.ray_out = qray[(k + 1) & 1];
-                L.shadow_in = qshadow[(k + 1) & 1];
-                L.shadow_out = qshadow[k & 1];
-                L.n_ray_in = &qcount[k];
-                L.n_ray_out = &qcount[k + 1];
-                L.n_shadow_in = &qcount[(levels + 1) + (k > 0 ? k - 1 : 0)];
-                L.n_shadow_out = &qcount[(levels + 1) + k];
-                L.next_item = &qcount[2 * (levels + 1) + k];
-                L.ray_cap = ray_cap;
-                L.shadow_cap = shadow_cap;
-                L.g = g;
-                variant->wave<<<nblocks, dim3((unsigned)bx, (unsigned)by)>>>(
-                    dv, (float *)(arena + parts[P_IMAGE].offset),
-                    (unsigned long long *)(arena + parts[P_COUNTERS].offset), L);
-                RT_CUDA_CHECK_LAUNCH("rt_wave_kernel");
-            }
-        } else {
-            kernel<<<nblocks, dim3((unsigned)bx, (unsigned)by)>>>(
-                dv, (float *)(arena + parts[P_IMAGE].offset),
-                (unsigned long long *)(arena + parts[P_COUNTERS].offset), (unsigned int *)(arena + parts[P_WORK].offset),
-                g);
-            RT_CUDA_CHECK_LAUNCH("rt_render_kernel");
-        }
+        kernel<<<nblocks, dim3((unsigned)bx, (unsigned)by)>>>(
+            dv, (float *)(arena + parts[P_IMAGE].offset), (unsigned long long *)(arena + parts[P_COUNTERS].offset),
+            (unsigned int *)(arena + parts[P_WORK].offset), g);
+        RT_CUDA_CHECK_LAUNCH("rt_render_kernel");
         RT_CUDA_CHECK(cudaEventRecord(ev1));
         RT_CUDA_CHECK(cudaEventSynchronize(ev1));
         RT_CUDA_CHECK(cudaEventElapsedTime(&ms, ev0, ev1));
-        if (wave && warm) {
-            /* Did every level fit? The counts are the same in every frame
-             * (they do not depend on the order of the atomics), so the warm-up
-             * frames size the queues: grown to the counts seen, redone until
-             * one frame fits (a dropped ray hides the rays it would spawn). */
-            uint32_t need_r = 0, need_s = 0;
-            RT_CUDA_CHECK(cudaMemcpy(hq, qcount, 2 * (size_t)(levels + 1) * sizeof(unsigned), cudaMemcpyDeviceToHost));
-            for (int k = 0; k <= levels; k++) {
-                need_r = hq[k] > need_r ? hq[k] : need_r;
-                need_s = hq[levels + 1 + k] > need_s ? hq[levels + 1 + k] : need_s;
-            }
-            if (need_r > ray_cap || need_s > shadow_cap) {
-                cudaFree(queues);
-                queues = NULL;
-                ray_cap = need_r > ray_cap ? need_r : ray_cap;
-                shadow_cap = need_s > shadow_cap ? need_s : shadow_cap;
-                if (rt_wave_alloc(&queues, ray_cap, shadow_cap, qray, qshadow, w, h, dev, gpu, err) != 0)
-                    goto fail;
-                wave_note = " wave_regrown=1";
-                again = 1;
-            }
-        }
         if (run == 0) {
             first_ms = ms;
             if (job->progress)
@@ -885,15 +608,6 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     download_ms = rt_now_ms() - t0;
     RT_CUDA_CHECK(cudaMemcpy(hcnt, arena + parts[P_COUNTERS].offset, sizeof hcnt, cudaMemcpyDeviceToHost));
 
-    if (wave) { /* the kept frame must have fit its queues */
-        RT_CUDA_CHECK(cudaMemcpy(hq, qcount, 2 * (size_t)(levels + 1) * sizeof(unsigned), cudaMemcpyDeviceToHost));
-        for (int k = 0; k <= levels; k++)
-            if (hq[k] > ray_cap || hq[levels + 1 + k] > shadow_cap) {
-                rt_fail(err, "cuda: wavefront level %d overflowed its queues (%u rays, %u shadow rays; capacity %u, %u)",
-                        k, hq[k], hq[levels + 1 + k], ray_cap, shadow_cap);
-                goto fail;
-            }
-    }
     qsort(times, (size_t)runs, sizeof times[0], rt_cuda_cmp_double);
     out->render_ms = runs % 2 ? times[runs / 2] : 0.5 * (times[runs / 2 - 1] + times[runs / 2]);
     out->render_ms_min = out->render_ms;
@@ -914,14 +628,12 @@ fail:
         cudaEventDestroy(ev1);
     if (arena)
         cudaFree(arena);
-    if (queues)
-        cudaFree(queues);
     if (rc == 0) {
         snprintf(out->extra, sizeof out->extra,
-                 " block=%dx%d sched=%s path=%s%s levels=%d ray_cap=%u shadow_cap=%u traversal=%s kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
+                 " block=%dx%d sched=%s order=%s carveout=%d traversal=%s kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
                  "download_ms=%.3f wall_ms=%.3f regs=%d local_bytes=%zu bounds=%dx%d blocks_per_sm=%d grid=%d gpu=%s",
-                 bx, by, persistent ? "persistent" : "grid", wave ? "wave" : "pixel", wave_note, wave ? levels : 1,
-                 ray_cap, shadow_cap, traversal_ldg ? "ldg" : "shared", runs, times[0], warmups, first_ms, init_ms, upload_ms,
+                 bx, by, persistent ? "persistent" : "grid", order_scatter ? "scatter" : "tiles", carveout,
+                 traversal == RT_TRAV_WIDE ? "wide" : (traversal == RT_TRAV_LDG ? "ldg" : "shared"), runs, times[0], warmups, first_ms, init_ms, upload_ms,
                  download_ms, rt_now_ms() - t_wall0, fa.numRegs, (size_t)fa.localSizeBytes, variant->maxt, variant->minb,
                  blocks_per_sm, nblocks,
                  gpu);

@@ -1,0 +1,86 @@
+/* test_wide.c SCENE... - the 4-wide BVH traversal against the binary one on
+ * real scenes: every primary ray of the scene's camera, and from each hit the
+ * shadow ray towards every light (any hit) and the mirror ray (closest hit),
+ * must give bit-identical hits (t, u, v, primitive). Exit 77 when a scene
+ * file is missing (../shared not beside the checkout). */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "check.h"
+#include "core/rt_shade.h"
+#include "rt.h"
+
+static int same(int fa, const RtHit *a, int fb, const RtHit *b)
+{
+    return fa == fb && (!fa || (a->t == b->t && a->id == b->id && a->u == b->u && a->v == b->v));
+}
+
+static void check_scene(const char *path)
+{
+    RtScene s;
+    RtAccel a;
+    RtCamera cam;
+    RtError e;
+    if (rt_scene_load(path, &s, NULL, NULL, &e) != 0) {
+        CHECK(0, "%s", e.msg);
+        return;
+    }
+    CHECK(rt_scene_camera(&s, &cam, &e) == 0, "%s", e.msg);
+    CHECK(rt_accel_build(&s, RT_ACCEL_BVH, &a, &e) == 0, "%s", e.msg);
+    RtSceneView v = rt_scene_view(&s, &a, &cam);
+    CHECK(v.wide != NULL, "%s: no wide tree", path);
+    RtCounters cb, cw;
+    memset(&cb, 0, sizeof cb);
+    memset(&cw, 0, sizeof cw);
+    long rays = 0, bad = 0;
+    for (int j = 0; v.wide && j < cam.height; j++)
+        for (int i = 0; i < cam.width; i++) {
+            RtRay r = rt_camera_ray(&cam, i, j);
+            RtHit hb, hw;
+            int fb = rt_trace_ray(&v, r.o, r.d, RT_INF, 0, &hb, &cb);
+            int fw = rt_trace_ray_wide(&v, r.o, r.d, RT_INF, 0, &hw, &cw);
+            rays++;
+            bad += !same(fb, &hb, fw, &hw);
+            if (!fb)
+                continue;
+            RtSurface sf = rt_surface(&v, r.o, r.d, &hb);
+            const RtMaterial *m = &v.materials[sf.material];
+            RtVec3 so = rt_shadow_origin(&sf);
+            for (uint32_t li = 0; li < v.nlights; li++) {
+                RtVec3 c, L;
+                float dist;
+                if (!rt_light_sample(&v, &sf, m, rt_neg(r.d), li, &c, &L, &dist))
+                    continue;
+                fb = rt_trace_ray(&v, so, L, dist, 1, &hb, &cb);
+                fw = rt_trace_ray_wide(&v, so, L, dist, 1, &hw, &cw);
+                rays++;
+                bad += fb != fw;
+            }
+            RtVec3 R = rt_normalize(rt_sub(r.d, rt_scale(sf.n, 2.0f * rt_dot(r.d, sf.n))));
+            RtVec3 ro = rt_madd(sf.p, R, RT_SECONDARY_OFFSET);
+            fb = rt_trace_ray(&v, ro, R, RT_INF, 0, &hb, &cb);
+            fw = rt_trace_ray_wide(&v, ro, R, RT_INF, 0, &hw, &cw);
+            rays++;
+            bad += !same(fb, &hb, fw, &hw);
+        }
+    CHECK(bad == 0, "%s: %ld of %ld rays differ between the wide and the binary tree", path, bad, rays);
+    printf("%s: %ld rays, %u binary / %u wide nodes, visits %.2f / %.2f per ray, tests %.2f / %.2f\n", path, rays,
+           a.nnodes, a.nwide, (double)cb.node_visits / (double)rays, (double)cw.node_visits / (double)rays,
+           (double)cb.prim_tests / (double)rays, (double)cw.prim_tests / (double)rays);
+    rt_accel_free(&a);
+    rt_scene_free(&s);
+}
+
+int main(int argc, char **argv)
+{
+    for (int k = 1; k < argc; k++)
+        if (access(argv[k], R_OK) != 0) {
+            printf("SKIP: %s not found\n", argv[k]);
+            return 77;
+        }
+    for (int k = 1; k < argc; k++)
+        check_scene(argv[k]);
+    return check_report("test_wide");
+}
