@@ -201,6 +201,33 @@ static inline RT_HD void rt_prim_fetch(const RtPrim *p, RtPrim *out)
 #endif
 }
 
+/* A leaf's primitives [first, first + count) against the ray, as the binary
+ * traversal below tests them: closest hit (ties to the lower index), or for
+ * any = 1 the first hit strictly closer than hit->t. Returns 1 when an
+ * any-hit query is answered. The GPU traversals (wide; ldg in cuda.cu) use it. */
+static inline RT_HD int rt_leaf_hits(const RtSceneView *s, uint32_t first, uint32_t count, RtVec3 o, RtVec3 d,
+                                     int any, RtHit *hit, int *found, uint32_t *tests)
+{
+    float u = 0.0f, v = 0.0f;
+    for (uint32_t k = 0; k < count; k++) {
+        RtPrim pr;
+        rt_prim_fetch(&s->prims[first + k], &pr);
+        (*tests)++;
+        float t = rt_prim_intersect(&pr, o, d, &u, &v);
+        if (any) {
+            if (t < hit->t) {
+                hit->t = t; hit->u = u; hit->v = v; hit->id = pr.id;
+                *found = 1;
+                return 1;
+            }
+        } else if (t <= hit->t && t < RT_INF) {
+            rt_hit_update(hit, &pr, t, u, v);
+            *found = 1;
+        }
+    }
+    return 0;
+}
+
 /* Closest hit (any = 0) or any hit closer than tmax (any = 1). Returns 1 on a hit. */
 static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any,
                                      RtHit *hit, RtCounters *cnt)
@@ -312,7 +339,6 @@ static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3
     hit->u = hit->v = 0.0f;
     hit->id = 0xffffffffu;
     int found = 0;
-    float u = 0.0f, v = 0.0f;
     const RtRayBox rb = rt_raybox(o, d);
     uint32_t st_ref[RT_WIDE_STACK];
     float st_t[RT_WIDE_STACK];
@@ -373,23 +399,8 @@ static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3
                 continue;
             }
         } else {
-            const uint32_t first = (ref & ~RT_WIDE_LEAF) >> 3, count = (ref & 7u) + 1u;
-            for (uint32_t k = 0; k < count; k++) {
-                RtPrim pr;
-                rt_prim_fetch(&s->prims[first + k], &pr);
-                tests++;
-                float tp = rt_prim_intersect(&pr, o, d, &u, &v);
-                if (any) {
-                    if (tp < hit->t) {
-                        hit->t = tp; hit->u = u; hit->v = v; hit->id = pr.id;
-                        found = 1;
-                        goto done;
-                    }
-                } else if (tp <= hit->t && tp < RT_INF) {
-                    rt_hit_update(hit, &pr, tp, u, v);
-                    found = 1;
-                }
-            }
+            if (rt_leaf_hits(s, (ref & ~RT_WIDE_LEAF) >> 3, (ref & 7u) + 1u, o, d, any, hit, &found, &tests))
+                goto done;
         }
         /* Pop, skipping entries beyond the closest hit (ties are visited). */
         for (;;) {

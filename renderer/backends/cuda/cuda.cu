@@ -103,22 +103,8 @@ static __device__ int rt_trace_ray_ldg(const RtSceneView *s, RtVec3 o, RtVec3 d,
         visits++;
         uint32_t count = __float_as_uint(hi.w) & 0xffu;
         if (count) {
-            const RtPrim *p = &s->prims[__float_as_uint(lo.w)];
-            for (uint32_t k = 0; k < count; k++) {
-                tests++;
-                rt_prim_fetch(&p[k], &pr);
-                t = rt_prim_intersect(&pr, o, d, &u, &v);
-                if (any) {
-                    if (t < hit->t) {
-                        hit->t = t; hit->u = u; hit->v = v; hit->id = pr.id;
-                        found = 1;
-                        goto done;
-                    }
-                } else if (t <= hit->t && t < RT_INF) {
-                    rt_hit_update(hit, &pr, t, u, v);
-                    found = 1;
-                }
-            }
+            if (rt_leaf_hits(s, __float_as_uint(lo.w), count, o, d, any, hit, &found, &tests))
+                goto done;
         } else {
             uint32_t a = ni + 1, b = __float_as_uint(lo.w);
             float4 alo = __ldg(&nodes[2 * a]), ahi = __ldg(&nodes[2 * a + 1]);
