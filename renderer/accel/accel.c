@@ -281,8 +281,10 @@ typedef struct Widen {
 
 static float node_area(const RtBvhNode *n)
 {
-    float dx = n->hi[0] - n->lo[0], dy = n->hi[1] - n->lo[1], dz = n->hi[2] - n->lo[2];
-    return dx * dy + dy * dz + dz * dx;
+    Box b;
+    memcpy(b.lo, n->lo, sizeof b.lo);
+    memcpy(b.hi, n->hi, sizeof b.hi);
+    return box_area(&b);
 }
 
 static uint32_t widen_ref(Widen *w, uint32_t bi);
@@ -323,9 +325,10 @@ static uint32_t widen_ref(Widen *w, uint32_t bi)
         float best_area = -1.0f;
         for (int k = 0; k < nc; k++) {
             const RtBvhNode *c = &w->bin[cand[k]];
-            if ((c->meta & 0xffu) == 0 && node_area(c) > best_area) {
+            float area = (c->meta & 0xffu) == 0 ? node_area(c) : -1.0f;
+            if (area > best_area) {
                 best = k;
-                best_area = node_area(c);
+                best_area = area;
             }
         }
         if (best < 0)

@@ -105,8 +105,8 @@ static inline RT_HD int rt_light_sample(const RtSceneView *s, const RtSurface *s
 }
 
 /* The start of a hit's local colour (ka * ambient_light) and where its
- * shadow rays leave from (just above the surface, along the normal). Every
- * shading loop -- the per-pixel one below, the CUDA wavefront -- uses these. */
+ * shadow rays leave from (just above the surface, along the normal), for
+ * rt_trace_path below and for tests that trace a hit's rays one by one. */
 static inline RT_HD RtVec3 rt_ambient_term(const RtSceneView *s, const RtMaterial *m)
 {
     return rt_mul(rt_v3_load(m->ka), s->ambient);

@@ -123,6 +123,23 @@ static inline RT_HD RtRayBox rt_raybox(RtVec3 o, RtVec3 d)
     return rb;
 }
 
+/* The scalar slab test: entry distance of the ray into the box lo..hi within
+ * [tmin, tmax], or RT_INF. Every scalar box test calls it (rt_box_enter without
+ * SSE, the wide traversal, the GPU's binary variant in cuda.cu). */
+static inline RT_HD float rt_slab_enter(float lx, float ly, float lz, float hx, float hy, float hz,
+                                        const RtRayBox *rb, float tmin, float tmax)
+{
+    float tx0 = (lx - rb->o.x) * rb->inv.x, tx1 = (hx - rb->o.x) * rb->inv.x;
+    float ty0 = (ly - rb->o.y) * rb->inv.y, ty1 = (hy - rb->o.y) * rb->inv.y;
+    float tz0 = (lz - rb->o.z) * rb->inv.z, tz1 = (hz - rb->o.z) * rb->inv.z;
+    float t0 = rt_maxf(rt_maxf(rt_minf(tx0, tx1), rt_minf(ty0, ty1)), rt_maxf(rt_minf(tz0, tz1), tmin));
+    float t1 = rt_minf(rt_minf(rt_maxf(tx0, tx1), rt_maxf(ty0, ty1)), rt_minf(rt_maxf(tz0, tz1), tmax));
+    /* Widen the exit a little (pbrt-v4's 1 + 2*gamma(3)) so float rounding in
+     * the slab test never culls a box whose primitive the exact test would hit;
+     * a culled hit would make BVH and brute force disagree on a pixel. */
+    return t0 <= t1 * 1.0000004f ? t0 : RT_INF;
+}
+
 /* Entry distance of the ray into the node's box within [tmin, tmax], or RT_INF. */
 static inline RT_HD float rt_box_enter(const RtBvhNode *n, const RtRayBox *rb, float tmin, float tmax)
 {
@@ -141,15 +158,7 @@ static inline RT_HD float rt_box_enter(const RtBvhNode *n, const RtRayBox *rb, f
     float t0s = rt_maxf(_mm_cvtss_f32(tn), tmin), t1s = rt_minf(_mm_cvtss_f32(tf), tmax);
     return t0s <= t1s * 1.0000004f ? t0s : RT_INF;
 #else
-    float tx0 = (n->lo[0] - rb->o.x) * rb->inv.x, tx1 = (n->hi[0] - rb->o.x) * rb->inv.x;
-    float ty0 = (n->lo[1] - rb->o.y) * rb->inv.y, ty1 = (n->hi[1] - rb->o.y) * rb->inv.y;
-    float tz0 = (n->lo[2] - rb->o.z) * rb->inv.z, tz1 = (n->hi[2] - rb->o.z) * rb->inv.z;
-    float t0 = rt_maxf(rt_maxf(rt_minf(tx0, tx1), rt_minf(ty0, ty1)), rt_maxf(rt_minf(tz0, tz1), tmin));
-    float t1 = rt_minf(rt_minf(rt_maxf(tx0, tx1), rt_maxf(ty0, ty1)), rt_minf(rt_maxf(tz0, tz1), tmax));
-    /* Widen the exit a little (pbrt-v4's 1 + 2*gamma(3)) so float rounding in
-     * the slab test never culls a box whose primitive the exact test would hit;
-     * a culled hit would make BVH and brute force disagree on a pixel. */
-    return t0 <= t1 * 1.0000004f ? t0 : RT_INF;
+    return rt_slab_enter(n->lo[0], n->lo[1], n->lo[2], n->hi[0], n->hi[1], n->hi[2], rb, tmin, tmax);
 #endif
 }
 
@@ -375,12 +384,9 @@ static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3
 #pragma unroll
 #endif
             for (int k = 0; k < 4; k++) {
-                float tx0 = (lx[k] - rb.o.x) * rb.inv.x, tx1 = (hx[k] - rb.o.x) * rb.inv.x;
-                float ty0 = (ly[k] - rb.o.y) * rb.inv.y, ty1 = (hy[k] - rb.o.y) * rb.inv.y;
-                float tz0 = (lz[k] - rb.o.z) * rb.inv.z, tz1 = (hz[k] - rb.o.z) * rb.inv.z;
-                float t0 = rt_maxf(rt_maxf(rt_minf(tx0, tx1), rt_minf(ty0, ty1)), rt_maxf(rt_minf(tz0, tz1), 0.0f));
-                float t1 = rt_minf(rt_minf(rt_maxf(tx0, tx1), rt_maxf(ty0, ty1)), rt_minf(rt_maxf(tz0, tz1), hit->t));
-                t[k] = (c[k] != RT_WIDE_EMPTY && t0 <= t1 * 1.0000004f) ? t0 : RT_INF;
+                /* all four tested, then selected: no branch per child */
+                const float te = rt_slab_enter(lx[k], ly[k], lz[k], hx[k], hy[k], hz[k], &rb, 0.0f, hit->t);
+                t[k] = c[k] != RT_WIDE_EMPTY ? te : RT_INF;
             }
             /* Sort by entry distance (a 5-exchange network; misses are RT_INF
              * and sink to the end). */

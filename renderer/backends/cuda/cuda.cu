@@ -52,13 +52,8 @@ __constant__ int rt_cuda_traversal;
 #if defined(__CUDA_ARCH__)
 static __device__ __forceinline__ float rt_cuda_box(float4 lo, float4 hi, const RtRayBox &rb, float tmax)
 {
-    /* The non-SSE rt_box_enter with tmin = 0, operation for operation. */
-    float tx0 = (lo.x - rb.o.x) * rb.inv.x, tx1 = (hi.x - rb.o.x) * rb.inv.x;
-    float ty0 = (lo.y - rb.o.y) * rb.inv.y, ty1 = (hi.y - rb.o.y) * rb.inv.y;
-    float tz0 = (lo.z - rb.o.z) * rb.inv.z, tz1 = (hi.z - rb.o.z) * rb.inv.z;
-    float t0 = rt_maxf(rt_maxf(rt_minf(tx0, tx1), rt_minf(ty0, ty1)), rt_maxf(rt_minf(tz0, tz1), 0.0f));
-    float t1 = rt_minf(rt_minf(rt_maxf(tx0, tx1), rt_maxf(ty0, ty1)), rt_minf(rt_maxf(tz0, tz1), tmax));
-    return t0 <= t1 * 1.0000004f ? t0 : RT_INF;
+    /* The non-SSE rt_box_enter with tmin = 0 on a node already in registers. */
+    return rt_slab_enter(lo.x, lo.y, lo.z, hi.x, hi.y, hi.z, &rb, 0.0f, tmax);
 }
 
 static __device__ int rt_trace_ray_ldg(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit,
