@@ -127,13 +127,9 @@ int hx_cmd_compare(int argc, char **argv)
         return 1;
     }
     HxStudy nw, base;
-    char err[512];
-    if (hx_study_load(argv[optind], metric, &nw, err, sizeof err)) {
-        fprintf(stderr, "harness compare: %s\n", err);
+    if (hx_study_open("harness compare", argv[optind], metric, &nw))
         return 1;
-    }
-    if (hx_study_load(argv[optind + 1], metric, &base, err, sizeof err)) {
-        fprintf(stderr, "harness compare: %s\n", err);
+    if (hx_study_open("harness compare", argv[optind + 1], metric, &base)) {
         hx_study_free(&nw);
         return 1;
     }

@@ -486,6 +486,16 @@ int hx_config_load(const char *path, HxConfig *cfg, char *err, size_t errlen)
     return rc;
 }
 
+int hx_config_open(const char *path, HxConfig *cfg)
+{
+    char err[1024];
+    if (hx_config_load(path, cfg, err, sizeof err) == 0)
+        return 0;
+    fprintf(stderr, "%s\n", err);
+    hx_config_free(cfg);
+    return -1;
+}
+
 void hx_config_free(HxConfig *cfg)
 {
     free(cfg->path);

@@ -31,6 +31,9 @@ void hx_buf_printf(HxBuf *b, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)));
 void hx_buf_free(HxBuf *b);
 char *hx_strdup(const char *s);
+/* Removes the worker count (" T=n" or " P=n") from a group label, in place:
+ * what is left names the series a scaling study draws as one line. */
+void hx_label_drop_workers(char *lab);
 char *hx_strndup(const char *s, size_t n);
 void *hx_xmalloc(size_t n);
 void *hx_xrealloc(void *p, size_t n);
@@ -118,6 +121,9 @@ int hx_config_load(const char *path, HxConfig *cfg, char *err, size_t errlen);
 int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
                            char *err, size_t errlen);
 void hx_config_free(HxConfig *cfg);
+/* hx_config_load for a subcommand: the error goes to stderr as one line and
+ * the config is freed. Returns 0 or -1. */
+int hx_config_open(const char *path, HxConfig *cfg);
 /* "mpirun" or "srun" -> 0 and *out; anything else -1. One parser for the
  * config key and `run --launcher`, so both accept exactly the same names. */
 int hx_launcher_parse(const char *name, HxLauncher *out);
@@ -254,6 +260,9 @@ typedef struct {
 int hx_study_load(const char *path, const char *metric, HxStudy *s,
                   char *err, size_t errlen);
 void hx_study_free(HxStudy *s);
+/* hx_study_load for a subcommand: the error goes to stderr as "WHO: message".
+ * Returns 0 or -1. */
+int hx_study_open(const char *who, const char *path, const char *metric, HxStudy *s);
 /* Speedup baselines of a group: (a) same series at one worker, (b) the
  * fastest group of the same scene matching KEY=VALUE. NULL if none. */
 const HxGroup *hx_baseline_one_worker(const HxStudy *s, const HxGroup *g);

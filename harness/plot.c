@@ -173,13 +173,7 @@ static void plot_scaling(PlotCtx *c, const HxStudy *s, int efficiency)
             fprintf(dat, "\n\n");
             char lab[256], t[300];
             clean_label(lab, sizeof lab, s->g[i].label);
-            char *tp = strstr(lab, " T=");
-            if (!tp)
-                tp = strstr(lab, " P=");
-            if (tp) {
-                char *end = strchr(tp + 1, ' ');
-                memmove(tp, end ? end : tp + strlen(tp), strlen(end ? end : tp + strlen(tp)) + 1);
-            }
+            hx_label_drop_workers(lab);
             snprintf(t, sizeof t, "%s %s", s->g[i].scene, lab);
             hx_strlist_push(&titles, t);
             nseries++;
@@ -359,11 +353,8 @@ int hx_cmd_plot(int argc, char **argv)
         return 1;
     }
     HxStudy s;
-    char err[512];
-    if (hx_study_load(argv[optind], metric, &s, err, sizeof err)) {
-        fprintf(stderr, "harness plot: %s\n", err);
+    if (hx_study_open("harness plot", argv[optind], metric, &s))
         return 1;
-    }
     if (s.nwrong_rows)
         fprintf(stderr, "harness plot: warning: %zu wrong-image row(s) left out\n", s.nwrong_rows);
     char *dir = hx_dirname(prefix);

@@ -586,12 +586,9 @@ int hx_cmd_run(int argc, char **argv)
         return 1;
     }
     HxConfig cfg;
-    char err[1024];
-    if (hx_config_load(argv[optind], &cfg, err, sizeof err)) {
-        fprintf(stderr, "%s\n", err);
-        hx_config_free(&cfg);
+    if (hx_config_open(argv[optind], &cfg))
         return 1;
-    }
+    char err[1024];
     /* the command line wins: the same config runs on a workstation with
      * mpirun and in a Slurm job (harness slurm) with srun */
     if (launcher_set)

@@ -230,12 +230,8 @@ int hx_cmd_slurm(int argc, char **argv)
         return 1;
     }
     HxConfig cfg;
-    char err[1024];
-    if (hx_config_load(argv[optind], &cfg, err, sizeof err)) {
-        fprintf(stderr, "%s\n", err);
-        hx_config_free(&cfg);
+    if (hx_config_open(argv[optind], &cfg))
         return 1;
-    }
     HxPlan plan;
     hx_expand(&cfg, &plan);
     /* Size from the expanded plan, not the raw lists: threads on a serial

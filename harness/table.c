@@ -97,6 +97,15 @@ static int row_metric(const HxCsv *csv, size_t r, const char *metric, double *ou
     return 0;
 }
 
+int hx_study_open(const char *who, const char *path, const char *metric, HxStudy *s)
+{
+    char err[512];
+    if (hx_study_load(path, metric, s, err, sizeof err) == 0)
+        return 0;
+    fprintf(stderr, "%s: %s\n", who, err);
+    return -1;
+}
+
 int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, size_t errlen)
 {
     memset(s, 0, sizeof *s);
@@ -406,11 +415,8 @@ int hx_cmd_table(int argc, char **argv)
         return 1;
     }
     HxStudy s;
-    char err[512];
-    if (hx_study_load(argv[optind], metric, &s, err, sizeof err)) {
-        fprintf(stderr, "harness table: %s\n", err);
+    if (hx_study_open("harness table", argv[optind], metric, &s))
         return 1;
-    }
     if (!baseline) {
         baseline = "backend=serial";
         if (s.csv.nrows && *hx_csv_get(&s.csv, 0, "baseline"))
@@ -510,13 +516,7 @@ int hx_cmd_table(int argc, char **argv)
                 fmt_num(se, sizeof se, "%.4f", f.has_se ? f.se_serial_fraction : NAN);
                 /* series label: the label without the worker count */
                 char *lab = hx_strdup(s.g[i].label);
-                char *tp = strstr(lab, " T=");
-                if (!tp)
-                    tp = strstr(lab, " P=");
-                if (tp) {
-                    char *end = strchr(tp + 1, ' ');
-                    memmove(tp, end ? end : tp + strlen(tp), strlen(end ? end : tp + strlen(tp)) + 1);
-                }
+                hx_label_drop_workers(lab);
                 const char *cells[7] = {s.g[i].scene, lab, pts, as, bs, fs, se};
                 emit_row(&e, cells, 7);
                 free(lab);

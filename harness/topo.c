@@ -259,9 +259,7 @@ int hx_cmd_topo(int argc, char **argv)
     int rc = 0;
     if (optind < argc) {
         HxConfig cfg;
-        char err[1024];
-        if (hx_config_load(argv[optind], &cfg, err, sizeof err)) {
-            fprintf(stderr, "%s\n", err);
+        if (hx_config_open(argv[optind], &cfg)) {
             rc = 1;
         } else {
             HxPlan plan;

@@ -41,6 +41,17 @@ char *hx_strndup(const char *s, size_t n)
     return d;
 }
 
+void hx_label_drop_workers(char *lab)
+{
+    char *tp = strstr(lab, " T=");
+    if (!tp)
+        tp = strstr(lab, " P=");
+    if (tp) {
+        char *end = strchr(tp + 1, ' ');
+        memmove(tp, end ? end : tp + strlen(tp), strlen(end ? end : tp + strlen(tp)) + 1);
+    }
+}
+
 char *hx_strdup(const char *s)
 {
     return hx_strndup(s, strlen(s));
