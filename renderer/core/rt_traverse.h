@@ -7,6 +7,8 @@
 #ifndef RT_TRAVERSE_H
 #define RT_TRAVERSE_H
 
+#include <string.h>
+
 #include "rt_camera.h"
 
 /* On x86 hosts the slab test runs on SSE lanes: the same IEEE operations
@@ -82,6 +84,31 @@ static inline RT_HD float rt_prim_intersect(const RtPrim *p, RtVec3 o, RtVec3 d,
     return t;
 }
 
+/* rt_prim_intersect with the triangle test written without early exits: the
+ * same arithmetic and the same acceptance conditions (NaN included), so the
+ * same t, u, v; u and v are written even on a miss. With no branch inside,
+ * two of these calls overlap on the GPU (the leaf loop below), where a lone
+ * ray's dependent chain, not issue bandwidth, sets its time (docs/gpu.md);
+ * the CPU's binary traversal keeps the early exits. */
+static inline RT_HD float rt_prim_intersect_flat(const RtPrim *p, RtVec3 o, RtVec3 d, float *u_out, float *v_out)
+{
+    if (p->id & RT_PRIM_SPHERE_BIT)
+        return rt_prim_intersect(p, o, d, u_out, v_out);
+    RtVec3 e1 = rt_v3_load(p->e1), e2 = rt_v3_load(p->e2);
+    RtVec3 pv = rt_cross(d, e2);
+    float det = rt_dot(e1, pv);
+    float inv = 1.0f / det;
+    RtVec3 tv = rt_sub(o, rt_v3_load(p->p0));
+    float u = rt_dot(tv, pv) * inv;
+    RtVec3 qv = rt_cross(tv, e1);
+    float v = rt_dot(d, qv) * inv;
+    float t = rt_dot(e2, qv) * inv;
+    int ok = (det != 0.0f) & !(u < 0.0f) & !(u > 1.0f) & !(v < 0.0f) & !(u + v > 1.0f) & (t > RT_T_MIN);
+    *u_out = u;
+    *v_out = v;
+    return ok ? t : RT_INF;
+}
+
 /* Keeps the candidate if it is closer, or as close with a lower index. */
 static inline RT_HD void rt_hit_update(RtHit *h, const RtPrim *p, float t, float u, float v)
 {
@@ -123,6 +150,18 @@ static inline RT_HD RtRayBox rt_raybox(RtVec3 o, RtVec3 d)
     return rb;
 }
 
+/* Min and max inside the slab test. No operand is ever NaN there (box bounds
+ * are finite or +-RT_INF and 1/d is finite), so fminf/fmaxf give the same
+ * values as rt_minf/rt_maxf (up to the sign of a zero, which no comparison
+ * sees) in one GPU instruction (FMNMX) instead of a compare and a select. */
+#if defined(__CUDA_ARCH__)
+#define RT_BOX_MIN fminf
+#define RT_BOX_MAX fmaxf
+#else
+#define RT_BOX_MIN rt_minf
+#define RT_BOX_MAX rt_maxf
+#endif
+
 /* The scalar slab test: entry distance of the ray into the box lo..hi within
  * [tmin, tmax], or RT_INF. Every scalar box test calls it (rt_box_enter without
  * SSE, the wide traversal, the GPU's binary variant in cuda.cu). */
@@ -132,8 +171,8 @@ static inline RT_HD float rt_slab_enter(float lx, float ly, float lz, float hx, 
     float tx0 = (lx - rb->o.x) * rb->inv.x, tx1 = (hx - rb->o.x) * rb->inv.x;
     float ty0 = (ly - rb->o.y) * rb->inv.y, ty1 = (hy - rb->o.y) * rb->inv.y;
     float tz0 = (lz - rb->o.z) * rb->inv.z, tz1 = (hz - rb->o.z) * rb->inv.z;
-    float t0 = rt_maxf(rt_maxf(rt_minf(tx0, tx1), rt_minf(ty0, ty1)), rt_maxf(rt_minf(tz0, tz1), tmin));
-    float t1 = rt_minf(rt_minf(rt_maxf(tx0, tx1), rt_maxf(ty0, ty1)), rt_minf(rt_maxf(tz0, tz1), tmax));
+    float t0 = RT_BOX_MAX(RT_BOX_MAX(RT_BOX_MIN(tx0, tx1), RT_BOX_MIN(ty0, ty1)), RT_BOX_MAX(RT_BOX_MIN(tz0, tz1), tmin));
+    float t1 = RT_BOX_MIN(RT_BOX_MIN(RT_BOX_MAX(tx0, tx1), RT_BOX_MAX(ty0, ty1)), RT_BOX_MIN(RT_BOX_MAX(tz0, tz1), tmax));
     /* Widen the exit a little (pbrt-v4's 1 + 2*gamma(3)) so float rounding in
      * the slab test never culls a box whose primitive the exact test would hit;
      * a culled hit would make BVH and brute force disagree on a pixel. */
@@ -210,6 +249,25 @@ static inline RT_HD void rt_prim_fetch(const RtPrim *p, RtPrim *out)
 #endif
 }
 
+/* One tested primitive into the hit record (rt_leaf_hits): returns 1 when an
+ * any-hit query is answered. */
+static inline RT_HD int rt_leaf_take(const RtPrim *p, float t, float u, float v, int any, RtHit *hit, int *found,
+                                     uint32_t *tests)
+{
+    (*tests)++;
+    if (any) {
+        if (t < hit->t) {
+            hit->t = t; hit->u = u; hit->v = v; hit->id = p->id;
+            *found = 1;
+            return 1;
+        }
+    } else if (t <= hit->t && t < RT_INF) {
+        rt_hit_update(hit, p, t, u, v);
+        *found = 1;
+    }
+    return 0;
+}
+
 /* A leaf's primitives [first, first + count) against the ray, as the binary
  * traversal below tests them: closest hit (ties to the lower index), or for
  * any = 1 the first hit strictly closer than hit->t. Returns 1 when an
@@ -217,22 +275,22 @@ static inline RT_HD void rt_prim_fetch(const RtPrim *p, RtPrim *out)
 static inline RT_HD int rt_leaf_hits(const RtSceneView *s, uint32_t first, uint32_t count, RtVec3 o, RtVec3 d,
                                      int any, RtHit *hit, int *found, uint32_t *tests)
 {
-    float u = 0.0f, v = 0.0f;
-    for (uint32_t k = 0; k < count; k++) {
-        RtPrim pr;
-        rt_prim_fetch(&s->prims[first + k], &pr);
-        (*tests)++;
-        float t = rt_prim_intersect(&pr, o, d, &u, &v);
-        if (any) {
-            if (t < hit->t) {
-                hit->t = t; hit->u = u; hit->v = v; hit->id = pr.id;
-                *found = 1;
-                return 1;
-            }
-        } else if (t <= hit->t && t < RT_INF) {
-            rt_hit_update(hit, &pr, t, u, v);
-            *found = 1;
-        }
+    /* Two primitives per step, both tested before either result is used:
+     * two independent chains of loads and arithmetic instead of one (the
+     * results are then taken in order, exactly as one at a time would). An
+     * odd count tests its last primitive twice and ignores the copy. */
+    for (uint32_t k = 0; k < count; k += 2) {
+        const uint32_t two = k + 1 < count;
+        RtPrim pa, pb;
+        rt_prim_fetch(&s->prims[first + k], &pa);
+        rt_prim_fetch(&s->prims[first + k + two], &pb);
+        float ua, va, ub, vb;
+        const float ta = rt_prim_intersect_flat(&pa, o, d, &ua, &va);
+        const float tb = rt_prim_intersect_flat(&pb, o, d, &ub, &vb);
+        if (rt_leaf_take(&pa, ta, ua, va, any, hit, found, tests))
+            return 1;
+        if (two && rt_leaf_take(&pb, tb, ub, vb, any, hit, found, tests))
+            return 1;
     }
     return 0;
 }
@@ -340,6 +398,75 @@ done:
  * nodes and leaves (fewer than the binary tree's). The GPU's default traversal
  * (docs/gpu.md); its four box tests are independent work, which hides latency. */
 #define RT_WIDE_STACK (3 * RT_BVH_MAX_DEPTH + 4)
+#define RT_WIDE_MISS_KEY 0xffffffffu
+
+static inline RT_HD uint32_t rt_float_bits(float f)
+{
+#if defined(__CUDA_ARCH__)
+    return __float_as_uint(f);
+#else
+    uint32_t u;
+    memcpy(&u, &f, sizeof u);
+    return u;
+#endif
+}
+
+/* The wide traversal's slab test, one fused multiply-add per plane: the
+ * plane at coordinate x is entered at x * inv + c with c = -o * inv, as GPU
+ * tracers write it (Aila & Laine 2009), which is 12 instructions fewer per
+ * node than (x - o) * inv. The rounding of o * inv is an absolute error of at
+ * most |o * inv| * 2^-24 in every distance; each plane's constant moves that
+ * plane's distance outwards by |o * inv| * 2^-21 (down for the near side of
+ * the slab, up for the far side, chosen by the sign of inv), and the exit is
+ * widened by the same relative margin as rt_slab_enter's. So the test stays
+ * conservative: it may enter a box the exact test would miss by a hair (one
+ * more visit) but never misses one it would enter, and the hits stay those of
+ * rt_trace_ray (test_wide, test_geometry). */
+typedef struct RtWideRay {
+    float ix, iy, iz;          /* 1/d, as rt_raybox */
+    float lox, loy, loz;       /* constant of the lo plane, per axis */
+    float hix, hiy, hiz;       /* constant of the hi plane, per axis */
+} RtWideRay;
+
+static inline RT_HD void rt_wide_consts(float o, float inv, float *clo, float *chi)
+{
+    const float ood = o * inv;
+    const float e = fabsf(ood) * 4.76837158203125e-7f; /* 2^-21 */
+    /* inv > 0: lo is the near plane (its distance moves down), hi the far */
+    *clo = inv >= 0.0f ? -ood - e : -ood + e;
+    *chi = inv >= 0.0f ? -ood + e : -ood - e;
+}
+
+static inline RT_HD RtWideRay rt_wide_ray(RtVec3 o, RtVec3 d)
+{
+    RtWideRay w;
+    w.ix = rt_safe_inv(d.x);
+    w.iy = rt_safe_inv(d.y);
+    w.iz = rt_safe_inv(d.z);
+    rt_wide_consts(o.x, w.ix, &w.lox, &w.hix);
+    rt_wide_consts(o.y, w.iy, &w.loy, &w.hiy);
+    rt_wide_consts(o.z, w.iz, &w.loz, &w.hiz);
+    return w;
+}
+
+/* Sort key of child k: the bits of its entry distance (t >= 0, so they order
+ * as the floats do) with the low two replaced by k, or all ones for a miss or
+ * an empty slot. Keys sort with integer min/max and carry their child along;
+ * the key's distance part is at most t, so the pop culls no box that t itself
+ * would keep. */
+static inline RT_HD uint32_t rt_wide_key(const RtWideRay *w, float lx, float ly, float lz, float hx, float hy,
+                                         float hz, float tmax, uint32_t child, uint32_t k)
+{
+    const float ax = fmaf(lx, w->ix, w->lox), bx = fmaf(hx, w->ix, w->hix);
+    const float ay = fmaf(ly, w->iy, w->loy), by = fmaf(hy, w->iy, w->hiy);
+    const float az = fmaf(lz, w->iz, w->loz), bz = fmaf(hz, w->iz, w->hiz);
+    const float t0 = RT_BOX_MAX(RT_BOX_MAX(RT_BOX_MIN(ax, bx), RT_BOX_MIN(ay, by)), RT_BOX_MAX(RT_BOX_MIN(az, bz), 0.0f));
+    const float t1 = RT_BOX_MIN(RT_BOX_MIN(RT_BOX_MAX(ax, bx), RT_BOX_MAX(ay, by)), RT_BOX_MIN(RT_BOX_MAX(az, bz), tmax));
+    return t0 <= t1 * 1.0000004f && child != RT_WIDE_EMPTY ? (rt_float_bits(t0) & 0x7ffffffcu) | k : RT_WIDE_MISS_KEY;
+}
+
+static inline RT_HD uint32_t rt_umin(uint32_t a, uint32_t b) { return a < b ? a : b; }
+static inline RT_HD uint32_t rt_umax(uint32_t a, uint32_t b) { return a > b ? a : b; }
 
 static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit,
                                           RtCounters *cnt)
@@ -348,9 +475,9 @@ static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3
     hit->u = hit->v = 0.0f;
     hit->id = 0xffffffffu;
     int found = 0;
-    const RtRayBox rb = rt_raybox(o, d);
-    uint32_t st_ref[RT_WIDE_STACK];
-    float st_t[RT_WIDE_STACK];
+    const RtWideRay wr = rt_wide_ray(o, d);
+    /* Stack entry: sort key (below) in the high word, reference in the low. */
+    uint64_t st[RT_WIDE_STACK];
     int sp = 0;
     uint32_t ref = 0; /* the root node */
     uint32_t visits = 0, tests = 0;
@@ -379,44 +506,46 @@ static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3
                 c[k] = n->child[k];
             }
 #endif
-            float t[4];
+            uint32_t key[4];
 #if defined(__CUDA_ARCH__)
 #pragma unroll
 #endif
-            for (int k = 0; k < 4; k++) {
-                /* all four tested, then selected: no branch per child */
-                const float te = rt_slab_enter(lx[k], ly[k], lz[k], hx[k], hy[k], hz[k], &rb, 0.0f, hit->t);
-                t[k] = c[k] != RT_WIDE_EMPTY ? te : RT_INF;
-            }
-            /* Sort by entry distance (a 5-exchange network; misses are RT_INF
-             * and sink to the end). */
+            for (int k = 0; k < 4; k++) /* all four tested, then selected: no branch per child */
+                key[k] = rt_wide_key(&wr, lx[k], ly[k], lz[k], hx[k], hy[k], hz[k], hit->t, c[k], (uint32_t)k);
+            /* A 5-exchange sorting network, nearest first. */
 #define RT_WIDE_CX(i, j)                                                       \
-    if (t[j] < t[i]) {                                                         \
-        float tt_ = t[i]; t[i] = t[j]; t[j] = tt_;                             \
-        uint32_t cc_ = c[i]; c[i] = c[j]; c[j] = cc_;                          \
+    {                                                                          \
+        const uint32_t lo_ = rt_umin(key[i], key[j]);                          \
+        key[j] = rt_umax(key[i], key[j]);                                      \
+        key[i] = lo_;                                                          \
     }
             RT_WIDE_CX(0, 1) RT_WIDE_CX(2, 3) RT_WIDE_CX(0, 2) RT_WIDE_CX(1, 3) RT_WIDE_CX(1, 2)
 #undef RT_WIDE_CX
-            if (t[3] < RT_INF) { st_ref[sp] = c[3]; st_t[sp] = t[3]; sp++; }
-            if (t[2] < RT_INF) { st_ref[sp] = c[2]; st_t[sp] = t[2]; sp++; }
-            if (t[1] < RT_INF) { st_ref[sp] = c[1]; st_t[sp] = t[1]; sp++; }
-            if (t[0] < RT_INF) {
-                ref = c[0];
+#define RT_WIDE_CHILD(kk) (((kk) & 2u) ? (((kk) & 1u) ? c[3] : c[2]) : (((kk) & 1u) ? c[1] : c[0]))
+            if (key[3] != RT_WIDE_MISS_KEY) st[sp++] = ((uint64_t)key[3] << 32) | RT_WIDE_CHILD(key[3]);
+            if (key[2] != RT_WIDE_MISS_KEY) st[sp++] = ((uint64_t)key[2] << 32) | RT_WIDE_CHILD(key[2]);
+            if (key[1] != RT_WIDE_MISS_KEY) st[sp++] = ((uint64_t)key[1] << 32) | RT_WIDE_CHILD(key[1]);
+            if (key[0] != RT_WIDE_MISS_KEY) {
+                ref = RT_WIDE_CHILD(key[0]);
                 continue;
             }
+#undef RT_WIDE_CHILD
         } else {
             if (rt_leaf_hits(s, (ref & ~RT_WIDE_LEAF) >> 3, (ref & 7u) + 1u, o, d, any, hit, &found, &tests))
                 goto done;
         }
-        /* Pop, skipping entries beyond the closest hit (ties are visited). */
+        /* Pop, skipping entries beyond the closest hit (ties are visited):
+         * for keys and hit->t >= 0, (key & ~3) <= bits(t) is key <= bits(t) | 3. */
+        const uint32_t lim = rt_float_bits(hit->t) | 3u;
+        uint64_t e;
         for (;;) {
             if (sp == 0)
                 goto done;
-            sp--;
-            if (st_t[sp] <= hit->t)
+            e = st[--sp];
+            if ((uint32_t)(e >> 32) <= lim)
                 break;
         }
-        ref = st_ref[sp];
+        ref = (uint32_t)e;
     }
 done:
     cnt->node_visits += visits;
