@@ -390,15 +390,25 @@ done:
 }
 
 /* The same query on the 4-wide tree (RtBvh4Node): one visit tests the four
- * child boxes (the binary tree's boxes, same slab arithmetic as rt_box_enter
- * without SSE, tmin = 0), sorts the entered ones by entry distance, goes on
+ * child boxes (the binary tree's boxes, with the conservative FMA slab test
+ * rt_wide_key, tmin = 0), sorts the entered ones by entry distance, goes on
  * with the nearest and stacks the others with their distances; leaf children
- * are primitive ranges. Same hits as rt_trace_ray: the closest t, ties to the
- * lower index, any hit strictly closer than tmax. node_visits counts wide
- * nodes and leaves (fewer than the binary tree's). The GPU's default traversal
- * (docs/gpu.md); its four box tests are independent work, which hides latency. */
+ * are primitive ranges, put aside until RT_WIDE_LEAF_VOTE says to test them.
+ * Same hits as rt_trace_ray: the closest t, ties to the lower index, any hit
+ * strictly closer than tmax. node_visits counts wide nodes and leaves (fewer
+ * than the binary tree's). The GPU's default traversal (docs/gpu.md); its
+ * four box tests are independent work, which hides latency. */
 #define RT_WIDE_STACK (3 * RT_BVH_MAX_DEPTH + 4)
 #define RT_WIDE_MISS_KEY 0xffffffffu
+#define RT_WIDE_DONE 0xffffffffu /* no node left (has the leaf bit; never a reference) */
+
+/* Whether a ray with a leaf aside (has_leaf) stops going through inner nodes
+ * and tests it: on the CPU at once; cuda.cu defines it before including this
+ * as a vote of the warp's active lanes (all have a leaf aside). `any` lets a
+ * backend treat shadow rays apart (none does: docs/gpu.md). */
+#ifndef RT_WIDE_LEAF_VOTE
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf)
+#endif
 
 static inline RT_HD uint32_t rt_float_bits(float f)
 {
@@ -479,11 +489,33 @@ static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3
     /* Stack entry: sort key (below) in the high word, reference in the low. */
     uint64_t st[RT_WIDE_STACK];
     int sp = 0;
-    uint32_t ref = 0; /* the root node */
+    uint32_t ref = 0;  /* the next node to visit; RT_WIDE_DONE: none */
+    uint32_t leaf = 0; /* a postponed leaf; 0: none (a leaf reference has its top bit set) */
     uint32_t visits = 0, tests = 0;
+    /* Pop, skipping entries beyond the closest hit (ties are visited): for
+     * keys and hit->t >= 0, (key & ~3) <= bits(t) is key <= bits(t) | 3. */
+#define RT_WIDE_POP(dst)                                                       \
+    {                                                                          \
+        const uint32_t lim_ = rt_float_bits(hit->t) | 3u;                      \
+        (dst) = RT_WIDE_DONE;                                                  \
+        while (sp > 0) {                                                       \
+            const uint64_t e_ = st[--sp];                                      \
+            if ((uint32_t)(e_ >> 32) <= lim_) {                                \
+                (dst) = (uint32_t)e_;                                          \
+                break;                                                         \
+            }                                                                  \
+        }                                                                      \
+    }
+    /* Inner nodes and leaves in two phases (Aila & Laine's while-while with
+     * speculative traversal): a ray that reaches a leaf puts it aside and
+     * goes on through inner nodes until every ray of its warp has a leaf
+     * aside (RT_WIDE_LEAF_VOTE; on the CPU, at once), then the warp tests leaves
+     * together. A warp of rays then runs each phase's code with most lanes
+     * busy instead of alternating both with half of them. A leaf tested late
+     * lets fewer stack entries be culled, never a hit be missed. */
     for (;;) {
-        visits++;
-        if (!(ref & RT_WIDE_LEAF)) {
+        while (!(ref & RT_WIDE_LEAF)) {
+            visits++;
             float lx[4], hx[4], ly[4], hy[4], lz[4], hz[4];
             uint32_t c[4];
 #if defined(__CUDA_ARCH__)
@@ -522,31 +554,45 @@ static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3
             RT_WIDE_CX(0, 1) RT_WIDE_CX(2, 3) RT_WIDE_CX(0, 2) RT_WIDE_CX(1, 3) RT_WIDE_CX(1, 2)
 #undef RT_WIDE_CX
 #define RT_WIDE_CHILD(kk) (((kk) & 2u) ? (((kk) & 1u) ? c[3] : c[2]) : (((kk) & 1u) ? c[1] : c[0]))
-            if (key[3] != RT_WIDE_MISS_KEY) st[sp++] = ((uint64_t)key[3] << 32) | RT_WIDE_CHILD(key[3]);
-            if (key[2] != RT_WIDE_MISS_KEY) st[sp++] = ((uint64_t)key[2] << 32) | RT_WIDE_CHILD(key[2]);
-            if (key[1] != RT_WIDE_MISS_KEY) st[sp++] = ((uint64_t)key[1] << 32) | RT_WIDE_CHILD(key[1]);
-            if (key[0] != RT_WIDE_MISS_KEY) {
+            /* Pushes without branches: every entry is written, and the top
+             * moves past it only if it is a hit (the stack has a spare slot). */
+#define RT_WIDE_PUSH(kk)                                                       \
+    {                                                                          \
+        st[sp] = ((uint64_t)(kk) << 32) | RT_WIDE_CHILD(kk);                   \
+        sp += (kk) != RT_WIDE_MISS_KEY;                                        \
+    }
+            RT_WIDE_PUSH(key[3]) RT_WIDE_PUSH(key[2]) RT_WIDE_PUSH(key[1])
+#undef RT_WIDE_PUSH
+            if (key[0] != RT_WIDE_MISS_KEY)
                 ref = RT_WIDE_CHILD(key[0]);
-                continue;
-            }
+            else
+                RT_WIDE_POP(ref);
 #undef RT_WIDE_CHILD
-        } else {
-            if (rt_leaf_hits(s, (ref & ~RT_WIDE_LEAF) >> 3, (ref & 7u) + 1u, o, d, any, hit, &found, &tests))
-                goto done;
-        }
-        /* Pop, skipping entries beyond the closest hit (ties are visited):
-         * for keys and hit->t >= 0, (key & ~3) <= bits(t) is key <= bits(t) | 3. */
-        const uint32_t lim = rt_float_bits(hit->t) | 3u;
-        uint64_t e;
-        for (;;) {
-            if (sp == 0)
-                goto done;
-            e = st[--sp];
-            if ((uint32_t)(e >> 32) <= lim)
+            if ((ref & RT_WIDE_LEAF) && ref != RT_WIDE_DONE && !leaf) {
+                leaf = ref;
+                RT_WIDE_POP(ref);
+            }
+            if (RT_WIDE_LEAF_VOTE(leaf != 0, any))
                 break;
         }
-        ref = (uint32_t)e;
+        if (!leaf && ref != RT_WIDE_DONE) { /* a leaf reached with one already aside */
+            leaf = ref;
+            RT_WIDE_POP(ref);
+        }
+        while (leaf) {
+            visits++;
+            if (rt_leaf_hits(s, (leaf & ~RT_WIDE_LEAF) >> 3, (leaf & 7u) + 1u, o, d, any, hit, &found, &tests))
+                goto done;
+            leaf = 0;
+            if ((ref & RT_WIDE_LEAF) && ref != RT_WIDE_DONE) {
+                leaf = ref;
+                RT_WIDE_POP(ref);
+            }
+        }
+        if (ref == RT_WIDE_DONE)
+            break;
     }
+#undef RT_WIDE_POP
 done:
     cnt->node_visits += visits;
     cnt->prim_tests += tests;

@@ -40,6 +40,16 @@
  *   shared: the shared binary traversal as the CPU runs it.
  * The shared binary traversal is compiled under another name, and rt_shade.h
  * -- included next, unchanged -- then calls the dispatcher below. */
+/* The wide traversal's leaf vote (RT_WIDE_LEAF_VOTE, rt_traverse.h),
+ * RAYBENCH_CUDA_SPEC: 1 (default) a lane that has put a leaf aside goes on
+ * through inner nodes until every active lane of its warp has one; 0 every
+ * lane tests its leaf at once. Measured with the vote for closest-hit rays
+ * only, too: slower than for every ray (docs/gpu.md). */
+__constant__ int rt_cuda_spec;
+#if defined(__CUDA_ARCH__)
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) (rt_cuda_spec ? __all_sync(__activemask(), (has_leaf)) : (has_leaf))
+#endif
+
 #define rt_trace_ray rt_trace_ray_shared
 #include "core/rt_traverse.h"
 #undef rt_trace_ray
@@ -158,19 +168,23 @@ extern "C" {
 #include "cuda_check.h"
 
 /* Default block shape, chosen by the block-size sweep on the H100
- * (docs/gpu.md, results/gpu-blocks.csv): 16x16 with the persistent schedule
- * had the best geometric mean over the report's scenes. */
-#define RT_CUDA_DEFAULT_BX 16
-#define RT_CUDA_DEFAULT_BY 16
+ * (docs/gpu.md, results/gpu-blocks.csv): 4x8 with the persistent schedule
+ * has the best geometric mean over the report's scenes since the speculative
+ * wide traversal (a warp covers a 4x8 patch: its rays stay together longest). */
+#define RT_CUDA_DEFAULT_BX 4
+#define RT_CUDA_DEFAULT_BY 8
 #define RT_CUDA_DEFAULT_RUNS 21
 /* Host milliseconds of warm-up launches before the timed ones. */
 #define RT_CUDA_DEFAULT_WARMUP_MS 50
 /* Register cap of the default kernel: 65536 / (256 * MINB) registers per thread. */
 #define RT_CUDA_DEFAULT_MINB 1
-/* Tile order of the persistent schedule: 0 row-major, 1 scattered. */
-#define RT_CUDA_DEFAULT_SCATTER 0
+/* Chunk order of the persistent schedule: 0 row-major tiles, 1 scattered
+ * (2, oracle, is a measurement only: rt_cuda_oracle_order). */
+#define RT_CUDA_DEFAULT_ORDER 0
 /* The default traversal: the 4-wide tree (docs/gpu.md). */
 #define RT_CUDA_DEFAULT_TRAVERSAL RT_TRAV_WIDE
+/* Speculative leaf postponing in the wide traversal (rt_cuda_spec). */
+#define RT_CUDA_DEFAULT_SPEC 1
 /* Timed launches stop once they have used this much kernel time in total, so a
  * brute-force render of a large image does not run 21 times. */
 #define RT_CUDA_TIME_BUDGET_MS 4000.0
@@ -184,6 +198,11 @@ typedef struct RtCudaGrid {
     int32_t persistent;    /* 1: warps fetch work from *next_item; 0: block b renders tile b */
     uint32_t ntiles;       /* tiles in the image */
     uint32_t tile_mask;    /* scatter order: 2^k - 1 >= ntiles - 1; 0: tiles in row-major order */
+    /* Oracle order (RAYBENCH_CUDA_ORDER=oracle, a measurement): the n-th
+     * 32-item chunk handed out is chunk_order[n]; a launch with chunk_cost
+     * set records each chunk's clock64 time there. NULL: off. */
+    const uint32_t *chunk_order;
+    unsigned long long *chunk_cost;
 } RtCudaGrid;
 
 enum { RT_NCOUNTERS = 5 }; /* fields of RtCounters, all uint64_t, in order */
@@ -257,6 +276,8 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
                                                                const RtCudaGrid g)
 {
     __shared__ unsigned long long block_cnt[RT_NCOUNTERS];
+    __shared__ long long chunk_t0[32];   /* per warp: oracle timing (RtCudaGrid.chunk_cost) */
+    __shared__ uint32_t chunk_id[32];
     const unsigned tid = threadIdx.y * blockDim.x + threadIdx.x;
     const unsigned lane = tid & 31u;
     /* Every thread of the block is alive here; a block of, say, 5x5 threads
@@ -280,8 +301,21 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
             if (base >= g.total_items)
                 break;
             uint32_t item = base + rank;
+            if (g.chunk_order)
+                item = g.chunk_order[base >> 5] * 32u + rank;
+            /* Oracle timing: start and chunk wait in shared memory, not in
+             * registers across the render (one more register costs warps). */
+            if (g.chunk_cost && lane == leader) {
+                chunk_t0[tid >> 5] = clock64();
+                chunk_id[tid >> 5] = item >> 5;
+            }
             if (item < g.total_items)
                 rt_cuda_item(view, g, item, rgb, &cnt);
+            if (g.chunk_cost) {
+                __syncwarp(mask);
+                if (lane == leader)
+                    g.chunk_cost[chunk_id[tid >> 5]] = (unsigned long long)(clock64() - chunk_t0[tid >> 5]);
+            }
         }
     } else {
         rt_cuda_item(view, g, blockIdx.x * g.tile_items + tid, rgb, &cnt);
@@ -329,7 +363,8 @@ typedef struct RtCudaPart {
     size_t offset;
 } RtCudaPart;
 
-enum { P_PRIMS, P_NODES, P_WIDE, P_VERTS, P_NORMALS, P_SPHERES, P_TRIS, P_MATS, P_LIGHTS, P_IMAGE, P_COUNTERS, P_WORK, P_COUNT };
+enum { P_PRIMS, P_NODES, P_WIDE, P_VERTS, P_NORMALS, P_SPHERES, P_TRIS, P_MATS, P_LIGHTS, P_IMAGE, P_COUNTERS, P_WORK,
+       P_ORDER, P_COST, P_COUNT };
 
 static size_t rt_cuda_layout(RtCudaPart *parts)
 {
@@ -368,6 +403,40 @@ static int rt_cuda_env_int(const char *name, int lo, int hi, int def)
     return (*end == '\0' && v >= lo && v <= hi) ? (int)v : def;
 }
 
+static const unsigned long long *rt_cuda_sort_cost;
+static int rt_cuda_cmp_cost(const void *a, const void *b)
+{
+    const uint32_t i = *(const uint32_t *)a, j = *(const uint32_t *)b;
+    const unsigned long long x = rt_cuda_sort_cost[i], y = rt_cuda_sort_cost[j];
+    return x > y ? -1 : (x < y ? 1 : (i < j ? -1 : (i > j ? 1 : 0)));
+}
+
+/* RAYBENCH_CUDA_ORDER=oracle: the device's chunk times of one launch ->
+ * the chunk order of the next ones, longest first (what a perfect cost
+ * prediction would give the persistent schedule; a measurement, not a mode). */
+static int rt_cuda_oracle_order(const unsigned char *dcost, unsigned char *dorder, uint32_t n, RtError *err)
+{
+    int ok = 0;
+    unsigned long long *cost = (unsigned long long *)malloc((size_t)n * sizeof *cost);
+    uint32_t *order = (uint32_t *)malloc((size_t)n * sizeof *order);
+    if (!cost || !order) {
+        rt_fail(err, "cuda: out of memory for the oracle order of %u chunks", n);
+    } else if (cudaMemcpy(cost, dcost, (size_t)n * sizeof *cost, cudaMemcpyDeviceToHost) != cudaSuccess) {
+        rt_fail(err, "cuda: download of the chunk times failed");
+    } else {
+        for (uint32_t i = 0; i < n; i++)
+            order[i] = i;
+        rt_cuda_sort_cost = cost;
+        qsort(order, n, sizeof *order, rt_cuda_cmp_cost);
+        ok = cudaMemcpy(dorder, order, (size_t)n * sizeof *order, cudaMemcpyHostToDevice) == cudaSuccess;
+        if (!ok)
+            rt_fail(err, "cuda: upload of the oracle order failed");
+    }
+    free(cost);
+    free(order);
+    return ok;
+}
+
 static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 {
     /* All locals first: RT_CUDA_CHECK jumps to fail:, and C++ forbids jumping
@@ -376,8 +445,9 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     const RtSceneView *hv = &job->view;
     const int w = hv->cam.width, h = hv->cam.height;
     const int dev = job->device;
-    int rc = -1, ndev = 0, traversal = 0, order_scatter = 0, carveout = -1, warmup_ms = 0, warmups = 0;
+    int rc = -1, ndev = 0, traversal = 0, spec = 0, order_mode = 0, carveout = -1, warmup_ms = 0, warmups = 0;
     int blocks_per_sm = 0, nblocks = 0, runs = 0, max_runs = 0;
+    uint32_t nchunks = 0;
     int bx = job->block_x > 0 ? job->block_x : RT_CUDA_DEFAULT_BX;
     int by = job->block_y > 0 ? job->block_y : RT_CUDA_DEFAULT_BY;
     const int threads = bx * by;
@@ -469,13 +539,16 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         g.ntiles = (uint32_t)tiles;
         {
             const char *ord = getenv("RAYBENCH_CUDA_ORDER");
-            order_scatter = ord ? strcmp(ord, "scatter") == 0 : RT_CUDA_DEFAULT_SCATTER;
+            order_mode = ord ? (strcmp(ord, "scatter") == 0 ? 1 : (strcmp(ord, "oracle") == 0 ? 2 : 0))
+                                : RT_CUDA_DEFAULT_ORDER;
         }
-        if (order_scatter && persistent)
+        if (order_mode == 1 && persistent)
             while (g.tile_mask < g.ntiles - 1)
                 g.tile_mask = (g.tile_mask << 1) | 1u;
-        else
-            order_scatter = 0;
+        else if (order_mode >= 2 && !(persistent && threads % 32 == 0))
+            order_mode = 0; /* the oracle order needs whole 32-pixel chunks */
+        else if (order_mode == 1)
+            order_mode = 0;
         /* Persistent: exactly the blocks that are resident at once, never more
          * than there are tiles. */
         nblocks = persistent ? blocks_per_sm * prop.multiProcessorCount : (int)tiles;
@@ -496,6 +569,9 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     parts[P_IMAGE].bytes = npix * 3 * sizeof(float);
     parts[P_COUNTERS].bytes = RT_NCOUNTERS * sizeof(unsigned long long);
     parts[P_WORK].bytes = sizeof(unsigned int);
+    nchunks = g.total_items / 32u;
+    parts[P_ORDER].bytes = order_mode == 2 ? (size_t)nchunks * sizeof(uint32_t) : 0;
+    parts[P_COST].bytes = order_mode == 2 ? (size_t)nchunks * sizeof(unsigned long long) : 0;
     arena_bytes = rt_cuda_layout(parts);
     e = cudaMalloc((void **)&arena, arena_bytes);
     if (e != cudaSuccess) {
@@ -544,6 +620,8 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
             traversal = RT_TRAV_LDG; /* brute force, or no wide tree */
     }
     RT_CUDA_CHECK(cudaMemcpyToSymbol(rt_cuda_traversal, &traversal, sizeof traversal));
+    spec = rt_cuda_env_int("RAYBENCH_CUDA_SPEC", 0, 1, RT_CUDA_DEFAULT_SPEC);
+    RT_CUDA_CHECK(cudaMemcpyToSymbol(rt_cuda_spec, &spec, sizeof spec));
     RT_CUDA_CHECK(cudaEventCreate(&ev0));
     RT_CUDA_CHECK(cudaEventCreate(&ev1));
     max_runs = rt_cuda_env_int("RAYBENCH_CUDA_RUNS", 1, 64, RT_CUDA_DEFAULT_RUNS);
@@ -554,6 +632,8 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * They repeat until warmup_ms of host time has passed (at least one).
      * Then up to max_runs timed launches, each from zeroed counters; the
      * image and counters of the last one are kept. */
+    if (order_mode == 2)
+        g.chunk_cost = (unsigned long long *)(arena + parts[P_COST].offset);
     t0 = rt_now_ms();
     for (int run = 0;; run++) {
         const int warm = runs == 0 && (run == 0 || rt_now_ms() - t0 < (double)warmup_ms);
@@ -568,6 +648,13 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         RT_CUDA_CHECK(cudaEventRecord(ev1));
         RT_CUDA_CHECK(cudaEventSynchronize(ev1));
         RT_CUDA_CHECK(cudaEventElapsedTime(&ms, ev0, ev1));
+        if (run == 0 && order_mode == 2) {
+            /* Oracle order: chunks by the first launch's times, longest first. */
+            if (!rt_cuda_oracle_order(arena + parts[P_COST].offset, arena + parts[P_ORDER].offset, nchunks, err))
+                goto fail;
+            g.chunk_order = (const uint32_t *)(arena + parts[P_ORDER].offset);
+            g.chunk_cost = NULL;
+        }
         if (run == 0) {
             first_ms = ms;
             if (job->progress)
@@ -611,10 +698,10 @@ fail:
         cudaFree(arena);
     if (rc == 0) {
         snprintf(out->extra, sizeof out->extra,
-                 " block=%dx%d sched=%s order=%s carveout=%d traversal=%s kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
+                 " block=%dx%d sched=%s order=%s carveout=%d traversal=%s spec=%d kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
                  "download_ms=%.3f wall_ms=%.3f regs=%d local_bytes=%zu bounds=%dx%d blocks_per_sm=%d grid=%d gpu=%s",
-                 bx, by, persistent ? "persistent" : "grid", order_scatter ? "scatter" : "tiles", carveout,
-                 traversal == RT_TRAV_WIDE ? "wide" : (traversal == RT_TRAV_LDG ? "ldg" : "shared"), runs, times[0], warmups, first_ms, init_ms, upload_ms,
+                 bx, by, persistent ? "persistent" : "grid", order_mode == 2 ? "oracle" : (order_mode ? "scatter" : "tiles"), carveout,
+                 traversal == RT_TRAV_WIDE ? "wide" : (traversal == RT_TRAV_LDG ? "ldg" : "shared"), spec, runs, times[0], warmups, first_ms, init_ms, upload_ms,
                  download_ms, rt_now_ms() - t_wall0, fa.numRegs, (size_t)fa.localSizeBytes, variant->maxt, variant->minb,
                  blocks_per_sm, nblocks,
                  gpu);
