@@ -13,9 +13,16 @@
 #   trav     (not default) wide vs binary traversal x register cap x block
 #   tune     (not default) tile order x L1 carveout x block; image sizes
 #   ncu      (not default) Nsight Compute on one launch of dragon and arm-reach
+#   ab       (not default) GPU_AB_OLD=DIR (an unpacked `git archive REV`, e.g.
+#            under .devcarry/) built beside this tree; both at their defaults on
+#            the report's scenes, three interleaved repeats (ab.csv)
+#   vars     (not default) GPU_VARIANTS="V ..." on the report's scenes at their
+#            size and at 128x96, two repeats (vars.csv); a variant is
+#            VAR=VALUE pairs joined by '+', BLOCK=WxH for --block, or base
 # STEPS defaults to "build time blocks big check". Results go to $OUT (the
 # device tool's folder; /tmp/gpu-out when unset), at most 8 files:
 #   log.txt setup.txt ptxas.txt timings.csv blocks.csv check.csv testlog.txt ncu.txt
+#   (ab.csv and vars.csv replace two of them when those steps run)
 # GPU_BUILD names the build folder (default build-dev).
 # Scenes: the course scenes, copied beforehand into .devcarry/scenes/course
 # (git-ignored, passed to the device tool with carry: [".devcarry"]).
@@ -208,6 +215,38 @@ if has ncu; then
             $RT -q --backend cuda -o /tmp/ncu.ppm "$(scene_path $s)" >>$OUT/ncu.txt 2>&1
     done
     grep -E "Duration|Memory Throughput|Compute \(SM\)|Achieved Occupancy|Theoretical Occupancy|Stall|Issued Warp|No Eligible|L1/TEX Hit|L2 Hit|Warp Cycles Per Issued|inst_executed|cycles_elapsed|mem_local|Registers" $OUT/ncu.txt | head -60
+fi
+
+if has ab; then
+    echo "== ab: $GPU_AB_OLD against this tree, defaults"
+    OLDRT=$GPU_AB_OLD/$B/renderer/raytrace
+    (cd "$GPU_AB_OLD" && { [ -f $B/build.ninja ] || meson setup $B -Dharness=false -Dgpu_arch=9.0 -Dpng=auto -Dmpi=disabled; } >/dev/null && ninja -C $B >/dev/null) || { echo "old tree does not build"; exit 1; }
+    A=$OUT/ab.csv; header | sed 's/^/variant,/' >$A
+    for rep in 1 2 3; do
+        for s in $REPORT; do
+            RT=$OLDRT render /tmp/a.csv $s && sed -i '$s/^/before,/' /tmp/a.csv
+            render /tmp/a.csv $s && sed -i '$s/^/after,/' /tmp/a.csv
+        done
+    done
+    cat /tmp/a.csv >>$A; rm -f /tmp/a.csv
+fi
+if has vars; then
+    echo "== vars: ${GPU_VARIANTS:-base}"
+    V=$OUT/vars.csv; header | sed 's/^/variant,/' >$V
+    for rep in 1 2; do
+        for s in $REPORT; do
+            for res in "" 128x96; do
+                [ -n "$res" ] && [ $s != dragon ] && [ $s != arm-reach ] && continue
+                for v in ${GPU_VARIANTS:-base}; do
+                    e=$(printf '%s' "$v" | sed 's/^base$//; s/+/ /g'); blk=""
+                    case " $e " in *" BLOCK="*) blk=$(printf '%s' "$e" | sed 's/.*BLOCK=\([0-9x]*\).*/\1/'); e=$(printf '%s' "$e" | sed 's/BLOCK=[0-9x]*//') ;; esac
+                    ( for kv in $e; do export "${kv?}"; done
+                      render /tmp/v.csv $s ${blk:+--block $blk} ${res:+-r $res} ) && sed -i "\$s/^/$v,/" /tmp/v.csv
+                done
+            done
+        done
+    done
+    cat /tmp/v.csv >>$V; rm -f /tmp/v.csv
 fi
 
 if has check; then
