@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "config.h"
@@ -256,6 +257,19 @@ static int launcher_rank(void)
     return 0;
 }
 
+/* Exit status 1 for an error found before MPI_Init. A rank other than 0
+ * (which printed nothing) waits a moment first: mpirun ends the whole job
+ * at the first non-zero exit, and if that were a silent rank, rank 0's
+ * message could be dropped before mpirun forwarded it. */
+static int quiet_rank_exit(int other_rank)
+{
+    if (other_rank) {
+        struct timespec ts = {0, 300 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+    }
+    return 1;
+}
+
 int main(int argc, char **argv)
 {
     double t_start = rt_now_ms();
@@ -287,18 +301,18 @@ int main(int argc, char **argv)
         close(saved_stderr);
     }
     if (parsed != 0)
-        return 1;
+        return quiet_rank_exit(other_rank);
     const RtBackend *be = rt_backend_find(o.backend);
     if (!be) {
         if (!other_rank)
             fprintf(stderr, "%s: option --backend '%s': unknown backend (serial, openmp, mpi, cuda)\n", prog,
                     o.backend);
-        return 1;
+        return quiet_rank_exit(other_rank);
     }
     if (be->unavailable) {
         if (!other_rank)
             fprintf(stderr, "%s: --backend %s: %s\n", prog, be->name, be->unavailable);
-        return 1;
+        return quiet_rank_exit(other_rank);
     }
     RtError err;
     err.msg[0] = '\0';
