@@ -8,13 +8,15 @@
  *   host built it, the image and the counters -> warm-up launches -> N timed
  *   launches (CUDA events; the median is render_ms) -> image download.
  *
- * Scheduling ("sched" in the record):
- *   persistent (default): a grid that just fills the GPU; each warp takes the
- *     next 32 pixels from a global counter until none are left (Aila & Laine,
- *     "Understanding the efficiency of ray traversal on GPUs", HPG 2009). Rays
- *     differ wildly in cost (glass vs background), so finished warps pick up
- *     new work instead of idling until the slowest warp of their block ends.
- *   grid: one block per BXxBY tile, as the report launched it.
+ * Scheduling ("sched" in the record; RAYBENCH_CUDA_SCHED):
+ *   persistent (default for --accel none): a grid that just fills the GPU;
+ *     each warp takes the next 32 pixels from a global counter until none are
+ *     left (Aila & Laine, "Understanding the efficiency of ray traversal on
+ *     GPUs", HPG 2009), so finished warps pick up new work instead of idling
+ *     until the slowest warp of their block ends.
+ *   grid (default for --accel bvh): one block per BXxBY tile, as the report
+ *     launched it; with small blocks the hardware's block scheduler balances
+ *     as well, and it measured faster with the speculative wide traversal.
  * In both, the block shape BXxBY is the pixel tile a block covers, so a warp
  * covers a 32-pixel piece of a BXxBY tile (8x4 pixels for 8x8 blocks, a row of
  * 32 for 32xN): that is what makes the shape matter for ray coherence.
@@ -167,11 +169,11 @@ extern "C" {
 
 #include "cuda_check.h"
 
-/* Default block shape, chosen by the block-size sweep on the H100
- * (docs/gpu.md, results/gpu-blocks.csv): 4x8 with the persistent schedule
- * has the best geometric mean over the report's scenes since the speculative
- * wide traversal (a warp covers a 4x8 patch: its rays stay together longest). */
-#define RT_CUDA_DEFAULT_BX 4
+/* Default block shape, chosen by the block-size sweeps on the H100
+ * (docs/gpu.md, "Fourth round"; results/gpu-blocks-round4.csv): 8x8 with the
+ * grid schedule was fastest on the dragon and arm-reach and within 1% of the
+ * best geometric mean over the report's scenes. */
+#define RT_CUDA_DEFAULT_BX 8
 #define RT_CUDA_DEFAULT_BY 8
 #define RT_CUDA_DEFAULT_RUNS 21
 /* Host milliseconds of warm-up launches before the timed ones. */
@@ -452,7 +454,9 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     int by = job->block_y > 0 ? job->block_y : RT_CUDA_DEFAULT_BY;
     const int threads = bx * by;
     const char *sched_env = getenv("RAYBENCH_CUDA_SCHED");
-    const int persistent = !(sched_env && strcmp(sched_env, "grid") == 0);
+    /* Default schedule by measurement (docs/gpu.md, "Fourth round"): grid for
+     * the tree, persistent for brute force. */
+    const int persistent = sched_env && *sched_env ? strcmp(sched_env, "grid") != 0 : hv->nnodes == 0;
     cudaError_t e = cudaSuccess;
     cudaDeviceProp prop;
     cudaFuncAttributes fa;
