@@ -33,14 +33,20 @@ typedef struct RtHit {
     uint32_t id; /* RtPrim.id of the hit primitive; UINT32_MAX: none */
 } RtHit;
 
-/* Returns t of the nearest valid intersection in (RT_T_MIN, inf), or RT_INF.
- * Triangles: Moller & Trumbore 1997. Spheres: the quadratic solved as in
- * Haines et al., "Precision improvements for ray/sphere intersection", Ray
- * Tracing Gems ch. 7 (distance to the chord, then the stable root pair), which
- * keeps float32 accurate for small spheres seen from far away. */
+/* Returns t of the nearest valid intersection in (RT_T_MIN, inf), or RT_INF;
+ * *u_out, *v_out are written on every call (meaningful on a hit).
+ * Triangles: Moller & Trumbore 1997, written without early exits: the
+ * acceptance conditions (NaN included) are those of the early-exit form, and
+ * with no branch inside, two calls overlap on the GPU (rt_leaf_hits) and brute
+ * force runs faster on the CPU. Spheres: the quadratic solved as in Haines et
+ * al., "Precision improvements for ray/sphere intersection", Ray Tracing Gems
+ * ch. 7 (distance to the chord, then the stable root pair), which keeps
+ * float32 accurate for small spheres seen from far away. */
 static inline RT_HD float rt_prim_intersect(const RtPrim *p, RtVec3 o, RtVec3 d, float *u_out, float *v_out)
 {
     if (p->id & RT_PRIM_SPHERE_BIT) {
+        *u_out = 0.0f;
+        *v_out = 0.0f;
         RtVec3 c = rt_v3_load(p->p0);
         float r = p->e1[0];
         RtVec3 f = rt_sub(o, c);
@@ -54,46 +60,12 @@ static inline RT_HD float rt_prim_intersect(const RtPrim *p, RtVec3 o, RtVec3 d,
         float t0 = q != 0.0f ? cc / q : 0.0f;
         float t1 = q;
         float lo = rt_minf(t0, t1), hi = rt_maxf(t0, t1);
-        *u_out = 0.0f;
-        *v_out = 0.0f;
         if (lo > RT_T_MIN)
             return lo;
         if (hi > RT_T_MIN)
             return hi;
         return RT_INF;
     }
-    RtVec3 e1 = rt_v3_load(p->e1), e2 = rt_v3_load(p->e2);
-    RtVec3 pv = rt_cross(d, e2);
-    float det = rt_dot(e1, pv);
-    if (det == 0.0f)
-        return RT_INF;
-    float inv = 1.0f / det;
-    RtVec3 tv = rt_sub(o, rt_v3_load(p->p0));
-    float u = rt_dot(tv, pv) * inv;
-    if (u < 0.0f || u > 1.0f)
-        return RT_INF;
-    RtVec3 qv = rt_cross(tv, e1);
-    float v = rt_dot(d, qv) * inv;
-    if (v < 0.0f || u + v > 1.0f)
-        return RT_INF;
-    float t = rt_dot(e2, qv) * inv;
-    if (!(t > RT_T_MIN))
-        return RT_INF;
-    *u_out = u;
-    *v_out = v;
-    return t;
-}
-
-/* rt_prim_intersect with the triangle test written without early exits: the
- * same arithmetic and the same acceptance conditions (NaN included), so the
- * same t, u, v; u and v are written even on a miss. With no branch inside,
- * two of these calls overlap on the GPU (the leaf loop below), where a lone
- * ray's dependent chain, not issue bandwidth, sets its time (docs/gpu.md);
- * the CPU's binary traversal keeps the early exits. */
-static inline RT_HD float rt_prim_intersect_flat(const RtPrim *p, RtVec3 o, RtVec3 d, float *u_out, float *v_out)
-{
-    if (p->id & RT_PRIM_SPHERE_BIT)
-        return rt_prim_intersect(p, o, d, u_out, v_out);
     RtVec3 e1 = rt_v3_load(p->e1), e2 = rt_v3_load(p->e2);
     RtVec3 pv = rt_cross(d, e2);
     float det = rt_dot(e1, pv);
@@ -285,8 +257,8 @@ static inline RT_HD int rt_leaf_hits(const RtSceneView *s, uint32_t first, uint3
         rt_prim_fetch(&s->prims[first + k], &pa);
         rt_prim_fetch(&s->prims[first + k + two], &pb);
         float ua, va, ub, vb;
-        const float ta = rt_prim_intersect_flat(&pa, o, d, &ua, &va);
-        const float tb = rt_prim_intersect_flat(&pb, o, d, &ub, &vb);
+        const float ta = rt_prim_intersect(&pa, o, d, &ua, &va);
+        const float tb = rt_prim_intersect(&pb, o, d, &ub, &vb);
         if (rt_leaf_take(&pa, ta, ua, va, any, hit, found, tests))
             return 1;
         if (two && rt_leaf_take(&pb, tb, ub, vb, any, hit, found, tests))
@@ -575,10 +547,9 @@ static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3
             if (RT_WIDE_LEAF_VOTE(leaf != 0, any))
                 break;
         }
-        if (!leaf && ref != RT_WIDE_DONE) { /* a leaf reached with one already aside */
-            leaf = ref;
-            RT_WIDE_POP(ref);
-        }
+        /* Here a leaf is aside or no node is left: the inner loop ends only
+         * by the vote (leaf set) or at a leaf or RT_WIDE_DONE in ref, and a
+         * leaf reaching ref with none aside was put aside at once. */
         while (leaf) {
             visits++;
             if (rt_leaf_hits(s, (leaf & ~RT_WIDE_LEAF) >> 3, (leaf & 7u) + 1u, o, d, any, hit, &found, &tests))
