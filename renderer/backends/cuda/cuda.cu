@@ -180,9 +180,11 @@ extern "C" {
 #define RT_CUDA_DEFAULT_WARMUP_MS 50
 /* Register cap of the default kernel: 65536 / (256 * MINB) registers per thread. */
 #define RT_CUDA_DEFAULT_MINB 1
-/* Chunk order of the persistent schedule: 0 row-major tiles, 1 scattered
- * (2, oracle, is a measurement only: rt_cuda_oracle_order). */
-#define RT_CUDA_DEFAULT_ORDER 0
+/* Chunk order of the persistent schedule (RAYBENCH_CUDA_ORDER): row-major
+ * tiles, scattered tiles, or the oracle order (a measurement only:
+ * rt_cuda_oracle_order). */
+enum { RT_ORDER_TILES = 0, RT_ORDER_SCATTER = 1, RT_ORDER_ORACLE = 2 };
+#define RT_CUDA_DEFAULT_ORDER RT_ORDER_TILES
 /* The default traversal: the 4-wide tree (docs/gpu.md). */
 #define RT_CUDA_DEFAULT_TRAVERSAL RT_TRAV_WIDE
 /* Speculative leaf postponing in the wide traversal (rt_cuda_spec). */
@@ -305,7 +307,7 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
             uint32_t item = base + rank;
             if (g.chunk_order)
                 item = g.chunk_order[base >> 5] * 32u + rank;
-            /* Oracle timing: start and chunk wait in shared memory, not in
+            /* Oracle timing: start time and chunk in shared memory, not in
              * registers across the render (one more register costs warps). */
             if (g.chunk_cost && lane == leader) {
                 chunk_t0[tid >> 5] = clock64();
@@ -543,16 +545,18 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         g.ntiles = (uint32_t)tiles;
         {
             const char *ord = getenv("RAYBENCH_CUDA_ORDER");
-            order_mode = ord ? (strcmp(ord, "scatter") == 0 ? 1 : (strcmp(ord, "oracle") == 0 ? 2 : 0))
-                                : RT_CUDA_DEFAULT_ORDER;
+            order_mode = !ord                           ? RT_CUDA_DEFAULT_ORDER
+                         : strcmp(ord, "scatter") == 0 ? RT_ORDER_SCATTER
+                         : strcmp(ord, "oracle") == 0  ? RT_ORDER_ORACLE
+                                                       : RT_ORDER_TILES;
         }
-        if (order_mode == 1 && persistent)
+        /* Orders are the persistent schedule's; the oracle's also needs whole
+         * 32-pixel chunks. */
+        if (!persistent || (order_mode == RT_ORDER_ORACLE && threads % 32 != 0))
+            order_mode = RT_ORDER_TILES;
+        if (order_mode == RT_ORDER_SCATTER)
             while (g.tile_mask < g.ntiles - 1)
                 g.tile_mask = (g.tile_mask << 1) | 1u;
-        else if (order_mode >= 2 && !(persistent && threads % 32 == 0))
-            order_mode = 0; /* the oracle order needs whole 32-pixel chunks */
-        else if (order_mode == 1)
-            order_mode = 0;
         /* Persistent: exactly the blocks that are resident at once, never more
          * than there are tiles. */
         nblocks = persistent ? blocks_per_sm * prop.multiProcessorCount : (int)tiles;
@@ -574,8 +578,8 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     parts[P_COUNTERS].bytes = RT_NCOUNTERS * sizeof(unsigned long long);
     parts[P_WORK].bytes = sizeof(unsigned int);
     nchunks = g.total_items / 32u;
-    parts[P_ORDER].bytes = order_mode == 2 ? (size_t)nchunks * sizeof(uint32_t) : 0;
-    parts[P_COST].bytes = order_mode == 2 ? (size_t)nchunks * sizeof(unsigned long long) : 0;
+    parts[P_ORDER].bytes = order_mode == RT_ORDER_ORACLE ? (size_t)nchunks * sizeof(uint32_t) : 0;
+    parts[P_COST].bytes = order_mode == RT_ORDER_ORACLE ? (size_t)nchunks * sizeof(unsigned long long) : 0;
     arena_bytes = rt_cuda_layout(parts);
     e = cudaMalloc((void **)&arena, arena_bytes);
     if (e != cudaSuccess) {
@@ -636,7 +640,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * They repeat until warmup_ms of host time has passed (at least one).
      * Then up to max_runs timed launches, each from zeroed counters; the
      * image and counters of the last one are kept. */
-    if (order_mode == 2)
+    if (order_mode == RT_ORDER_ORACLE)
         g.chunk_cost = (unsigned long long *)(arena + parts[P_COST].offset);
     t0 = rt_now_ms();
     for (int run = 0;; run++) {
@@ -652,7 +656,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         RT_CUDA_CHECK(cudaEventRecord(ev1));
         RT_CUDA_CHECK(cudaEventSynchronize(ev1));
         RT_CUDA_CHECK(cudaEventElapsedTime(&ms, ev0, ev1));
-        if (run == 0 && order_mode == 2) {
+        if (run == 0 && order_mode == RT_ORDER_ORACLE) {
             /* Oracle order: chunks by the first launch's times, longest first. */
             if (!rt_cuda_oracle_order(arena + parts[P_COST].offset, arena + parts[P_ORDER].offset, nchunks, err))
                 goto fail;
@@ -704,7 +708,7 @@ fail:
         snprintf(out->extra, sizeof out->extra,
                  " block=%dx%d sched=%s order=%s carveout=%d traversal=%s spec=%d kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
                  "download_ms=%.3f wall_ms=%.3f regs=%d local_bytes=%zu bounds=%dx%d blocks_per_sm=%d grid=%d gpu=%s",
-                 bx, by, persistent ? "persistent" : "grid", order_mode == 2 ? "oracle" : (order_mode ? "scatter" : "tiles"), carveout,
+                 bx, by, persistent ? "persistent" : "grid", order_mode == RT_ORDER_ORACLE ? "oracle" : (order_mode == RT_ORDER_SCATTER ? "scatter" : "tiles"), carveout,
                  traversal == RT_TRAV_WIDE ? "wide" : (traversal == RT_TRAV_LDG ? "ldg" : "shared"), spec, runs, times[0], warmups, first_ms, init_ms, upload_ms,
                  download_ms, rt_now_ms() - t_wall0, fa.numRegs, (size_t)fa.localSizeBytes, variant->maxt, variant->minb,
                  blocks_per_sm, nblocks,
