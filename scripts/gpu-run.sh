@@ -17,8 +17,13 @@
 #            under .devcarry/) built beside this tree; both at their defaults on
 #            the report's scenes, three interleaved repeats (ab.csv)
 #   vars     (not default) GPU_VARIANTS="V ..." on the report's scenes at their
-#            size and at 128x96, two repeats (vars.csv); a variant is
+#            size and at 128x96 (dragon and arm-reach; every scene with
+#            GPU_VARS_SMALL=all), two repeats (vars.csv); a variant is
 #            VAR=VALUE pairs joined by '+', BLOCK=WxH for --block, or base
+#   timeline (not default) RAYBENCH_CUDA_TIMELINE on the dragon and arm-reach
+#            at their size and at 128x96, for each of GPU_VARIANTS (default:
+#            base and persistent 4x8): every warp's chunk, its multiprocessor,
+#            start, end and traversal steps (timeline.csv)
 # STEPS defaults to "build time blocks big check". Results go to $OUT (the
 # device tool's folder; /tmp/gpu-out when unset), at most 8 files:
 #   log.txt setup.txt ptxas.txt timings.csv blocks.csv check.csv testlog.txt ncu.txt
@@ -58,7 +63,7 @@ fi
 [ -x $RT ] || { echo "no $RT"; exit 1; }
 
 # one render -> one CSV row (selected record keys, plus the variable columns)
-KEYS="scene width height accel render_ms kernel_min_ms first_ms warmup_launches traversal order carveout rays primary_rays shadow_rays secondary_rays node_visits prim_tests mrays_per_s block sched kernel_runs regs local_bytes bounds blocks_per_sm grid upload_ms download_ms wall_ms init_ms image_fnv1a gpu"
+KEYS="scene width height accel render_ms kernel_min_ms first_ms warmup_launches traversal order carveout rays primary_rays shadow_rays secondary_rays node_visits prim_tests mrays_per_s block pairs sched kernel_runs regs local_bytes bounds blocks_per_sm grid upload_ms download_ms wall_ms init_ms image_fnv1a gpu"
 header() { echo "$KEYS" | tr ' ' ','; }
 row() { # CSV RECORD
     local csv=$1 rec=$2 line="" k v
@@ -236,7 +241,7 @@ if has vars; then
     for rep in 1 2; do
         for s in $REPORT; do
             for res in "" 128x96; do
-                [ -n "$res" ] && [ $s != dragon ] && [ $s != arm-reach ] && continue
+                [ -n "$res" ] && [ "${GPU_VARS_SMALL:-}" != all ] && [ $s != dragon ] && [ $s != arm-reach ] && continue
                 for v in ${GPU_VARIANTS:-base}; do
                     e=$(printf '%s' "$v" | sed 's/^base$//; s/+/ /g'); blk=""
                     case " $e " in *" BLOCK="*) blk=$(printf '%s' "$e" | sed 's/.*BLOCK=\([0-9x]*\).*/\1/'); e=$(printf '%s' "$e" | sed 's/BLOCK=[0-9x]*//') ;; esac
@@ -247,6 +252,31 @@ if has vars; then
         done
     done
     cat /tmp/v.csv >>$V; rm -f /tmp/v.csv
+fi
+
+if has timeline; then
+    echo "== timeline"
+    T=$OUT/timeline.csv; echo "variant,scene,res,chunk,x,y,sm,start_ns,end_ns,steps_max,steps_sum" >$T
+    for s in dragon arm-reach; do
+        for res in def 128x96; do
+            for v in ${GPU_VARIANTS:-base RAYBENCH_CUDA_SCHED=persistent+BLOCK=4x8}; do
+                e=$(printf '%s' "$v" | sed 's/^base$//; s/+/ /g'); blk=""
+                case " $e " in *" BLOCK="*) blk=$(printf '%s' "$e" | sed 's/.*BLOCK=\([0-9x]*\).*/\1/'); e=$(printf '%s' "$e" | sed 's/BLOCK=[0-9x]*//') ;; esac
+                rm -f /tmp/tl.csv
+                ( for kv in $e; do export "${kv?}"; done
+                  export RAYBENCH_CUDA_TIMELINE=/tmp/tl.csv
+                  r=""; [ $res != def ] && r=$res
+                  render /tmp/t.csv $s ${blk:+--block $blk} ${r:+-r $r} ) &&
+                    tail -n +2 /tmp/tl.csv | sed "s/^/$v,$s,$res,/" >>$T
+            done
+        done
+    done
+    rm -f /tmp/t.csv
+    # per run: chunks, frame span, the last chunk to end, the longest chunk
+    awk -F, 'NR > 1 { k = $1 "," $2 "," $3; n[k]++; d = $9 - $8; if ($9 > e[k]) { e[k] = $9; ls[k] = $8; lm[k] = $10 }
+                      if (d > md[k]) { md[k] = d; mm[k] = $10 }; if (!(k in s0) || $8 < s0[k]) s0[k] = $8 }
+             END { for (k in n) printf "%s: chunks %d, span %.1f us; last ends %.1f us (started %.1f, %d steps); longest %.1f us (%d steps)\n",
+                   k, n[k], (e[k] - s0[k]) / 1e3, e[k] / 1e3, ls[k] / 1e3, lm[k], md[k] / 1e3, mm[k] }' $T | sort
 fi
 
 if has check; then
