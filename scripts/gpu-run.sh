@@ -256,7 +256,7 @@ fi
 
 if has timeline; then
     echo "== timeline"
-    T=$OUT/timeline.csv; echo "variant,scene,res,chunk,x,y,sm,start_ns,end_ns,steps_max,steps_sum" >$T
+    T=$OUT/timeline.csv; echo "variant,scene,res,chunk,x,y,sm,start_ns,end_ns,steps_max,steps_sum,pairs" >$T
     for s in dragon arm-reach; do
         for res in def 128x96; do
             for v in ${GPU_VARIANTS:-base RAYBENCH_CUDA_SCHED=persistent+BLOCK=4x8}; do

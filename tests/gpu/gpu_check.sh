@@ -7,11 +7,13 @@
 #   rays:  primary, shadow and secondary ray counts within 0.1% of serial.
 # MODE picks the renders compared with serial (bvh), each ACCEL:BLOCK[:TRAV]
 # with TRAV the GPU traversal (RAYBENCH_CUDA_TRAVERSAL; default wide), or
-# `pairs`: the wide traversal with two lanes per pixel (RAYBENCH_CUDA_PAIRS=1):
+# `pairs`: the wide traversal with two lanes per pixel (RAYBENCH_CUDA_PAIRS=1),
+# or `cover`: the wide traversal with the tiles in the cover order
+# (RAYBENCH_CUDA_ORDER=cover); other renders set PAIRS=0 and the tile order:
 #   full   cuda+bvh in blocks 8x8 16x16 32x8 32x32 13x7 128x1 (odd and
 #          1024-thread shapes included), pixel pairs in 8x8 and 32x4, the
-#          binary tree's traversals (ldg, shared) in 16x16, and cuda+none in
-#          16x16 and 32x32;
+#          cover order in 8x8, the binary tree's traversals (ldg, shared) in
+#          16x16, and cuda+none in 16x16 and 32x32;
 #   bvh    cuda+bvh in 16x16 and 32x32 only (scenes whose brute force is slow);
 #   nogpu  expects `--backend cuda` to fail with one line and exit 1 (the
 #          CI machine has no GPU); skipped where a GPU is present.
@@ -60,21 +62,28 @@ for sc in "$@"; do
     ref="$TMP/$name-serial.ppm"
     rec_s=$("$RT" -q --backend serial --accel bvh -o "$ref" "$DIR/$sc.txt") || { echo "FAIL $name: serial render"; fail=1; continue; }
     case $MODE in
-        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:8x8:pairs bvh:32x4:pairs bvh:16x16:ldg bvh:16x16:shared} none:16x16 none:32x32" ;;
+        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:8x8:pairs bvh:32x4:pairs bvh:8x8:cover bvh:16x16:ldg bvh:16x16:shared} none:16x16 none:32x32" ;;
         *) runs="${GPU_CHECK_BLOCKS:-bvh:16x16 bvh:32x32}" ;;
     esac
     for r in $runs; do
         accel=${r%%:*}; blk=${r#*:}; trav=wide
         case $blk in *:*) trav=${blk#*:}; blk=${blk%%:*} ;; esac
-        pairs=0; [ "$trav" = pairs ] && { pairs=1; trav=wide; }
-        img="$TMP/$name-cuda-$accel-$blk-$trav-$pairs.ppm"
-        rec_c=$(RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_PAIRS=$pairs RAYBENCH_CUDA_RUNS=1 "$RT" -q --verify --backend cuda --accel "$accel" --block "$blk" -o "$img" "$DIR/$sc.txt")
+        pairs=0; order=tiles
+        [ "$trav" = pairs ] && { pairs=1; trav=wide; }
+        [ "$trav" = cover ] && { order=cover; trav=wide; }
+        img="$TMP/$name-cuda-$accel-$blk-$trav-$pairs-$order.ppm"
+        rec_c=$(RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_PAIRS=$pairs RAYBENCH_CUDA_ORDER=$order RAYBENCH_CUDA_RUNS=1 "$RT" -q --verify --backend cuda --accel "$accel" --block "$blk" -o "$img" "$DIR/$sc.txt")
         if [ $? -ne 0 ]; then echo "FAIL $name $accel $blk $trav pairs=$pairs: cuda render"; fail=1; continue; fi
         # brute force has no tree: its record says ldg
         want=$trav; [ "$accel" = none ] && want=ldg
         case $rec_c in *" traversal=$want "*) ;; *) echo "FAIL $name $accel $blk: the record does not say traversal=$want"; fail=1; continue ;; esac
         case $rec_c in *" pairs=$pairs "*) ;; *) echo "FAIL $name $accel $blk: the record does not say pairs=$pairs"; fail=1; continue ;; esac
         [ $pairs = 1 ] && { trav=pairs; want=pairs; }
+        # brute force has no tree to project: its order stays tiles
+        if [ $order = cover ] && [ "$accel" = bvh ]; then
+            case $rec_c in *" order=cover "*) ;; *) echo "FAIL $name $accel $blk: the record does not say order=cover"; fail=1; continue ;; esac
+            trav=cover; want=cover
+        fi
         d=$("$DIFF" "$ref" "$img" --min-psnr 45 --max-over2 0.2); drc=$?
         ok=ok; [ $drc -eq 0 ] || ok=image
         for k in primary_rays shadow_rays secondary_rays; do

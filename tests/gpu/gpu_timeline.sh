@@ -26,7 +26,7 @@ for run in "grid 0 8x8 128x96 384" "grid 1 8x8 128x96 768" "grid 1 16x4 100x60 3
           "$RT" -q --backend cuda --block "$3" -r "$4" -o "$TMP/x.ppm" "$SC") || { echo "FAIL $run: render"; fail=1; continue; }
     steps=$(( $(field "$rec" node_visits) + $(field "$rec" prim_tests) ))
     res=$(awk -F, -v want="$5" -v steps="$steps" '
-        NR == 1 { if ($0 != "chunk,x,y,sm,start_ns,end_ns,steps_max,steps_sum") { print "bad header: " $0; bad = 1 } next }
+        NR == 1 { if ($0 != "chunk,x,y,sm,start_ns,end_ns,steps_max,steps_sum,pairs") { print "bad header: " $0; bad = 1 } next }
         { n++; if (seen[$1]++) { print "chunk " $1 " twice"; bad = 1 }
           if ($6 + 0 < $5 + 0) { print "chunk " $1 " ends before it starts"; bad = 1 }
           if ($7 + 0 > $8 + 0) { print "chunk " $1 ": slowest lane above the sum"; bad = 1 }

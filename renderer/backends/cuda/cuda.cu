@@ -207,9 +207,13 @@ typedef struct RtCudaGrid {
     /* Oracle order (RAYBENCH_CUDA_ORDER=oracle, a measurement): the n-th
      * 32-item chunk handed out is chunk_order[n]. NULL: off. */
     const uint32_t *chunk_order;
-    /* Grid schedule with the oracle order: block b renders tile tile_order[b].
-     * NULL: block b renders tile b. */
-    const uint32_t *tile_order;
+    /* Grid schedule, with an order (cover, oracle): block b renders work unit
+     * units[b] if b < *nunits (else it returns at once): tile << 2 | kind,
+     * kind RT_UNIT_WHOLE (a lane per pixel) or RT_UNIT_PAIRS (pixel pairs).
+     * NULL: block b renders tile b, of kind RT_UNIT_PAIRS if pairs, else
+     * RT_UNIT_WHOLE. */
+    const uint32_t *units;
+    const uint32_t *nunits;
     /* A launch with chunks set records every 32-item chunk there (RtCudaChunk:
      * the oracle's first launch, RAYBENCH_CUDA_TIMELINE's last). NULL: off. */
     struct RtCudaChunk *chunks;
@@ -222,7 +226,11 @@ typedef struct RtCudaChunk {
     unsigned long long t0, t1;
     uint32_t sm, steps_max;
     unsigned long long steps_sum;
+    int32_t x, y; /* the pixel of the warp's first lane */
+    uint32_t pairs, pad;
 } RtCudaChunk;
+
+enum { RT_UNIT_WHOLE = 0, RT_UNIT_PAIRS = 1 };
 
 enum { RT_NCOUNTERS = 5 }; /* fields of RtCounters, all uint64_t, in order */
 
@@ -247,12 +255,16 @@ static __host__ __device__ __forceinline__ int rt_cuda_item_pixel(const RtSceneV
     return *px < view.cam.width && *py < view.cam.height;
 }
 
-static __device__ __forceinline__ void rt_cuda_item(const RtSceneView &view, const RtCudaGrid &g, uint32_t item,
-                                                    float *rgb, RtCounters *cnt)
+/* Grid schedule: the pixel of thread tid in work unit (tile, kind)
+ * (RtCudaGrid.units): a lane per pixel, or the even and odd lanes of a pixel
+ * pair. Returns 0 outside the image. */
+static __device__ __forceinline__ int rt_cuda_unit_pixel(const RtSceneView &view, const RtCudaGrid &g, uint32_t tile,
+                                                         uint32_t kind, unsigned tid, int *px, int *py)
 {
-    int px, py;
-    if (rt_cuda_item_pixel(view, g, item, &px, &py))
-        rt_render_pixel(&view, px, py, rgb, cnt);
+    const uint32_t l = kind == RT_UNIT_PAIRS ? tid >> 1 : tid;
+    *px = (int)(tile % (uint32_t)g.tiles_x) * g.bx + (int)(l % (uint32_t)g.bx);
+    *py = (int)(tile / (uint32_t)g.tiles_x) * g.by + (int)(l / (uint32_t)g.bx);
+    return *px < view.cam.width && *py < view.cam.height;
 }
 
 /* Pixel pairs (RAYBENCH_CUDA_PAIRS=1, grid schedule): two lanes per pixel,
@@ -290,12 +302,10 @@ static __device__ __forceinline__ void rt_cuda_job_xchg(RtCudaJob *j, bool take)
         *j = o;
 }
 
-static __device__ __forceinline__ void rt_cuda_pair_item(const RtSceneView &view, const RtCudaGrid &g, uint32_t item,
+static __device__ __forceinline__ void rt_cuda_pair_item(const RtSceneView &view, int px, int py, bool valid,
                                                          unsigned odd, float *rgb, RtCounters *cnt)
 {
     const RtSceneView *s = &view;
-    int px, py;
-    const bool valid = rt_cuda_item_pixel(view, g, item, &px, &py);
     RtPending stack[RT_RAY_STACK];
     int sp = 0;
     RtVec3 color = rt_v3(0.0f, 0.0f, 0.0f);
@@ -437,7 +447,7 @@ static __device__ __forceinline__ void rt_cuda_chunk_begin(unsigned long long *t
 
 static __device__ __forceinline__ void rt_cuda_chunk_end(RtCudaChunk *chunks, const unsigned long long *t0,
                                                          const uint32_t *id, unsigned tid, bool leader,
-                                                         unsigned mask, uint32_t steps)
+                                                         unsigned mask, uint32_t steps, int px, int py, bool pairs)
 {
     uint32_t mx = steps;
     unsigned long long sum = steps;
@@ -454,6 +464,9 @@ static __device__ __forceinline__ void rt_cuda_chunk_end(RtCudaChunk *chunks, co
         c->sm = sm;
         c->steps_max = mx;
         c->steps_sum = sum;
+        c->x = px;
+        c->y = py;
+        c->pairs = pairs;
     }
 }
 
@@ -481,6 +494,10 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
      * has a last warp with fewer than 32 lanes, so the mask is not all ones. */
     const unsigned mask = __activemask();
     const unsigned leader = __ffs(mask) - 1;
+    /* Grid schedule with an order: blocks past the units have nothing to do
+     * (the whole block leaves, before any barrier). */
+    if (!g.persistent && g.units && blockIdx.x >= *g.nunits)
+        return;
     if (tid < RT_NCOUNTERS)
         block_cnt[tid] = 0;
     __syncthreads();
@@ -506,42 +523,45 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
                 rt_cuda_chunk_begin(chunk_t0, chunk_id, tid, lane == leader, item >> 5);
                 lane_steps0[tid] = (uint32_t)(cnt.node_visits + cnt.prim_tests);
             }
-            if (item < g.total_items)
-                rt_cuda_item(view, g, item, rgb, &cnt);
+            int px = 0, py = 0;
+            if (item < g.total_items && rt_cuda_item_pixel(view, g, item, &px, &py))
+                rt_render_pixel(&view, px, py, rgb, &cnt);
             if (g.chunks)
                 rt_cuda_chunk_end(g.chunks, chunk_t0, chunk_id, tid, lane == leader, mask,
-                                  (uint32_t)(cnt.node_visits + cnt.prim_tests) - lane_steps0[tid]);
+                                  (uint32_t)(cnt.node_visits + cnt.prim_tests) - lane_steps0[tid], px, py, false);
         }
     } else {
-        /* Chunk records by warp: 32 pixels, or 16 pixel pairs. */
-        const uint32_t tile = g.tile_order ? g.tile_order[blockIdx.x] : blockIdx.x;
-        const uint32_t item = tile * g.tile_items + (g.pairs ? tid >> 1 : tid);
+        const uint32_t unit = g.units ? g.units[blockIdx.x] : blockIdx.x << 2 | (g.pairs ? RT_UNIT_PAIRS : RT_UNIT_WHOLE);
+        const uint32_t kind = unit & 3u;
+        int px, py;
+        const bool valid = rt_cuda_unit_pixel(view, g, unit >> 2, kind, tid, &px, &py);
+        /* Chunk records by warp of the launch. */
         if (g.chunks)
-            rt_cuda_chunk_begin(chunk_t0, chunk_id, tid, lane == leader, (tile * g.tile_items * (1 + g.pairs) + tid) >> 5);
-        if (g.pairs)
-            rt_cuda_pair_item(view, g, item, tid & 1u, rgb, &cnt);
-        else
-            rt_cuda_item(view, g, item, rgb, &cnt);
+            rt_cuda_chunk_begin(chunk_t0, chunk_id, tid, lane == leader, (blockIdx.x * blockDim.x * blockDim.y + tid) >> 5);
+        if (kind == RT_UNIT_PAIRS)
+            rt_cuda_pair_item(view, px, py, valid, tid & 1u, rgb, &cnt);
+        else if (valid)
+            rt_render_pixel(&view, px, py, rgb, &cnt);
         if (g.chunks) /* one item per lane: its counters are its chunk's */
             rt_cuda_chunk_end(g.chunks, chunk_t0, chunk_id, tid, lane == leader, mask,
-                              (uint32_t)(cnt.node_visits + cnt.prim_tests));
+                              (uint32_t)(cnt.node_visits + cnt.prim_tests), px, py, kind == RT_UNIT_PAIRS);
     }
 
     rt_cuda_flush_counters(cnt, block_cnt, counters, mask, lane, tid);
 }
 
 /* RAYBENCH_CUDA_ORDER=cover (grid schedule): the tiles in order of how many
- * BVH leaves' screen rectangles cover them, most first -- a frame's
- * expensive tiles, whose warps are its longest chains, then start in the
- * first wave instead of wherever the raster order puts them. One block, one
- * launch before the render, inside the timed region: each leaf's box is
+ * BVH leaves' screen rectangles cover them, most first, so that the
+ * expensive tiles -- whose warps are the frame's longest chains -- start in
+ * the first wave instead of wherever the raster order puts them. One block,
+ * one launch before the render, inside the timed region: each leaf's box is
  * projected through the camera (RENDERING-RULES "Camera", inverted) and
  * counted into a 2D difference array over cells of cw x ch tiles (at most
  * RT_COVER_CELLS of them, in shared memory; four atomics a leaf), which two
  * prefix passes turn into counts; a counting sort of the tiles by their
- * cell's count makes the order. Boxes that reach behind the film plane are
- * left out (they would cover everything). The order inside a count bucket
- * is the atomics'. */
+ * cell's count makes the order (RtCudaGrid.units). Boxes that reach behind
+ * the film plane are left out (they would cover everything). The order
+ * inside a count bucket is the atomics'. */
 #define RT_COVER_BUCKETS 64
 #define RT_COVER_CELLS 4096 /* difference array entries, (cells_x + 1) * (cells_y + 1) */
 
@@ -556,11 +576,12 @@ static __device__ __forceinline__ uint32_t rt_cover_bucket(uint32_t c)
 }
 
 __global__ void __launch_bounds__(1024) rt_cover_order_kernel(const __grid_constant__ RtSceneView view,
-                                                               const RtCudaGrid g, uint32_t *tile_order)
+                                                               const RtCudaGrid g, uint32_t *units, uint32_t *nunits)
 {
     __shared__ int diff[RT_COVER_CELLS];
     __shared__ uint32_t hist[RT_COVER_BUCKETS];
     const int tx = g.tiles_x, ty = (int)(g.ntiles / (uint32_t)g.tiles_x);
+    const uint32_t kind = g.pairs ? RT_UNIT_PAIRS : RT_UNIT_WHOLE;
     /* cells of cw x ch tiles (powers of two), few enough for the array */
     int cw = 1, ch = 1;
     while (((tx + cw - 1) / cw + 1) * ((ty + ch - 1) / ch + 1) > RT_COVER_CELLS) {
@@ -613,9 +634,9 @@ __global__ void __launch_bounds__(1024) rt_cover_order_kernel(const __grid_const
         for (int y = 1; y < cy; y++)
             diff[y * dx + x] += diff[(y - 1) * dx + x];
     __syncthreads();
-#define RT_COVER_OF(t) ((uint32_t)diff[((int)((t) / (uint32_t)tx) / ch) * dx + (int)((t) % (uint32_t)tx) / cw])
+#define RT_COVER_KEY(t) rt_cover_bucket((uint32_t)diff[((int)((t) / (uint32_t)tx) / ch) * dx + (int)((t) % (uint32_t)tx) / cw])
     for (uint32_t t = threadIdx.x; t < g.ntiles; t += blockDim.x)
-        atomicAdd(&hist[rt_cover_bucket(RT_COVER_OF(t))], 1u);
+        atomicAdd(&hist[RT_COVER_KEY(t)], 1u);
     __syncthreads();
     if (threadIdx.x == 0) { /* exclusive offsets, most covered first */
         uint32_t sum = 0;
@@ -624,11 +645,12 @@ __global__ void __launch_bounds__(1024) rt_cover_order_kernel(const __grid_const
             hist[b] = sum;
             sum += c;
         }
+        *nunits = sum;
     }
     __syncthreads();
     for (uint32_t t = threadIdx.x; t < g.ntiles; t += blockDim.x)
-        tile_order[atomicAdd(&hist[rt_cover_bucket(RT_COVER_OF(t))], 1u)] = t;
-#undef RT_COVER_OF
+        units[atomicAdd(&hist[RT_COVER_KEY(t)], 1u)] = t << 2 | kind;
+#undef RT_COVER_KEY
 }
 
 typedef void (*RtCudaKernel)(const RtSceneView, float *, unsigned long long *, unsigned int *, const RtCudaGrid);
@@ -671,7 +693,7 @@ typedef struct RtCudaPart {
 } RtCudaPart;
 
 enum { P_PRIMS, P_NODES, P_WIDE, P_VERTS, P_NORMALS, P_SPHERES, P_TRIS, P_MATS, P_LIGHTS, P_IMAGE, P_COUNTERS, P_WORK,
-       P_ORDER, P_CHUNKS, P_COUNT };
+       P_ORDER, P_CHUNKS, P_NUNITS, P_COUNT };
 
 static size_t rt_cuda_layout(RtCudaPart *parts)
 {
@@ -722,10 +744,12 @@ static int rt_cuda_cmp_cost(const void *a, const void *b)
  * the chunk order of the next ones, longest first (what a perfect cost
  * prediction would give the persistent schedule; a measurement, not a mode). */
 static int rt_cuda_oracle_order(const unsigned char *dchunks, unsigned char *dorder, uint32_t n, uint32_t per_unit,
-                                RtError *err)
+                                int kind, RtError *err)
 {
-    /* Units: chunks (persistent schedule, per_unit 1) or tiles (grid: the
-     * warps of a block), each costing its slowest chunk. */
+    /* Units: chunks (persistent schedule, per_unit 1, kind -1: the order is
+     * of chunk numbers) or blocks (grid: its warps; block b rendered tile b,
+     * the order is of RtCudaGrid.units: b << 2 | kind), each costing its
+     * slowest chunk. */
     int ok = 0;
     const uint32_t units = n / per_unit;
     RtCudaChunk *rec = (RtCudaChunk *)malloc((size_t)n * sizeof *rec);
@@ -745,6 +769,9 @@ static int rt_cuda_oracle_order(const unsigned char *dchunks, unsigned char *dor
         }
         rt_cuda_sort_cost = cost;
         qsort(order, units, sizeof *order, rt_cuda_cmp_cost);
+        if (kind >= 0)
+            for (uint32_t i = 0; i < units; i++)
+                order[i] = order[i] << 2 | (uint32_t)kind;
         ok = cudaMemcpy(dorder, order, (size_t)units * sizeof *order, cudaMemcpyHostToDevice) == cudaSuccess;
         if (!ok)
             rt_fail(err, "cuda: upload of the oracle order failed");
@@ -758,9 +785,7 @@ static int rt_cuda_oracle_order(const unsigned char *dchunks, unsigned char *dor
 /* RAYBENCH_CUDA_TIMELINE=FILE: the chunk records of one more launch after
  * the timed ones, as CSV (docs/gpu.md): which pixels, which multiprocessor,
  * start and end in ns from the launch's first chunk, traversal steps. */
-static int rt_cuda_write_timeline(const char *path, const unsigned char *dchunks, uint32_t n, uint32_t per_chunk,
-                                  const RtSceneView &view,
-                                  const RtCudaGrid &g, RtError *err)
+static int rt_cuda_write_timeline(const char *path, const unsigned char *dchunks, uint32_t n, RtError *err)
 {
     RtCudaChunk *rec = (RtCudaChunk *)malloc((size_t)n * sizeof *rec);
     if (!rec)
@@ -778,14 +803,12 @@ static int rt_cuda_write_timeline(const char *path, const unsigned char *dchunks
         free(rec);
         return rt_fail(err, "RAYBENCH_CUDA_TIMELINE: cannot write %s: %s", path, strerror(errno));
     }
-    fprintf(f, "chunk,x,y,sm,start_ns,end_ns,steps_max,steps_sum\n");
+    fprintf(f, "chunk,x,y,sm,start_ns,end_ns,steps_max,steps_sum,pairs\n");
     for (uint32_t i = 0; i < n; i++) {
-        int x, y; /* the chunk's first pixel (may overhang the image) */
-        rt_cuda_item_pixel(view, g, i * per_chunk, &x, &y);
-        if (!rec[i].t1) /* not recorded */
+        if (!rec[i].t1) /* not recorded: a grid block past the work units */
             continue;
-        fprintf(f, "%u,%d,%d,%u,%llu,%llu,%u,%llu\n", i, x, y, rec[i].sm, rec[i].t0 - start, rec[i].t1 - start,
-                rec[i].steps_max, rec[i].steps_sum);
+        fprintf(f, "%u,%d,%d,%u,%llu,%llu,%u,%llu,%u\n", i, rec[i].x, rec[i].y, rec[i].sm, rec[i].t0 - start,
+                rec[i].t1 - start, rec[i].steps_max, rec[i].steps_sum, rec[i].pairs);
     }
     const int bad = ferror(f) != 0;
     free(rec);
@@ -911,7 +934,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         }
     }
     g.pairs = pairs;
-    g.bx = pairs ? bx / 2 : bx; /* the pixel tile of a block */
+    g.bx = pairs ? bx / 2 : bx; /* the pixel tile of a block (whole unit) */
     g.by = by;
     g.tiles_x = (w + g.bx - 1) / g.bx;
     g.tile_items = (uint32_t)(g.bx * g.by);
@@ -960,9 +983,11 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     parts[P_IMAGE].bytes = npix * 3 * sizeof(float);
     parts[P_COUNTERS].bytes = RT_NCOUNTERS * sizeof(unsigned long long);
     parts[P_WORK].bytes = sizeof(unsigned int);
-    nchunks = g.total_items / (pairs ? 16u : 32u); /* a warp's items */
+    /* Chunk records: the persistent schedule's 32-item chunks, or the grid's warps. */
+    nchunks = persistent ? g.total_items / 32u : (uint32_t)nblocks * (uint32_t)(threads / 32);
     parts[P_ORDER].bytes = order_mode == RT_ORDER_ORACLE || order_mode == RT_ORDER_COVER
-                               ? (size_t)(persistent ? nchunks : g.ntiles) * sizeof(uint32_t) : 0;
+                               ? (size_t)(persistent ? nchunks : (uint32_t)nblocks) * sizeof(uint32_t) : 0;
+    parts[P_NUNITS].bytes = sizeof(uint32_t);
     timeline = getenv("RAYBENCH_CUDA_TIMELINE"); /* empty: off, as unset */
     if (timeline && !*timeline)
         timeline = NULL;
@@ -1035,8 +1060,10 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         RT_CUDA_CHECK(cudaMemset(arena + parts[P_CHUNKS].offset, 0, parts[P_CHUNKS].bytes));
     if (order_mode == RT_ORDER_ORACLE)
         g.chunks = (RtCudaChunk *)(arena + parts[P_CHUNKS].offset);
-    if (order_mode == RT_ORDER_COVER)
-        g.tile_order = (const uint32_t *)(arena + parts[P_ORDER].offset);
+    if (order_mode == RT_ORDER_COVER) {
+        g.units = (const uint32_t *)(arena + parts[P_ORDER].offset);
+        g.nunits = (const uint32_t *)(arena + parts[P_NUNITS].offset);
+    }
 
     /* The per-lane step snapshots of a recorded persistent launch. */
     shmem = persistent && parts[P_CHUNKS].bytes ? (size_t)threads * sizeof(uint32_t) : 0;
@@ -1049,7 +1076,8 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         RT_CUDA_CHECK(cudaEventRecord(ev0));
         if (order_mode == RT_ORDER_COVER) {
             /* Inside the timed region: the order is part of the frame's cost. */
-            rt_cover_order_kernel<<<1, 1024>>>(dv, g, (uint32_t *)(arena + parts[P_ORDER].offset));
+            rt_cover_order_kernel<<<1, 1024>>>(dv, g, (uint32_t *)(arena + parts[P_ORDER].offset),
+                                               (uint32_t *)(arena + parts[P_NUNITS].offset));
             RT_CUDA_CHECK_LAUNCH("rt_cover_order_kernel");
         }
         kernel<<<nblocks, dim3((unsigned)bx, (unsigned)by), shmem>>>(
@@ -1062,12 +1090,17 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         if (run == 0 && order_mode == RT_ORDER_ORACLE) {
             /* Oracle order: chunks by the first launch's times, longest first. */
             if (!rt_cuda_oracle_order(arena + parts[P_CHUNKS].offset, arena + parts[P_ORDER].offset, nchunks,
-                                      persistent ? 1u : (uint32_t)threads / 32u, err))
+                                      persistent ? 1u : (uint32_t)threads / 32u,
+                                      persistent ? -1 : (pairs ? RT_UNIT_PAIRS : RT_UNIT_WHOLE), err))
                 goto fail;
-            if (persistent)
+            if (persistent) {
                 g.chunk_order = (const uint32_t *)(arena + parts[P_ORDER].offset);
-            else
-                g.tile_order = (const uint32_t *)(arena + parts[P_ORDER].offset);
+            } else {
+                const uint32_t n = (uint32_t)nblocks;
+                RT_CUDA_CHECK(cudaMemcpy(arena + parts[P_NUNITS].offset, &n, sizeof n, cudaMemcpyHostToDevice));
+                g.units = (const uint32_t *)(arena + parts[P_ORDER].offset);
+                g.nunits = (const uint32_t *)(arena + parts[P_NUNITS].offset);
+            }
             g.chunks = NULL;
         }
         if (run == 0) {
@@ -1095,7 +1128,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
             (unsigned int *)(arena + parts[P_WORK].offset), g);
         RT_CUDA_CHECK_LAUNCH("rt_render_kernel");
         RT_CUDA_CHECK(cudaDeviceSynchronize());
-        if (rt_cuda_write_timeline(timeline, arena + parts[P_CHUNKS].offset, nchunks, pairs ? 16u : 32u, dv, g, err))
+        if (rt_cuda_write_timeline(timeline, arena + parts[P_CHUNKS].offset, nchunks, err))
             goto fail;
     }
     if (job->progress)
