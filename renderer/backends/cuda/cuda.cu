@@ -207,11 +207,9 @@ typedef struct RtCudaGrid {
     /* Oracle order (RAYBENCH_CUDA_ORDER=oracle, a measurement): the n-th
      * 32-item chunk handed out is chunk_order[n]. NULL: off. */
     const uint32_t *chunk_order;
-    /* Grid schedule, with an order (cover, oracle): block b renders work unit
-     * units[b] if b < *nunits (else it returns at once): tile << 2 | kind,
-     * kind RT_UNIT_WHOLE (a lane per pixel) or RT_UNIT_PAIRS (pixel pairs).
-     * NULL: block b renders tile b, of kind RT_UNIT_PAIRS if pairs, else
-     * RT_UNIT_WHOLE. */
+    /* Grid schedule, with an order (cover, oracle): block b renders tile
+     * units[b] if b < *nunits (else it returns at once). NULL: block b renders
+     * tile b. */
     const uint32_t *units;
     const uint32_t *nunits;
     /* A launch with chunks set records every 32-item chunk there (RtCudaChunk:
@@ -230,7 +228,7 @@ typedef struct RtCudaChunk {
     uint32_t pairs, pad;
 } RtCudaChunk;
 
-enum { RT_UNIT_WHOLE = 0, RT_UNIT_PAIRS = 1 };
+
 
 enum { RT_NCOUNTERS = 5 }; /* fields of RtCounters, all uint64_t, in order */
 
@@ -255,13 +253,13 @@ static __host__ __device__ __forceinline__ int rt_cuda_item_pixel(const RtSceneV
     return *px < view.cam.width && *py < view.cam.height;
 }
 
-/* Grid schedule: the pixel of thread tid in work unit (tile, kind)
- * (RtCudaGrid.units): a lane per pixel, or the even and odd lanes of a pixel
- * pair. Returns 0 outside the image. */
+/* Grid schedule: the pixel of thread tid in a block rendering tile `tile`
+ * (of g.bx x g.by pixels): a lane per pixel, or with pairs the even and odd
+ * lanes of a pixel. Returns 0 outside the image. */
 static __device__ __forceinline__ int rt_cuda_unit_pixel(const RtSceneView &view, const RtCudaGrid &g, uint32_t tile,
-                                                         uint32_t kind, unsigned tid, int *px, int *py)
+                                                         bool pairs, unsigned tid, int *px, int *py)
 {
-    const uint32_t l = kind == RT_UNIT_PAIRS ? tid >> 1 : tid;
+    const uint32_t l = pairs ? tid >> 1 : tid;
     *px = (int)(tile % (uint32_t)g.tiles_x) * g.bx + (int)(l % (uint32_t)g.bx);
     *py = (int)(tile / (uint32_t)g.tiles_x) * g.by + (int)(l / (uint32_t)g.bx);
     return *px < view.cam.width && *py < view.cam.height;
@@ -477,7 +475,7 @@ static __device__ __forceinline__ void rt_cuda_chunk_end(RtCudaChunk *chunks, co
  * the failure the report's 32x32 blocks hit without noticing -- and so that the
  * register/occupancy trade can be measured (RAYBENCH_CUDA_MINB).
  * __grid_constant__ lets the shared code take &view without a local copy. */
-template <int MAXT, int MINB>
+template <int MAXT, int MINB, bool PAIRS>
 __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_constant__ RtSceneView view, float *rgb,
                                                                unsigned long long *counters, unsigned int *next_item,
                                                                const RtCudaGrid g)
@@ -531,20 +529,19 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
                                   (uint32_t)(cnt.node_visits + cnt.prim_tests) - lane_steps0[tid], px, py, false);
         }
     } else {
-        const uint32_t unit = g.units ? g.units[blockIdx.x] : blockIdx.x << 2 | (g.pairs ? RT_UNIT_PAIRS : RT_UNIT_WHOLE);
-        const uint32_t kind = unit & 3u;
+        const uint32_t tile = g.units ? g.units[blockIdx.x] : blockIdx.x;
         int px, py;
-        const bool valid = rt_cuda_unit_pixel(view, g, unit >> 2, kind, tid, &px, &py);
+        const bool valid = rt_cuda_unit_pixel(view, g, tile, PAIRS, tid, &px, &py);
         /* Chunk records by warp of the launch. */
         if (g.chunks)
             rt_cuda_chunk_begin(chunk_t0, chunk_id, tid, lane == leader, (blockIdx.x * blockDim.x * blockDim.y + tid) >> 5);
-        if (kind == RT_UNIT_PAIRS)
+        if (PAIRS)
             rt_cuda_pair_item(view, px, py, valid, tid & 1u, rgb, &cnt);
         else if (valid)
             rt_render_pixel(&view, px, py, rgb, &cnt);
         if (g.chunks) /* one item per lane: its counters are its chunk's */
             rt_cuda_chunk_end(g.chunks, chunk_t0, chunk_id, tid, lane == leader, mask,
-                              (uint32_t)(cnt.node_visits + cnt.prim_tests), px, py, kind == RT_UNIT_PAIRS);
+                              (uint32_t)(cnt.node_visits + cnt.prim_tests), px, py, PAIRS);
     }
 
     rt_cuda_flush_counters(cnt, block_cnt, counters, mask, lane, tid);
@@ -581,7 +578,6 @@ __global__ void __launch_bounds__(1024) rt_cover_order_kernel(const __grid_const
     __shared__ int diff[RT_COVER_CELLS];
     __shared__ uint32_t hist[RT_COVER_BUCKETS];
     const int tx = g.tiles_x, ty = (int)(g.ntiles / (uint32_t)g.tiles_x);
-    const uint32_t kind = g.pairs ? RT_UNIT_PAIRS : RT_UNIT_WHOLE;
     /* cells of cw x ch tiles (powers of two), few enough for the array */
     int cw = 1, ch = 1;
     while (((tx + cw - 1) / cw + 1) * ((ty + ch - 1) / ch + 1) > RT_COVER_CELLS) {
@@ -649,33 +645,38 @@ __global__ void __launch_bounds__(1024) rt_cover_order_kernel(const __grid_const
     }
     __syncthreads();
     for (uint32_t t = threadIdx.x; t < g.ntiles; t += blockDim.x)
-        units[atomicAdd(&hist[RT_COVER_KEY(t)], 1u)] = t << 2 | kind;
+        units[atomicAdd(&hist[RT_COVER_KEY(t)], 1u)] = t;
 #undef RT_COVER_KEY
 }
 
 typedef void (*RtCudaKernel)(const RtSceneView, float *, unsigned long long *, unsigned int *, const RtCudaGrid);
 
 typedef struct RtCudaVariant {
-    int maxt, minb;
+    int maxt, minb, pairs;
     RtCudaKernel kernel;
 } RtCudaVariant;
 
-#define RT_CUDA_VARIANT(T, B) {T, B, rt_render_kernel<T, B>}
+/* Pixel pairs have their own instantiations (register cap MINB 1 only): in
+ * the one-lane kernel their code, a third traversal call site, cost 16% on
+ * the dragon (docs/gpu.md, "Fifth round"). */
+#define RT_CUDA_VARIANT(T, B, P) {T, B, P, rt_render_kernel<T, B, P>}
 static const RtCudaVariant rt_cuda_variants[] = {
-    RT_CUDA_VARIANT(256, 1), RT_CUDA_VARIANT(256, 2), RT_CUDA_VARIANT(256, 3), RT_CUDA_VARIANT(256, 4),
-    RT_CUDA_VARIANT(512, 1), RT_CUDA_VARIANT(512, 2), RT_CUDA_VARIANT(1024, 1),
+    RT_CUDA_VARIANT(256, 1, false), RT_CUDA_VARIANT(256, 2, false), RT_CUDA_VARIANT(256, 3, false),
+    RT_CUDA_VARIANT(256, 4, false), RT_CUDA_VARIANT(512, 1, false), RT_CUDA_VARIANT(512, 2, false),
+    RT_CUDA_VARIANT(1024, 1, false), RT_CUDA_VARIANT(256, 1, true), RT_CUDA_VARIANT(512, 1, true),
+    RT_CUDA_VARIANT(1024, 1, true),
 };
 #undef RT_CUDA_VARIANT
 
-/* The instantiation for a block of `threads`: the smallest MAXT that holds it
- * (so small blocks keep every register they want) with MINB = minb, or the
- * first MINB there is. */
-static const RtCudaVariant *rt_cuda_pick_kernel(int threads, int minb)
+/* The instantiation for a block of `threads` (with pixel pairs or not): the
+ * smallest MAXT that holds it (so small blocks keep every register they
+ * want) with MINB = minb, or the first MINB there is. */
+static const RtCudaVariant *rt_cuda_pick_kernel(int threads, int minb, int pairs)
 {
     const RtCudaVariant *best = NULL;
     for (size_t i = 0; i < sizeof rt_cuda_variants / sizeof rt_cuda_variants[0]; i++) {
         const RtCudaVariant *v = &rt_cuda_variants[i];
-        if (v->maxt < threads)
+        if (v->maxt < threads || v->pairs != (pairs != 0))
             continue;
         if (!best || v->maxt < best->maxt || (v->maxt == best->maxt && v->minb == minb && best->minb != minb))
             best = v;
@@ -744,12 +745,11 @@ static int rt_cuda_cmp_cost(const void *a, const void *b)
  * the chunk order of the next ones, longest first (what a perfect cost
  * prediction would give the persistent schedule; a measurement, not a mode). */
 static int rt_cuda_oracle_order(const unsigned char *dchunks, unsigned char *dorder, uint32_t n, uint32_t per_unit,
-                                int kind, RtError *err)
+                                RtError *err)
 {
-    /* Units: chunks (persistent schedule, per_unit 1, kind -1: the order is
-     * of chunk numbers) or blocks (grid: its warps; block b rendered tile b,
-     * the order is of RtCudaGrid.units: b << 2 | kind), each costing its
-     * slowest chunk. */
+    /* Units: chunks (persistent schedule, per_unit 1) or tiles (grid: the
+     * warps of block b, which rendered tile b), each costing its slowest
+     * chunk. */
     int ok = 0;
     const uint32_t units = n / per_unit;
     RtCudaChunk *rec = (RtCudaChunk *)malloc((size_t)n * sizeof *rec);
@@ -769,9 +769,6 @@ static int rt_cuda_oracle_order(const unsigned char *dchunks, unsigned char *dor
         }
         rt_cuda_sort_cost = cost;
         qsort(order, units, sizeof *order, rt_cuda_cmp_cost);
-        if (kind >= 0)
-            for (uint32_t i = 0; i < units; i++)
-                order[i] = order[i] << 2 | (uint32_t)kind;
         ok = cudaMemcpy(dorder, order, (size_t)units * sizeof *order, cudaMemcpyHostToDevice) == cudaSuccess;
         if (!ok)
             rt_fail(err, "cuda: upload of the oracle order failed");
@@ -826,7 +823,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     const int w = hv->cam.width, h = hv->cam.height;
     const int dev = job->device;
     int rc = -1, ndev = 0, traversal = 0, spec = 0, order_mode = 0, carveout = -1, warmup_ms = 0, warmups = 0;
-    int blocks_per_sm = 0, nblocks = 0, runs = 0, max_runs = 0, pairs = 0;
+    int blocks_per_sm = 0, nblocks = 0, runs = 0, max_runs = 0, pairs = 0, minb = 1;
     uint32_t nchunks = 0;
     size_t shmem = 0;
     const char *timeline = NULL;
@@ -885,7 +882,37 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
                 threads, gpu, prop.maxThreadsPerBlock, prop.maxThreadsDim[0], prop.maxThreadsDim[1]);
         goto fail;
     }
-    variant = rt_cuda_pick_kernel(threads, rt_cuda_env_int("RAYBENCH_CUDA_MINB", 1, 4, RT_CUDA_DEFAULT_MINB));
+    /* Pixel pairs (rt_cuda_pair_item, a kernel of their own):
+     * RAYBENCH_CUDA_PAIRS 0, 1 or auto (the default): on when the grid
+     * schedule's blocks of pairs all fit on the GPU at once -- then the second
+     * lane per pixel costs no wave, and it shortens the chains the frame waits
+     * on (docs/gpu.md, "Fifth round"). */
+    minb = rt_cuda_env_int("RAYBENCH_CUDA_MINB", 1, 4, RT_CUDA_DEFAULT_MINB);
+    {
+        const char *pe = getenv("RAYBENCH_CUDA_PAIRS");
+        const int can = !persistent && bx % 2 == 0 && threads % 32 == 0;
+        if (pe && *pe && strcmp(pe, "auto") != 0) {
+            pairs = rt_cuda_env_int("RAYBENCH_CUDA_PAIRS", 0, 1, -1);
+            if (pairs < 0) {
+                rt_fail(err, "RAYBENCH_CUDA_PAIRS=%s: expected 0, 1 or auto", pe);
+                goto fail;
+            }
+            if (pairs && !can) {
+                rt_fail(err, "RAYBENCH_CUDA_PAIRS=1: needs the grid schedule and blocks of an even width and a "
+                             "multiple of 32 threads (got %dx%d, %s)",
+                        bx, by, persistent ? "persistent" : "grid");
+                goto fail;
+            }
+        } else if (can) {
+            int pb = 0;
+            const unsigned long long pair_tiles =
+                (unsigned long long)((w + bx / 2 - 1) / (bx / 2)) * (unsigned long long)((h + by - 1) / by);
+            RT_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&pb, rt_cuda_pick_kernel(threads, minb, 1)->kernel,
+                                                                        threads, 0));
+            pairs = pair_tiles <= (unsigned long long)pb * (unsigned long long)prop.multiProcessorCount;
+        }
+    }
+    variant = rt_cuda_pick_kernel(threads, minb, pairs);
     kernel = variant->kernel;
     RT_CUDA_CHECK(cudaFuncGetAttributes(&fa, kernel));
     if (threads > fa.maxThreadsPerBlock) {
@@ -908,31 +935,6 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         goto fail;
     }
 
-    /* Pixel pairs (rt_cuda_pair_item): RAYBENCH_CUDA_PAIRS 0, 1 or auto (the
-     * default): on when the grid schedule's blocks of pairs all fit on the GPU
-     * at once -- then the second lane per pixel costs no wave, and it shortens
-     * the chains the frame waits on (docs/gpu.md, "Fifth round"). */
-    {
-        const char *pe = getenv("RAYBENCH_CUDA_PAIRS");
-        const int can = !persistent && bx % 2 == 0 && threads % 32 == 0;
-        if (pe && *pe && strcmp(pe, "auto") != 0) {
-            pairs = rt_cuda_env_int("RAYBENCH_CUDA_PAIRS", 0, 1, -1);
-            if (pairs < 0) {
-                rt_fail(err, "RAYBENCH_CUDA_PAIRS=%s: expected 0, 1 or auto", pe);
-                goto fail;
-            }
-            if (pairs && !can) {
-                rt_fail(err, "RAYBENCH_CUDA_PAIRS=1: needs the grid schedule and blocks of an even width and a "
-                             "multiple of 32 threads (got %dx%d, %s)",
-                        bx, by, persistent ? "persistent" : "grid");
-                goto fail;
-            }
-        } else {
-            const unsigned long long pair_tiles =
-                (unsigned long long)((w + bx / 2 - 1) / (bx / 2 > 0 ? bx / 2 : 1)) * (unsigned long long)((h + by - 1) / by);
-            pairs = can && pair_tiles <= (unsigned long long)blocks_per_sm * (unsigned long long)prop.multiProcessorCount;
-        }
-    }
     g.pairs = pairs;
     g.bx = pairs ? bx / 2 : bx; /* the pixel tile of a block (whole unit) */
     g.by = by;
@@ -1090,8 +1092,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         if (run == 0 && order_mode == RT_ORDER_ORACLE) {
             /* Oracle order: chunks by the first launch's times, longest first. */
             if (!rt_cuda_oracle_order(arena + parts[P_CHUNKS].offset, arena + parts[P_ORDER].offset, nchunks,
-                                      persistent ? 1u : (uint32_t)threads / 32u,
-                                      persistent ? -1 : (pairs ? RT_UNIT_PAIRS : RT_UNIT_WHOLE), err))
+                                      persistent ? 1u : (uint32_t)threads / 32u, err))
                 goto fail;
             if (persistent) {
                 g.chunk_order = (const uint32_t *)(arena + parts[P_ORDER].offset);
