@@ -217,6 +217,9 @@ typedef struct RtCudaGrid {
     struct RtCudaChunk *chunks;
 } RtCudaGrid;
 
+/* Kernel modes (rt_render_kernel's MODE; rt_cuda_variants). */
+enum { RT_MODE_PAIRS = 1, RT_MODE_EXTRAS = 2 };
+
 /* One 32-item chunk (a warp's pixels) of a recorded launch: when it started
  * and ended (%globaltimer, ns), on which multiprocessor, and the traversal
  * steps (node visits + primitive tests) of its slowest lane and of all 32. */
@@ -475,11 +478,16 @@ static __device__ __forceinline__ void rt_cuda_chunk_end(RtCudaChunk *chunks, co
  * the failure the report's 32x32 blocks hit without noticing -- and so that the
  * register/occupancy trade can be measured (RAYBENCH_CUDA_MINB).
  * __grid_constant__ lets the shared code take &view without a local copy. */
-template <int MAXT, int MINB, bool PAIRS>
+template <int MAXT, int MINB, int MODE>
 __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_constant__ RtSceneView view, float *rgb,
                                                                unsigned long long *counters, unsigned int *next_item,
                                                                const RtCudaGrid g)
 {
+    /* MODE: RT_MODE_PAIRS (pixel pairs), RT_MODE_EXTRAS (chunk records and
+     * the grid's work units: orders and timelines). Both are instantiations
+     * of their own: in the default kernel their code cost 16% on the dragon
+     * (docs/gpu.md, "Fifth round"). */
+    constexpr bool PAIRS = (MODE & RT_MODE_PAIRS) != 0, EXTRAS = (MODE & RT_MODE_EXTRAS) != 0;
     __shared__ unsigned long long block_cnt[RT_NCOUNTERS];
     __shared__ unsigned long long chunk_t0[32]; /* per warp: start of its chunk (RtCudaGrid.chunks) */
     __shared__ uint32_t chunk_id[32];
@@ -494,7 +502,7 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
     const unsigned leader = __ffs(mask) - 1;
     /* Grid schedule with an order: blocks past the units have nothing to do
      * (the whole block leaves, before any barrier). */
-    if (!g.persistent && g.units && blockIdx.x >= *g.nunits)
+    if (EXTRAS && !g.persistent && g.units && blockIdx.x >= *g.nunits)
         return;
     if (tid < RT_NCOUNTERS)
         block_cnt[tid] = 0;
@@ -513,35 +521,49 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
             if (base >= g.total_items)
                 break;
             uint32_t item = base + rank;
-            if (g.chunk_order)
+            if (EXTRAS && g.chunk_order)
                 item = g.chunk_order[base >> 5] * 32u + rank;
             /* Chunk records: start time and chunk in shared memory, not in
              * registers across the render (one more register costs warps). */
-            if (g.chunks) {
+            if (EXTRAS && g.chunks) {
                 rt_cuda_chunk_begin(chunk_t0, chunk_id, tid, lane == leader, item >> 5);
                 lane_steps0[tid] = (uint32_t)(cnt.node_visits + cnt.prim_tests);
             }
-            int px = 0, py = 0;
-            if (item < g.total_items && rt_cuda_item_pixel(view, g, item, &px, &py))
-                rt_render_pixel(&view, px, py, rgb, &cnt);
-            if (g.chunks)
+            {
+                int px, py;
+                if (item < g.total_items && rt_cuda_item_pixel(view, g, item, &px, &py))
+                    rt_render_pixel(&view, px, py, rgb, &cnt);
+            }
+            if (EXTRAS && g.chunks) {
+                /* the leader's pixel: the chunk's first (found again, not kept live) */
+                int px, py;
+                rt_cuda_item_pixel(view, g, chunk_id[tid >> 5] * 32u, &px, &py);
                 rt_cuda_chunk_end(g.chunks, chunk_t0, chunk_id, tid, lane == leader, mask,
                                   (uint32_t)(cnt.node_visits + cnt.prim_tests) - lane_steps0[tid], px, py, false);
+            }
         }
     } else {
-        const uint32_t tile = g.units ? g.units[blockIdx.x] : blockIdx.x;
-        int px, py;
-        const bool valid = rt_cuda_unit_pixel(view, g, tile, PAIRS, tid, &px, &py);
-        /* Chunk records by warp of the launch. */
-        if (g.chunks)
-            rt_cuda_chunk_begin(chunk_t0, chunk_id, tid, lane == leader, (blockIdx.x * blockDim.x * blockDim.y + tid) >> 5);
-        if (PAIRS)
-            rt_cuda_pair_item(view, px, py, valid, tid & 1u, rgb, &cnt);
-        else if (valid)
-            rt_render_pixel(&view, px, py, rgb, &cnt);
-        if (g.chunks) /* one item per lane: its counters are its chunk's */
+        {
+            const uint32_t tile = EXTRAS && g.units ? g.units[blockIdx.x] : blockIdx.x;
+            int px, py;
+            const bool valid = rt_cuda_unit_pixel(view, g, tile, PAIRS, tid, &px, &py);
+            /* Chunk records by warp of the launch. */
+            if (EXTRAS && g.chunks)
+                rt_cuda_chunk_begin(chunk_t0, chunk_id, tid, lane == leader,
+                                    (blockIdx.x * blockDim.x * blockDim.y + tid) >> 5);
+            if (PAIRS)
+                rt_cuda_pair_item(view, px, py, valid, tid & 1u, rgb, &cnt);
+            else if (valid)
+                rt_render_pixel(&view, px, py, rgb, &cnt);
+        }
+        if (EXTRAS && g.chunks) {
+            /* one item per lane: its counters are its chunk's; the leader's
+             * pixel found again, not kept live across the render */
+            int px, py;
+            rt_cuda_unit_pixel(view, g, g.units ? g.units[blockIdx.x] : blockIdx.x, PAIRS, tid, &px, &py);
             rt_cuda_chunk_end(g.chunks, chunk_t0, chunk_id, tid, lane == leader, mask,
                               (uint32_t)(cnt.node_visits + cnt.prim_tests), px, py, PAIRS);
+        }
     }
 
     rt_cuda_flush_counters(cnt, block_cnt, counters, mask, lane, tid);
@@ -652,31 +674,33 @@ __global__ void __launch_bounds__(1024) rt_cover_order_kernel(const __grid_const
 typedef void (*RtCudaKernel)(const RtSceneView, float *, unsigned long long *, unsigned int *, const RtCudaGrid);
 
 typedef struct RtCudaVariant {
-    int maxt, minb, pairs;
+    int maxt, minb, mode;
     RtCudaKernel kernel;
 } RtCudaVariant;
 
-/* Pixel pairs have their own instantiations (register cap MINB 1 only): in
- * the one-lane kernel their code, a third traversal call site, cost 16% on
- * the dragon (docs/gpu.md, "Fifth round"). */
-#define RT_CUDA_VARIANT(T, B, P) {T, B, P, rt_render_kernel<T, B, P>}
+/* The default kernels at every register cap; pixel pairs and the extras
+ * (RT_MODE_*) at MINB 1 only. */
+#define RT_CUDA_VARIANT(T, B, M) {T, B, M, rt_render_kernel<T, B, M>}
+#define RT_CUDA_MODES(T)                                                       \
+    RT_CUDA_VARIANT(T, 1, RT_MODE_PAIRS), RT_CUDA_VARIANT(T, 1, RT_MODE_EXTRAS), \
+        RT_CUDA_VARIANT(T, 1, RT_MODE_PAIRS | RT_MODE_EXTRAS)
 static const RtCudaVariant rt_cuda_variants[] = {
-    RT_CUDA_VARIANT(256, 1, false), RT_CUDA_VARIANT(256, 2, false), RT_CUDA_VARIANT(256, 3, false),
-    RT_CUDA_VARIANT(256, 4, false), RT_CUDA_VARIANT(512, 1, false), RT_CUDA_VARIANT(512, 2, false),
-    RT_CUDA_VARIANT(1024, 1, false), RT_CUDA_VARIANT(256, 1, true), RT_CUDA_VARIANT(512, 1, true),
-    RT_CUDA_VARIANT(1024, 1, true),
+    RT_CUDA_VARIANT(256, 1, 0), RT_CUDA_VARIANT(256, 2, 0), RT_CUDA_VARIANT(256, 3, 0), RT_CUDA_VARIANT(256, 4, 0),
+    RT_CUDA_VARIANT(512, 1, 0), RT_CUDA_VARIANT(512, 2, 0), RT_CUDA_VARIANT(1024, 1, 0),
+    RT_CUDA_MODES(256), RT_CUDA_MODES(512), RT_CUDA_MODES(1024),
 };
+#undef RT_CUDA_MODES
 #undef RT_CUDA_VARIANT
 
-/* The instantiation for a block of `threads` (with pixel pairs or not): the
- * smallest MAXT that holds it (so small blocks keep every register they
- * want) with MINB = minb, or the first MINB there is. */
-static const RtCudaVariant *rt_cuda_pick_kernel(int threads, int minb, int pairs)
+/* The instantiation for a block of `threads` in mode `mode`: the smallest
+ * MAXT that holds it (so small blocks keep every register they want) with
+ * MINB = minb, or the first MINB there is. */
+static const RtCudaVariant *rt_cuda_pick_kernel(int threads, int minb, int mode)
 {
     const RtCudaVariant *best = NULL;
     for (size_t i = 0; i < sizeof rt_cuda_variants / sizeof rt_cuda_variants[0]; i++) {
         const RtCudaVariant *v = &rt_cuda_variants[i];
-        if (v->maxt < threads || v->pairs != (pairs != 0))
+        if (v->maxt < threads || v->mode != mode)
             continue;
         if (!best || v->maxt < best->maxt || (v->maxt == best->maxt && v->minb == minb && best->minb != minb))
             best = v;
@@ -907,12 +931,36 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
             int pb = 0;
             const unsigned long long pair_tiles =
                 (unsigned long long)((w + bx / 2 - 1) / (bx / 2)) * (unsigned long long)((h + by - 1) / by);
-            RT_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&pb, rt_cuda_pick_kernel(threads, minb, 1)->kernel,
+            RT_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&pb, rt_cuda_pick_kernel(threads, minb, RT_MODE_PAIRS)->kernel,
                                                                         threads, 0));
             pairs = pair_tiles <= (unsigned long long)pb * (unsigned long long)prop.multiProcessorCount;
         }
     }
-    variant = rt_cuda_pick_kernel(threads, minb, pairs);
+    /* Chunk order and timeline: both need the kernels with the extras. */
+    {
+        const char *ord = getenv("RAYBENCH_CUDA_ORDER");
+        order_mode = !ord                           ? RT_CUDA_DEFAULT_ORDER
+                     : strcmp(ord, "scatter") == 0 ? RT_ORDER_SCATTER
+                     : strcmp(ord, "oracle") == 0  ? RT_ORDER_ORACLE
+                     : strcmp(ord, "cover") == 0   ? RT_ORDER_COVER
+                                                   : RT_ORDER_TILES;
+    }
+    /* scatter: the persistent schedule's; cover: the grid's, with a tree;
+     * the oracle (either schedule) needs whole 32-item chunks. */
+    if ((order_mode == RT_ORDER_SCATTER && !persistent) || (order_mode == RT_ORDER_ORACLE && threads % 32 != 0) ||
+        (order_mode == RT_ORDER_COVER && (persistent || hv->nnodes == 0)))
+        order_mode = RT_ORDER_TILES;
+    timeline = getenv("RAYBENCH_CUDA_TIMELINE"); /* empty: off, as unset */
+    if (timeline && !*timeline)
+        timeline = NULL;
+    if (timeline && threads % 32 != 0) {
+        rt_fail(err, "RAYBENCH_CUDA_TIMELINE=%s: needs blocks of a multiple of 32 threads (got %dx%d)", timeline, bx, by);
+        goto fail;
+    }
+    variant = rt_cuda_pick_kernel(threads, minb,
+                                  (pairs ? RT_MODE_PAIRS : 0) |
+                                      (order_mode == RT_ORDER_ORACLE || order_mode == RT_ORDER_COVER || timeline
+                                           ? RT_MODE_EXTRAS : 0));
     kernel = variant->kernel;
     RT_CUDA_CHECK(cudaFuncGetAttributes(&fa, kernel));
     if (threads > fa.maxThreadsPerBlock) {
@@ -949,19 +997,6 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         g.total_items = (uint32_t)(tiles * (unsigned long long)g.tile_items);
         g.persistent = persistent;
         g.ntiles = (uint32_t)tiles;
-        {
-            const char *ord = getenv("RAYBENCH_CUDA_ORDER");
-            order_mode = !ord                           ? RT_CUDA_DEFAULT_ORDER
-                         : strcmp(ord, "scatter") == 0 ? RT_ORDER_SCATTER
-                         : strcmp(ord, "oracle") == 0  ? RT_ORDER_ORACLE
-                         : strcmp(ord, "cover") == 0   ? RT_ORDER_COVER
-                                                       : RT_ORDER_TILES;
-        }
-        /* scatter: the persistent schedule's; cover: the grid's, with a tree;
-         * the oracle (either schedule) needs whole 32-item chunks. */
-        if ((order_mode == RT_ORDER_SCATTER && !persistent) || (order_mode == RT_ORDER_ORACLE && threads % 32 != 0) ||
-            (order_mode == RT_ORDER_COVER && (persistent || hv->nnodes == 0)))
-            order_mode = RT_ORDER_TILES;
         if (order_mode == RT_ORDER_SCATTER)
             while (g.tile_mask < g.ntiles - 1)
                 g.tile_mask = (g.tile_mask << 1) | 1u;
@@ -990,13 +1025,6 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     parts[P_ORDER].bytes = order_mode == RT_ORDER_ORACLE || order_mode == RT_ORDER_COVER
                                ? (size_t)(persistent ? nchunks : (uint32_t)nblocks) * sizeof(uint32_t) : 0;
     parts[P_NUNITS].bytes = sizeof(uint32_t);
-    timeline = getenv("RAYBENCH_CUDA_TIMELINE"); /* empty: off, as unset */
-    if (timeline && !*timeline)
-        timeline = NULL;
-    if (timeline && threads % 32 != 0) {
-        rt_fail(err, "RAYBENCH_CUDA_TIMELINE=%s: needs blocks of a multiple of 32 threads (got %dx%d)", timeline, bx, by);
-        goto fail;
-    }
     parts[P_CHUNKS].bytes = order_mode == RT_ORDER_ORACLE || timeline ? (size_t)nchunks * sizeof(RtCudaChunk) : 0;
     arena_bytes = rt_cuda_layout(parts);
     e = cudaMalloc((void **)&arena, arena_bytes);
