@@ -485,8 +485,8 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
 {
     /* MODE: RT_MODE_PAIRS (pixel pairs), RT_MODE_EXTRAS (chunk records and
      * the grid's work units: orders and timelines). Both are instantiations
-     * of their own: in the default kernel their code cost 16% on the dragon
-     * (docs/gpu.md, "Fifth round"). */
+     * of their own: compiled into the default kernel, the extras' code cost
+     * it 16% on the dragon even when unused (docs/gpu.md, "Fifth round"). */
     constexpr bool PAIRS = (MODE & RT_MODE_PAIRS) != 0, EXTRAS = (MODE & RT_MODE_EXTRAS) != 0;
     __shared__ unsigned long long block_cnt[RT_NCOUNTERS];
     __shared__ unsigned long long chunk_t0[32]; /* per warp: start of its chunk (RtCudaGrid.chunks) */
