@@ -237,7 +237,7 @@ enum { RT_NCOUNTERS = 5 }; /* fields of RtCounters, all uint64_t, in order */
 
 /* Work item -> pixel: items are numbered tile by tile, row-major inside a
  * tile. Returns 0 for the overhang of an edge tile (outside the image). */
-static __host__ __device__ __forceinline__ int rt_cuda_item_pixel(const RtSceneView &view, const RtCudaGrid &g,
+static __device__ __forceinline__ int rt_cuda_item_pixel(const RtSceneView &view, const RtCudaGrid &g,
                                                          uint32_t item, int *px, int *py)
 {
     uint32_t tile = item / g.tile_items;
@@ -283,21 +283,20 @@ typedef struct RtCudaJob {
     uint32_t material;
 } RtCudaJob;
 
+/* The partner lane's (lane ^ 1) vector; every lane of the warp calls it. */
+static __device__ __forceinline__ RtVec3 rt_cuda_shfl_pair(RtVec3 v)
+{
+    return rt_v3(__shfl_xor_sync(0xffffffffu, v.x, 1), __shfl_xor_sync(0xffffffffu, v.y, 1),
+                 __shfl_xor_sync(0xffffffffu, v.z, 1));
+}
+
 static __device__ __forceinline__ void rt_cuda_job_xchg(RtCudaJob *j, bool take)
 {
     RtCudaJob o;
-    o.p.x = __shfl_xor_sync(0xffffffffu, j->p.x, 1);
-    o.p.y = __shfl_xor_sync(0xffffffffu, j->p.y, 1);
-    o.p.z = __shfl_xor_sync(0xffffffffu, j->p.z, 1);
-    o.n.x = __shfl_xor_sync(0xffffffffu, j->n.x, 1);
-    o.n.y = __shfl_xor_sync(0xffffffffu, j->n.y, 1);
-    o.n.z = __shfl_xor_sync(0xffffffffu, j->n.z, 1);
-    o.view.x = __shfl_xor_sync(0xffffffffu, j->view.x, 1);
-    o.view.y = __shfl_xor_sync(0xffffffffu, j->view.y, 1);
-    o.view.z = __shfl_xor_sync(0xffffffffu, j->view.z, 1);
-    o.w.x = __shfl_xor_sync(0xffffffffu, j->w.x, 1);
-    o.w.y = __shfl_xor_sync(0xffffffffu, j->w.y, 1);
-    o.w.z = __shfl_xor_sync(0xffffffffu, j->w.z, 1);
+    o.p = rt_cuda_shfl_pair(j->p);
+    o.n = rt_cuda_shfl_pair(j->n);
+    o.view = rt_cuda_shfl_pair(j->view);
+    o.w = rt_cuda_shfl_pair(j->w);
     o.material = __shfl_xor_sync(0xffffffffu, j->material, 1);
     if (take)
         *j = o;
@@ -389,10 +388,7 @@ static __device__ __forceinline__ void rt_cuda_pair_item(const RtSceneView &view
             full = s->nlights > 0;
         }
     }
-    RtVec3 other;
-    other.x = __shfl_xor_sync(0xffffffffu, color.x, 1);
-    other.y = __shfl_xor_sync(0xffffffffu, color.y, 1);
-    other.z = __shfl_xor_sync(0xffffffffu, color.z, 1);
+    const RtVec3 other = rt_cuda_shfl_pair(color);
     if (valid && !odd) {
         float *pp = rgb + 3 * ((size_t)py * (size_t)s->cam.width + (size_t)px);
         pp[0] = color.x + other.x;
