@@ -81,6 +81,15 @@ render() { # CSV SCENE ARGS... (env passes RAYBENCH_CUDA_*)
     row "$csv" "$rec"
     printf '%-16s %-34s %s\n' "$s" "$*" "$(printf '%s\n' "$rec" | grep -o 'render_ms=[^ ]*\|kernel_min_ms=[^ ]*\|mrays_per_s=[^ ]*\|regs=[^ ]*\|blocks_per_sm=[^ ]*' | tr '\n' ' ')"
 }
+# A variant (VAR=VALUE pairs joined by '+', BLOCK=WxH, or base) -> render
+# with those variables exported: render_variant VARIANT CSV SCENE ARGS...
+render_variant() {
+    local v=$1 csv=$2 s=$3 e blk=""; shift 3
+    e=$(printf '%s' "$v" | sed 's/^base$//; s/+/ /g')
+    case " $e " in *" BLOCK="*) blk=$(printf '%s' "$e" | sed 's/.*BLOCK=\([0-9x]*\).*/\1/'); e=$(printf '%s' "$e" | sed 's/BLOCK=[0-9x]*//') ;; esac
+    ( for kv in $e; do export "${kv?}"; done
+      render "$csv" "$s" ${blk:+--block $blk} "$@" )
+}
 REPORT="dragon arm-reach bottle bottle-nolabel ShadowTest test_reasonable bear"
 
 if has time; then
@@ -243,10 +252,7 @@ if has vars; then
             for res in "" 128x96; do
                 [ -n "$res" ] && [ "${GPU_VARS_SMALL:-}" != all ] && [ $s != dragon ] && [ $s != arm-reach ] && continue
                 for v in ${GPU_VARIANTS:-base}; do
-                    e=$(printf '%s' "$v" | sed 's/^base$//; s/+/ /g'); blk=""
-                    case " $e " in *" BLOCK="*) blk=$(printf '%s' "$e" | sed 's/.*BLOCK=\([0-9x]*\).*/\1/'); e=$(printf '%s' "$e" | sed 's/BLOCK=[0-9x]*//') ;; esac
-                    ( for kv in $e; do export "${kv?}"; done
-                      render /tmp/v.csv $s ${blk:+--block $blk} ${res:+-r $res} ) && sed -i "\$s/^/$v,/" /tmp/v.csv
+                    render_variant "$v" /tmp/v.csv $s ${res:+-r $res} && sed -i "\$s/^/$v,/" /tmp/v.csv
                 done
             done
         done
@@ -260,13 +266,9 @@ if has timeline; then
     for s in dragon arm-reach; do
         for res in def 128x96; do
             for v in ${GPU_VARIANTS:-base RAYBENCH_CUDA_SCHED=persistent+BLOCK=4x8}; do
-                e=$(printf '%s' "$v" | sed 's/^base$//; s/+/ /g'); blk=""
-                case " $e " in *" BLOCK="*) blk=$(printf '%s' "$e" | sed 's/.*BLOCK=\([0-9x]*\).*/\1/'); e=$(printf '%s' "$e" | sed 's/BLOCK=[0-9x]*//') ;; esac
                 rm -f /tmp/tl.csv
-                ( for kv in $e; do export "${kv?}"; done
-                  export RAYBENCH_CUDA_TIMELINE=/tmp/tl.csv
-                  r=""; [ $res != def ] && r=$res
-                  render /tmp/t.csv $s ${blk:+--block $blk} ${r:+-r $r} ) &&
+                r=""; [ $res != def ] && r=$res
+                RAYBENCH_CUDA_TIMELINE=/tmp/tl.csv render_variant "$v" /tmp/t.csv $s ${r:+-r $r} &&
                     tail -n +2 /tmp/tl.csv | sed "s/^/$v,$s,$res,/" >>$T
             done
         done
