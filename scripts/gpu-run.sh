@@ -81,14 +81,20 @@ render() { # CSV SCENE ARGS... (env passes RAYBENCH_CUDA_*)
     row "$csv" "$rec"
     printf '%-16s %-34s %s\n' "$s" "$*" "$(printf '%s\n' "$rec" | grep -o 'render_ms=[^ ]*\|kernel_min_ms=[^ ]*\|mrays_per_s=[^ ]*\|regs=[^ ]*\|blocks_per_sm=[^ ]*' | tr '\n' ' ')"
 }
+# render, then the row gets LABEL as its first column: render_as LABEL CSV SCENE ARGS...
+render_as() {
+    local label=$1 csv=$2; shift
+    render "$@" && sed -i "\$s/^/$label,/" "$csv"
+}
 # A variant (VAR=VALUE pairs joined by '+', BLOCK=WxH, or base) -> render
-# with those variables exported: render_variant VARIANT CSV SCENE ARGS...
+# with those variables exported, the row labelled with the variant:
+# render_variant VARIANT CSV SCENE ARGS...
 render_variant() {
     local v=$1 csv=$2 s=$3 e blk=""; shift 3
     e=$(printf '%s' "$v" | sed 's/^base$//; s/+/ /g')
     case " $e " in *" BLOCK="*) blk=$(printf '%s' "$e" | sed 's/.*BLOCK=\([0-9x]*\).*/\1/'); e=$(printf '%s' "$e" | sed 's/BLOCK=[0-9x]*//') ;; esac
     ( for kv in $e; do export "${kv?}"; done
-      render "$csv" "$s" ${blk:+--block $blk} "$@" )
+      render_as "$v" "$csv" "$s" ${blk:+--block $blk} "$@" )
 }
 REPORT="dragon arm-reach bottle bottle-nolabel ShadowTest test_reasonable bear"
 
@@ -99,7 +105,7 @@ if has time; then
         for sched in persistent grid; do
             for minb in 1 2 3 4; do
                 RAYBENCH_CUDA_RUNS=21 RAYBENCH_CUDA_SCHED=$sched RAYBENCH_CUDA_MINB=$minb \
-                    render /tmp/t.csv $s --accel bvh && sed -i "\$s/^/bvh-$sched-minb$minb,/" /tmp/t.csv
+                    render_as "bvh-$sched-minb$minb" /tmp/t.csv $s --accel bvh
             done
         done
         RAYBENCH_CUDA_RUNS=9 render /tmp/t.csv $s --accel none && sed -i '$s/^/none-default,/' /tmp/t.csv
@@ -114,8 +120,7 @@ if has blocks; then
     for s in dragon arm-reach bottle test_reasonable ShadowTest; do
         for blk in 8x4 8x8 16x8 16x16 32x4 32x8 32x16 32x32 64x4 64x8 128x1 256x1 512x1 1024x1 4x8 13x7; do
             for sched in persistent grid; do
-                RAYBENCH_CUDA_RUNS=15 RAYBENCH_CUDA_SCHED=$sched render /tmp/b.csv $s --accel bvh --block $blk \
-                    && sed -i "\$s/^/$sched,/" /tmp/b.csv
+                RAYBENCH_CUDA_RUNS=15 RAYBENCH_CUDA_SCHED=$sched render_as "$sched" /tmp/b.csv $s --accel bvh --block $blk
             done
         done
     done
@@ -126,8 +131,7 @@ if has big; then
     echo "== big: the dragon at 3840x2160"
     T=$OUT/timings.csv; [ -s $T ] || header | sed 's/^/variant,/' >$T
     for minb in 1 2 3 4; do
-        RAYBENCH_CUDA_RUNS=11 RAYBENCH_CUDA_MINB=$minb render /tmp/t.csv dragon --accel bvh -r 3840x2160 \
-            && sed -i "\$s/^/4k-bvh-minb$minb,/" /tmp/t.csv
+        RAYBENCH_CUDA_RUNS=11 RAYBENCH_CUDA_MINB=$minb render_as "4k-bvh-minb$minb" /tmp/t.csv dragon --accel bvh -r 3840x2160
     done
     RAYBENCH_CUDA_RUNS=11 render /tmp/t.csv arm-reach --accel bvh -r 3840x2160 && sed -i '$s/^/4k-bvh,/' /tmp/t.csv
     RAYBENCH_CUDA_RUNS=1 render /tmp/t.csv dragon --accel none -r 3840x2160 && sed -i '$s/^/4k-none,/' /tmp/t.csv
@@ -150,16 +154,14 @@ if has exp; then
             for trav in shared ldg; do
                 for minb in 1 2 3; do
                     RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=21 RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_MINB=$minb \
-                        render /tmp/t.csv $s --accel bvh && sed -i "\$s/^/exp-$fl-$trav-minb$minb,/" /tmp/t.csv
+                        render_as "exp-$fl-$trav-minb$minb" /tmp/t.csv $s --accel bvh
                 done
                 RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=21 RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_WARMUP_MS=0 \
-                    render /tmp/t.csv $s --accel bvh && sed -i "\$s/^/exp-$fl-$trav-minb1-nowarm,/" /tmp/t.csv
+                    render_as "exp-$fl-$trav-minb1-nowarm" /tmp/t.csv $s --accel bvh
             done
         done
-        RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=11 RAYBENCH_CUDA_TRAVERSAL=ldg render /tmp/t.csv dragon --accel bvh -r 3840x2160 \
-            && sed -i "\$s/^/exp-4k-$fl-ldg1,/" /tmp/t.csv
-        RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=5 RAYBENCH_CUDA_TRAVERSAL=ldg render /tmp/t.csv dragon --accel none \
-            && sed -i "\$s/^/exp-none-$fl-ldg1,/" /tmp/t.csv
+        RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=11 RAYBENCH_CUDA_TRAVERSAL=ldg render_as "exp-4k-$fl-ldg1" /tmp/t.csv dragon --accel bvh -r 3840x2160
+        RT=$bd/renderer/raytrace RAYBENCH_CUDA_RUNS=5 RAYBENCH_CUDA_TRAVERSAL=ldg render_as "exp-none-$fl-ldg1" /tmp/t.csv dragon --accel none
         # correctness of the variant with this build (dragon, bottle, spheres2)
         for sc in InterestingScenes/dragon InterestingScenes/bottle SphereExamples/spheres2; do
             RAYBENCH_CUDA_TRAVERSAL=ldg GPU_CHECK_BLOCKS="bvh:8x8 bvh:32x32" tests/gpu/gpu_check.sh $bd/renderer/raytrace \
@@ -180,14 +182,14 @@ if has tune; then
             for co in -1 0; do
                 for blk in 16x16 8x8 4x8; do
                     RAYBENCH_CUDA_ORDER=$order RAYBENCH_CUDA_CARVEOUT=$co RAYBENCH_CUDA_RUNS=21 \
-                        render /tmp/t.csv $s --accel bvh --block $blk && sed -i "\$s/^/$order-c$co-$blk,/" /tmp/t.csv
+                        render_as "$order-c$co-$blk" /tmp/t.csv $s --accel bvh --block $blk
                 done
             done
         done
     done
     for s in dragon arm-reach; do
         for r in 128x96 256x192 512x384 800x600 1024x768 2048x1536; do
-            RAYBENCH_CUDA_RUNS=11 render /tmp/t.csv $s --accel bvh -r $r && sed -i "\$s/^/size-$r,/" /tmp/t.csv
+            RAYBENCH_CUDA_RUNS=11 render_as "size-$r" /tmp/t.csv $s --accel bvh -r $r
         done
     done
     cat /tmp/t.csv >>$T; rm -f /tmp/t.csv
@@ -204,7 +206,7 @@ if has trav; then
             for minb in 1 2 3 4; do
                 for blk in 16x16 8x8 4x8; do
                     RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_MINB=$minb RAYBENCH_CUDA_RUNS=21 \
-                        render /tmp/t.csv $s --accel bvh --block $blk && sed -i "\$s/^/$trav-minb$minb-$blk,/" /tmp/t.csv
+                        render_as "$trav-minb$minb-$blk" /tmp/t.csv $s --accel bvh --block $blk
                 done
             done
         done
@@ -212,8 +214,8 @@ if has trav; then
     for s in dragon arm-reach; do
         for trav in wide ldg; do
             for minb in 1 4; do
-                RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_MINB=$minb RAYBENCH_CUDA_RUNS=11 render /tmp/t.csv $s --accel bvh \
-                    --block 8x8 -r 3840x2160 && sed -i "\$s/^/4k-$trav-minb$minb-8x8,/" /tmp/t.csv
+                RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_MINB=$minb RAYBENCH_CUDA_RUNS=11 render_as "4k-$trav-minb$minb-8x8" /tmp/t.csv $s --accel bvh \
+                    --block 8x8 -r 3840x2160
             done
         done
     done
@@ -238,8 +240,8 @@ if has ab; then
     A=$OUT/ab.csv; header | sed 's/^/variant,/' >$A
     for rep in 1 2 3; do
         for s in $REPORT; do
-            RT=$OLDRT render /tmp/a.csv $s && sed -i '$s/^/before,/' /tmp/a.csv
-            render /tmp/a.csv $s && sed -i '$s/^/after,/' /tmp/a.csv
+            RT=$OLDRT render_as before /tmp/a.csv $s
+            render_as after /tmp/a.csv $s
         done
     done
     cat /tmp/a.csv >>$A; rm -f /tmp/a.csv
@@ -252,7 +254,7 @@ if has vars; then
             for res in "" 128x96; do
                 [ -n "$res" ] && [ "${GPU_VARS_SMALL:-}" != all ] && [ $s != dragon ] && [ $s != arm-reach ] && continue
                 for v in ${GPU_VARIANTS:-base}; do
-                    render_variant "$v" /tmp/v.csv $s ${res:+-r $res} && sed -i "\$s/^/$v,/" /tmp/v.csv
+                    render_variant "$v" /tmp/v.csv $s ${res:+-r $res}
                 done
             done
         done
