@@ -304,6 +304,10 @@ static void widen_fill(Widen *w, uint32_t wi, const uint32_t *cand, int nc)
             o->hi_x[k] = c->hi[0]; o->hi_y[k] = c->hi[1]; o->hi_z[k] = c->hi[2];
             o->child[k] = refs[k];
         } else {
+            /* An empty slot's box is inside out (lo = +inf, hi = -inf): the
+             * traversal's slab test misses it without looking at the child. */
+            o->lo_x[k] = o->lo_y[k] = o->lo_z[k] = INFINITY;
+            o->hi_x[k] = o->hi_y[k] = o->hi_z[k] = -INFINITY;
             o->child[k] = RT_WIDE_EMPTY;
         }
     }
@@ -475,6 +479,9 @@ static int wide_check(const RtAccel *a, RtError *err)
             if (k >= n->count) {
                 if (c != RT_WIDE_EMPTY)
                     rc = rt_fail(err, "BVH check: wide node %u: child slot %u past its count is used", e.node, k);
+                else if (!(n->lo_x[k] == INFINITY && n->lo_y[k] == INFINITY && n->lo_z[k] == INFINITY &&
+                           n->hi_x[k] == -INFINITY && n->hi_y[k] == -INFINITY && n->hi_z[k] == -INFINITY))
+                    rc = rt_fail(err, "BVH check: wide node %u: empty slot %u has a box", e.node, k);
                 continue;
             }
             const float lo[3] = {n->lo_x[k], n->lo_y[k], n->lo_z[k]}, hi[3] = {n->hi_x[k], n->hi_y[k], n->hi_z[k]};
