@@ -244,6 +244,21 @@ static void test_bvh_check_catches(void)
         a.wide[i].hi_x[0] = saved;
         break;
     }
+    /* an empty slot must hold an inside-out box: the traversal's slab test
+     * misses it without looking at the child */
+    int empty_seen = 0;
+    for (uint32_t i = 0; i < a.nwide && !empty_seen; i++)
+        if (a.wide[i].count < 4) {
+            const uint32_t k = a.wide[i].count;
+            CHECK(a.wide[i].lo_x[k] == INFINITY && a.wide[i].hi_z[k] == -INFINITY, "empty slot %u of node %u: box", k, i);
+            float saved = a.wide[i].lo_y[k];
+            a.wide[i].lo_y[k] = 0.0f;
+            CHECK(rt_bvh_check(&a, &e) != 0, "empty wide slot with a box not caught");
+            a.wide[i].lo_y[k] = saved;
+            CHECK(rt_bvh_check(&a, &e) == 0, "restored wide tree refused: %s", e.msg);
+            empty_seen = 1;
+        }
+    CHECK(empty_seen, "the wide tree of a 100-primitive scene has a node with an empty slot");
     a.nodes[0].hi[0] = a.nodes[0].lo[0]; /* children now stick out */
     CHECK(rt_bvh_check(&a, &e) != 0, "child outside parent not caught");
     rt_accel_free(&a);
