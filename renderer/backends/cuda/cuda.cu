@@ -43,14 +43,15 @@
  *   shared: the shared binary traversal as the CPU runs it.
  * The shared binary traversal is compiled under another name, and rt_shade.h
  * -- included next, unchanged -- then calls the dispatcher below. */
-/* The wide traversal's leaf vote (RT_WIDE_LEAF_VOTE, rt_traverse.h),
- * RAYBENCH_CUDA_SPEC: 1 (default) a lane that has put a leaf aside goes on
- * through inner nodes until every active lane of its warp has one; 0 every
- * lane tests its leaf at once. Measured with the vote for closest-hit rays
- * only, too: slower than for every ray (docs/gpu.md). */
-__constant__ int rt_cuda_spec;
+/* The wide traversal's leaf vote (RT_WIDE_LEAF_VOTE, rt_traverse.h): a lane
+ * that has put a leaf aside goes on through inner nodes until every active
+ * lane of its warp has one. Always on: as a switch read from constant memory
+ * (RAYBENCH_CUDA_SPEC=0|1, until the sixth round) the vote's branch cost
+ * 2-14% of kernel time, and testing each leaf at once had measured slower
+ * (docs/gpu.md). Measured with the vote for closest-hit rays only, too:
+ * slower than for every ray. */
 #if defined(__CUDA_ARCH__)
-#define RT_WIDE_LEAF_VOTE(has_leaf, any) (rt_cuda_spec ? __all_sync(__activemask(), (has_leaf)) : (has_leaf))
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) __all_sync(__activemask(), (has_leaf))
 #endif
 
 #define rt_trace_ray rt_trace_ray_shared
@@ -188,8 +189,6 @@ enum { RT_ORDER_TILES = 0, RT_ORDER_SCATTER = 1, RT_ORDER_ORACLE = 2, RT_ORDER_C
 #define RT_CUDA_DEFAULT_ORDER RT_ORDER_TILES
 /* The default traversal: the 4-wide tree (docs/gpu.md). */
 #define RT_CUDA_DEFAULT_TRAVERSAL RT_TRAV_WIDE
-/* Speculative leaf postponing in the wide traversal (rt_cuda_spec). */
-#define RT_CUDA_DEFAULT_SPEC 1
 /* Timed launches stop once they have used this much kernel time in total, so a
  * brute-force render of a large image does not run 21 times. */
 #define RT_CUDA_TIME_BUDGET_MS 4000.0
@@ -909,6 +908,17 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * on (docs/gpu.md, "Fifth round"). */
     minb = rt_cuda_env_int("RAYBENCH_CUDA_MINB", 1, 4, RT_CUDA_DEFAULT_MINB);
     {
+        /* The leaf vote is compiled in (RT_WIDE_LEAF_VOTE above); the record
+         * keeps saying spec=1. */
+        const char *se = getenv("RAYBENCH_CUDA_SPEC");
+        if (se && *se && strcmp(se, "1") != 0) {
+            rt_fail(err, "RAYBENCH_CUDA_SPEC=%s: only 1 is left (the wide traversal always postpones leaves; "
+                         "docs/gpu.md, \"Sixth round\")", se);
+            goto fail;
+        }
+        spec = 1;
+    }
+    {
         const char *pe = getenv("RAYBENCH_CUDA_PAIRS");
         const int can = !persistent && bx % 2 == 0 && threads % 32 == 0;
         if (pe && *pe && strcmp(pe, "auto") != 0) {
@@ -1070,8 +1080,6 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
             traversal = RT_TRAV_LDG; /* brute force, or no wide tree */
     }
     RT_CUDA_CHECK(cudaMemcpyToSymbol(rt_cuda_traversal, &traversal, sizeof traversal));
-    spec = rt_cuda_env_int("RAYBENCH_CUDA_SPEC", 0, 1, RT_CUDA_DEFAULT_SPEC);
-    RT_CUDA_CHECK(cudaMemcpyToSymbol(rt_cuda_spec, &spec, sizeof spec));
     RT_CUDA_CHECK(cudaEventCreate(&ev0));
     RT_CUDA_CHECK(cudaEventCreate(&ev1));
     max_runs = rt_cuda_env_int("RAYBENCH_CUDA_RUNS", 1, 64, RT_CUDA_DEFAULT_RUNS);
