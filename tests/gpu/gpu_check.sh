@@ -16,7 +16,11 @@
 #          16x16, and cuda+none in 16x16 and 32x32;
 #   bvh    cuda+bvh in 16x16 and 32x32 only (scenes whose brute force is slow);
 #   nogpu  expects `--backend cuda` to fail with one line and exit 1 (the
-#          CI machine has no GPU); skipped where a GPU is present.
+#          CI machine has no GPU); skipped where a GPU is present;
+#   badenv expects each measurement variable given a value it refuses
+#          (RAYBENCH_CUDA_SPEC=0, RAYBENCH_CUDA_PAIRS=2, pairs in a block of
+#          an odd width, a timeline file that cannot be written) to fail with
+#          one line and exit 1, writing no image.
 # SCENE is Group/name under SCENE_DIR (the course scenes, e.g.
 # InterestingScenes/dragon). Exit 77 (Meson's "skipped") without a GPU, or
 # when the course scenes are not beside the checkout. GPU_CHECK_CSV=FILE
@@ -42,6 +46,23 @@ fi
 
 if ! have_gpu; then echo "SKIP: no GPU (nvidia-smi finds none)"; exit 77; fi
 [ -d "$DIR" ] || { echo "SKIP: no course scenes at $DIR"; exit 77; }
+
+if [ "$MODE" = badenv ]; then
+    fail=0
+    out=/tmp/gpu_check_badenv.$$.ppm
+    for case in "RAYBENCH_CUDA_SPEC=0|8x8" "RAYBENCH_CUDA_PAIRS=2|8x8" "RAYBENCH_CUDA_PAIRS=1|7x8" \
+                "RAYBENCH_CUDA_TIMELINE=/nonexistent-dir/t.csv|8x8"; do
+        kv=${case%|*}; blk=${case#*|}
+        rm -f "$out"
+        msg=$(env "$kv" "$RT" -q --backend cuda --block "$blk" -o "$out" "$DIR/$1.txt" 2>&1 >/dev/null)
+        rc=$?
+        lines=$(printf '%s\n' "$msg" | wc -l)
+        echo "$kv --block $blk: exit $rc, $lines line(s): $msg"
+        if [ -e "$out" ]; then echo "FAIL: $kv: an image was written"; rm -f "$out"; fail=1; fi
+        [ "$rc" -eq 1 ] && [ "$lines" -eq 1 ] && [ -n "$msg" ] || { echo "FAIL: $kv: expected one line and exit 1"; fail=1; }
+    done
+    exit $fail
+fi
 
 TMP=$(mktemp -d) || exit 1
 trap 'rm -rf "$TMP"' EXIT
