@@ -47,7 +47,8 @@
  * that has put a leaf aside goes on through inner nodes until every active
  * lane of its warp has one. Always on: as a switch read from constant memory
  * (RAYBENCH_CUDA_SPEC=0|1, until the sixth round) the vote's branch cost
- * 2-14% of kernel time, and testing each leaf at once had measured slower
+ * up to 14% of kernel time (0-2% at the course sizes), and testing each leaf
+ * at once had measured slower
  * (docs/gpu.md). Measured with the vote for closest-hit rays only, too:
  * slower than for every ray. */
 #if defined(__CUDA_ARCH__)
