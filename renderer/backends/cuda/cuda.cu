@@ -46,11 +46,10 @@
 /* The wide traversal's leaf vote (RT_WIDE_LEAF_VOTE, rt_traverse.h): a lane
  * that has put a leaf aside goes on through inner nodes until every active
  * lane of its warp has one. Always on: as a switch read from constant memory
- * (RAYBENCH_CUDA_SPEC=0|1, until the sixth round) the vote's branch cost
- * up to 14% of kernel time (0-2% at the course sizes), and testing each leaf
- * at once had measured slower
- * (docs/gpu.md). Measured with the vote for closest-hit rays only, too:
- * slower than for every ray. */
+ * (RAYBENCH_CUDA_SPEC=0|1, until the sixth round) the vote's branch cost up
+ * to 14% of kernel time (0-2% at the course sizes), and testing each leaf at
+ * once had measured slower (docs/gpu.md). Measured with the vote for
+ * closest-hit rays only, too: slower than for every ray. */
 #if defined(__CUDA_ARCH__)
 #define RT_WIDE_LEAF_VOTE(has_leaf, any) __all_sync(__activemask(), (has_leaf))
 #endif
@@ -183,9 +182,10 @@ extern "C" {
 #define RT_CUDA_DEFAULT_WARMUP_MS 50
 /* Register cap of the default kernel: 65536 / (256 * MINB) registers per thread. */
 #define RT_CUDA_DEFAULT_MINB 1
-/* Chunk order of the persistent schedule (RAYBENCH_CUDA_ORDER): row-major
- * tiles, scattered tiles, or the oracle order (a measurement only:
- * rt_cuda_oracle_order). */
+/* Work order (RAYBENCH_CUDA_ORDER): row-major tiles; scattered tiles
+ * (persistent schedule); tiles by leaf coverage (grid schedule,
+ * rt_cover_order_kernel); or the oracle order (either schedule, a
+ * measurement only: rt_cuda_oracle_order). */
 enum { RT_ORDER_TILES = 0, RT_ORDER_SCATTER = 1, RT_ORDER_ORACLE = 2, RT_ORDER_COVER = 3 };
 #define RT_CUDA_DEFAULT_ORDER RT_ORDER_TILES
 /* The default traversal: the 4-wide tree (docs/gpu.md). */
@@ -230,8 +230,6 @@ typedef struct RtCudaChunk {
     int32_t x, y; /* the pixel of the warp's first lane */
     uint32_t pairs, pad;
 } RtCudaChunk;
-
-
 
 enum { RT_NCOUNTERS = 5 }; /* fields of RtCounters, all uint64_t, in order */
 
@@ -753,6 +751,23 @@ static int rt_cuda_env_int(const char *name, int lo, int hi, int def)
     return (*end == '\0' && v >= lo && v <= hi) ? (int)v : def;
 }
 
+/* The n chunk records of a recorded launch, downloaded into a malloc'd
+ * array (the caller frees it); NULL after an error message. */
+static RtCudaChunk *rt_cuda_download_chunks(const unsigned char *dchunks, uint32_t n, const char *what, RtError *err)
+{
+    RtCudaChunk *rec = (RtCudaChunk *)malloc((size_t)n * sizeof *rec);
+    if (!rec) {
+        rt_fail(err, "cuda: out of memory for the %s of %u chunks", what, n);
+        return NULL;
+    }
+    if (cudaMemcpy(rec, dchunks, (size_t)n * sizeof *rec, cudaMemcpyDeviceToHost) != cudaSuccess) {
+        free(rec);
+        rt_fail(err, "cuda: download of the chunk records for the %s failed", what);
+        return NULL;
+    }
+    return rec;
+}
+
 static const unsigned long long *rt_cuda_sort_cost;
 static int rt_cuda_cmp_cost(const void *a, const void *b)
 {
@@ -772,13 +787,12 @@ static int rt_cuda_oracle_order(const unsigned char *dchunks, unsigned char *dor
      * chunk. */
     int ok = 0;
     const uint32_t units = n / per_unit;
-    RtCudaChunk *rec = (RtCudaChunk *)malloc((size_t)n * sizeof *rec);
+    RtCudaChunk *rec = rt_cuda_download_chunks(dchunks, n, "oracle order", err);
     unsigned long long *cost = (unsigned long long *)calloc((size_t)units, sizeof *cost);
     uint32_t *order = (uint32_t *)malloc((size_t)units * sizeof *order);
     if (!rec || !cost || !order) {
-        rt_fail(err, "cuda: out of memory for the oracle order of %u chunks", n);
-    } else if (cudaMemcpy(rec, dchunks, (size_t)n * sizeof *rec, cudaMemcpyDeviceToHost) != cudaSuccess) {
-        rt_fail(err, "cuda: download of the chunk times failed");
+        if (rec) /* (without rec, the download has said why) */
+            rt_fail(err, "cuda: out of memory for the oracle order of %u chunks", n);
     } else {
         for (uint32_t i = 0; i < units; i++)
             order[i] = i;
@@ -804,13 +818,9 @@ static int rt_cuda_oracle_order(const unsigned char *dchunks, unsigned char *dor
  * start and end in ns from the launch's first chunk, traversal steps. */
 static int rt_cuda_write_timeline(const char *path, const unsigned char *dchunks, uint32_t n, RtError *err)
 {
-    RtCudaChunk *rec = (RtCudaChunk *)malloc((size_t)n * sizeof *rec);
+    RtCudaChunk *rec = rt_cuda_download_chunks(dchunks, n, "timeline", err);
     if (!rec)
-        return rt_fail(err, "cuda: out of memory for the timeline of %u chunks", n);
-    if (cudaMemcpy(rec, dchunks, (size_t)n * sizeof *rec, cudaMemcpyDeviceToHost) != cudaSuccess) {
-        free(rec);
-        return rt_fail(err, "cuda: download of the chunk records failed");
-    }
+        return -1;
     unsigned long long start = ~0ull;
     for (uint32_t i = 0; i < n; i++)
         if (rec[i].t1 && rec[i].t0 < start)
@@ -842,7 +852,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     const RtSceneView *hv = &job->view;
     const int w = hv->cam.width, h = hv->cam.height;
     const int dev = job->device;
-    int rc = -1, ndev = 0, traversal = 0, spec = 0, order_mode = 0, carveout = -1, warmup_ms = 0, warmups = 0;
+    int rc = -1, ndev = 0, traversal = 0, order_mode = 0, carveout = -1, warmup_ms = 0, warmups = 0;
     int blocks_per_sm = 0, nblocks = 0, runs = 0, max_runs = 0, pairs = 0, minb = 1;
     uint32_t nchunks = 0;
     size_t shmem = 0;
@@ -917,7 +927,6 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
                          "docs/gpu.md, \"Sixth round\")", se);
             goto fail;
         }
-        spec = 1;
     }
     {
         const char *pe = getenv("RAYBENCH_CUDA_PAIRS");
@@ -1195,10 +1204,10 @@ fail:
         cudaFree(arena);
     if (rc == 0) {
         snprintf(out->extra, sizeof out->extra,
-                 " block=%dx%d pairs=%d sched=%s order=%s carveout=%d traversal=%s spec=%d kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
+                 " block=%dx%d pairs=%d sched=%s order=%s carveout=%d traversal=%s spec=1 kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
                  "download_ms=%.3f wall_ms=%.3f regs=%d local_bytes=%zu bounds=%dx%d blocks_per_sm=%d grid=%d gpu=%s",
                  bx, by, pairs, persistent ? "persistent" : "grid", order_mode == RT_ORDER_ORACLE ? "oracle" : (order_mode == RT_ORDER_SCATTER ? "scatter" : (order_mode == RT_ORDER_COVER ? "cover" : "tiles")), carveout,
-                 traversal == RT_TRAV_WIDE ? "wide" : (traversal == RT_TRAV_LDG ? "ldg" : "shared"), spec, runs, times[0], warmups, first_ms, init_ms, upload_ms,
+                 traversal == RT_TRAV_WIDE ? "wide" : (traversal == RT_TRAV_LDG ? "ldg" : "shared"), runs, times[0], warmups, first_ms, init_ms, upload_ms,
                  download_ms, rt_now_ms() - t_wall0, fa.numRegs, (size_t)fa.localSizeBytes, variant->maxt, variant->minb,
                  blocks_per_sm, nblocks,
                  gpu);
