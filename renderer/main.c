@@ -443,7 +443,7 @@ agree:
            (unsigned long long)out.counters.secondary_rays, (unsigned long long)out.counters.node_visits,
            (unsigned long long)out.counters.prim_tests,
            out.render_ms > 0.0 ? (double)rays / (out.render_ms * 1000.0) : 0.0, (unsigned long long)hash, tw, th,
-           out.cores[0] ? out.cores : "unknown", accel.nprims, accel.nnodes, out.extra, calib_key);
+           out.cores[0] ? out.cores : "unknown", accel.nprims - accel.nsplit, accel.nnodes, out.extra, calib_key);
     fflush(stdout);
     rc = 0;
     goto done;

@@ -66,6 +66,8 @@ typedef struct RtAccel {
     RtAccelKind kind;
     RtPrim *prims;       /* nprims records; BVH order for bvh, index order for none */
     uint32_t nprims;
+    uint32_t nsplit;     /* records a spatial split added (a primitive in several
+                          * leaves): nprims - nsplit is the scene's count */
     RtBvhNode *nodes;    /* nnodes (0 for none) */
     uint32_t nnodes;
     RtBvh4Node *wide;    /* the 4-wide copy of nodes (NULL for none) */
@@ -76,8 +78,9 @@ typedef struct RtAccel {
 
 int rt_accel_build(const RtScene *scene, RtAccelKind kind, RtAccel *accel, RtError *err);
 void rt_accel_free(RtAccel *accel);
-/* Checks the BVH invariants: every primitive referenced exactly once, leaves
- * of 1..4 primitives, children inside parents, depth-first layout. */
+/* Checks the BVH invariants: every record slot in exactly one leaf, every
+ * primitive in at least one slot, leaves of 1..4 records, children inside
+ * parents, depth-first layout. */
 int rt_bvh_check(const RtAccel *accel, RtError *err);
 const char *rt_accel_name(RtAccelKind kind);
 int rt_accel_parse(const char *s, RtAccelKind *kind);

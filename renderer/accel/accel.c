@@ -1,11 +1,16 @@
-/* accel.c - primitive records, brute force ("none") and the binned-SAH BVH.
+/* accel.c - primitive records, brute force ("none") and the BVH.
  *
  * One build: binned SAH (Wald 2007, "On fast construction of SAH-based
  * bounding volume hierarchies"), 32 bins on the centroid bounds of every axis,
- * leaves of at most RT_BVH_LEAF_MAX primitives, nodes written depth-first so
- * the first child of node i is node i+1 (pbrt-v4 LinearBVHNode). Spheres and
- * triangles live in one tree. The primitive records are reordered into leaf
- * order so a leaf's primitives are contiguous in memory. */
+ * with spatial splits (Stich, Friedrich & Dietrich 2009): in large nodes
+ * whose best object split leaves overlapping children (RT_BVH_SPATIAL_*),
+ * 32 slabs of the node's box are tried as well, triangles cut at the slab
+ * planes, and the cheaper split wins; a cut triangle sits in several leaves
+ * (at most one extra record per primitive).
+ * Leaves of at most RT_BVH_LEAF_MAX records, nodes written depth-first so the
+ * first child of node i is node i+1 (pbrt-v4 LinearBVHNode). Spheres and
+ * triangles live in one tree. The primitive records are copied into leaf
+ * order so a leaf's records are contiguous in memory. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -17,6 +22,19 @@
 /* Below this many levels the SAH split is used; deeper, the object median,
  * which halves the count each level and so bounds the depth. */
 #define RT_BVH_SAH_DEPTH 44
+/* A subtree of at most this many records becomes one leaf of the 4-wide
+ * tree (its reference holds up to 8). */
+#ifndef RT_WIDE_MERGE
+#define RT_WIDE_MERGE 4
+#endif
+/* Spatial splits are tried in nodes of at least this many references whose
+ * best object split leaves children overlapping by more than this fraction
+ * of the node's surface area. (Against trying them in every node of 32 or
+ * more with any overlap: the slowest 32-pixel chunk of the dragon takes 405
+ * steps instead of 404 in the CPU model, and the build takes a third of the
+ * time, docs/gpu.md, "Seventh round".) */
+#define RT_BVH_SPATIAL_MIN 128
+#define RT_BVH_SPATIAL_OVERLAP 0.1f
 
 typedef struct Box {
     float lo[3], hi[3];
@@ -49,6 +67,27 @@ static float box_area(const Box *b)
     if (dx < 0.0f || dy < 0.0f || dz < 0.0f)
         return 0.0f;
     return 2.0f * (dx * dy + dy * dz + dz * dx);
+}
+
+static int box_valid(const Box *b) { return b->lo[0] <= b->hi[0] && b->lo[1] <= b->hi[1] && b->lo[2] <= b->hi[2]; }
+
+static void box_pad(Box *b)
+{
+    /* A hair of padding so a hit on the box boundary is never lost to the
+     * rounding of the slab test. */
+    for (int i = 0; i < 3; i++) {
+        float pad = 1e-6f * (fabsf(b->lo[i]) + fabsf(b->hi[i])) + 1e-30f;
+        b->lo[i] -= pad;
+        b->hi[i] += pad;
+    }
+}
+
+static void box_clip(Box *b, const Box *o)
+{
+    for (int i = 0; i < 3; i++) {
+        b->lo[i] = b->lo[i] > o->lo[i] ? b->lo[i] : o->lo[i];
+        b->hi[i] = b->hi[i] < o->hi[i] ? b->hi[i] : o->hi[i];
+    }
 }
 
 const char *rt_accel_name(RtAccelKind k) { return k == RT_ACCEL_BVH ? "bvh" : "none"; }
@@ -118,150 +157,431 @@ static void prim_box(const RtScene *s, const RtPrim *p, Box *b)
     }
 }
 
+/* A reference: a primitive and the part of its box a node holds. Without
+ * spatial splits every reference is a whole primitive box; a spatial split
+ * cuts a reference in two at a plane, each half bounding the triangle's part
+ * on its side (Stich, Friedrich & Dietrich 2009, "Spatial splits in bounding
+ * volume hierarchies"). A primitive cut this way sits in several leaves. */
+typedef struct Ref {
+    Box box;
+    uint32_t prim; /* index into the primitive records (original order) */
+} Ref;
+
 typedef struct Builder {
-    const Box *boxes;   /* per original primitive */
-    const float *cent;  /* 3 per original primitive */
-    uint32_t *idx;      /* permutation being partitioned */
+    const RtScene *scene;
+    const RtPrim *prims;  /* original order */
+    const float (*verts)[3][3]; /* per primitive: a triangle's vertices */
     RtBvhNode *nodes;
-    uint32_t nnodes, cap;
+    uint32_t nnodes;
+    uint32_t *order;      /* leaf order: the primitive of each record slot */
+    uint32_t norder;
+    uint32_t refs_left;   /* references spatial splits may still add */
     uint32_t max_depth, leaves;
+    int oom;
 } Builder;
 
-/* qsort context for the median fallback (the build is single-threaded). */
-static const float *sort_cent;
-static int sort_axis;
-static int cmp_cent(const void *x, const void *y)
+/* The best split of a node found so far. */
+static float ref_cent(const Ref *r, int a) { return 0.5f * (r->box.lo[a] + r->box.hi[a]); }
+
+typedef struct Split {
+    float cost;       /* SAH numerator: area(left) * n(left) + area(right) * n(right) */
+    int axis;         /* -1: none */
+    int spatial;      /* 0: object split by centroid bin; 1: spatial split at pos */
+    int bin, nbins;   /* object split: left holds centroid bins 0..bin of nbins */
+    float pos;        /* spatial split: the plane */
+    Box left, right;  /* object split: the children's boxes */
+} Split;
+
+/* Cuts reference r at the plane x[axis] = pos: the boxes of the triangle's
+ * parts on either side (its vertices there and its edges' crossings of the
+ * plane), padded and clipped to r's box. A sphere keeps its box, cut at the
+ * plane. A side the primitive does not reach comes back invalid. */
+static void ref_split(const Builder *b, const Ref *r, int axis, float pos, Box *L, Box *R)
 {
-    float a = sort_cent[3 * *(const uint32_t *)x + sort_axis], c = sort_cent[3 * *(const uint32_t *)y + sort_axis];
+    const RtPrim *p = &b->prims[r->prim];
+    if (p->id & RT_PRIM_SPHERE_BIT) {
+        *L = r->box;
+        *R = r->box;
+    } else {
+        const float(*v)[3] = b->verts[r->prim];
+        box_empty(L);
+        box_empty(R);
+        for (int k = 0; k < 3; k++) {
+            const float *a = v[k], *c = v[(k + 1) % 3];
+            if (a[axis] <= pos)
+                box_grow_pt(L, a);
+            if (a[axis] >= pos)
+                box_grow_pt(R, a);
+            if ((a[axis] < pos && c[axis] > pos) || (a[axis] > pos && c[axis] < pos)) {
+                float s = (pos - a[axis]) / (c[axis] - a[axis]), q[3];
+                for (int i = 0; i < 3; i++)
+                    q[i] = a[i] + s * (c[i] - a[i]);
+                q[axis] = pos;
+                box_grow_pt(L, q);
+                box_grow_pt(R, q);
+            }
+        }
+        if (box_valid(L))
+            box_pad(L);
+        if (box_valid(R))
+            box_pad(R);
+    }
+    float pad = 1e-6f * fabsf(pos) + 1e-30f;
+    if (L->hi[axis] > pos + pad)
+        L->hi[axis] = pos + pad;
+    if (R->lo[axis] < pos - pad)
+        R->lo[axis] = pos - pad;
+    box_clip(L, &r->box);
+    box_clip(R, &r->box);
+}
+
+/* Sweeps nb bins (boxes, and counts entering from the left and right) for
+ * the cheapest plane between two bins; updates *best when cheaper. */
+static void sweep(const Box *bins, const uint32_t *lcnt, const uint32_t *rcnt, int nb, int axis, Split *best,
+                  int spatial)
+{
+    Box rbox[RT_BVH_BINS], acc;
+    uint32_t rsum[RT_BVH_BINS], c = 0;
+    box_empty(&acc);
+    for (int k = nb - 1; k > 0; k--) {
+        box_grow(&acc, &bins[k]);
+        c += rcnt[k];
+        rbox[k] = acc;
+        rsum[k] = c;
+    }
+    box_empty(&acc);
+    c = 0;
+    for (int k = 0; k < nb - 1; k++) {
+        box_grow(&acc, &bins[k]);
+        c += lcnt[k];
+        if (c == 0 || rsum[k + 1] == 0)
+            continue;
+        float cost = box_area(&acc) * (float)c + box_area(&rbox[k + 1]) * (float)rsum[k + 1];
+        if (cost < best->cost) {
+            best->cost = cost;
+            best->axis = axis;
+            best->spatial = spatial;
+            best->bin = k;
+            best->nbins = nb;
+            best->left = acc;
+            best->right = rbox[k + 1];
+        }
+    }
+}
+
+/* Binned SAH over the references' centroids (cb: their bounds). */
+static void object_split(const Ref *refs, uint32_t count, const Box *cb, int nb, Split *best)
+{
+    for (int a = 0; a < 3; a++) {
+        float w = cb->hi[a] - cb->lo[a];
+        if (!(w > 0.0f))
+            continue;
+        float scale = (float)nb / w;
+        Box bins[RT_BVH_BINS];
+        uint32_t cnt[RT_BVH_BINS];
+        for (int k = 0; k < nb; k++) {
+            box_empty(&bins[k]);
+            cnt[k] = 0;
+        }
+        for (uint32_t i = 0; i < count; i++) {
+            int k = (int)((ref_cent(&refs[i], a) - cb->lo[a]) * scale);
+            k = k < 0 ? 0 : (k >= nb ? nb - 1 : k);
+            cnt[k]++;
+            box_grow(&bins[k], &refs[i].box);
+        }
+        sweep(bins, cnt, cnt, nb, a, best, 0);
+    }
+}
+
+/* Grows bins k0..k1 (slab k between the planes lo + k/scale and
+ * lo + (k+1)/scale on axis a) by the parts of triangle v in each slab,
+ * clipped to the reference's box r: the vertices in the slab and the edges'
+ * crossings of its planes. (Estimates for the SAH sweep; the partition cuts
+ * with ref_split.) */
+static void chop(const float (*v)[3], const Box *r, int a, float lo, float scale, int k0, int k1, Box *bins)
+{
+    Box part[RT_BVH_BINS];
+    for (int k = k0; k <= k1; k++)
+        box_empty(&part[k]);
+    int kv[3];
+    for (int j = 0; j < 3; j++) {
+        int k = (int)((v[j][a] - lo) * scale);
+        kv[j] = k < k0 ? k0 : (k > k1 ? k1 : k);
+        box_grow_pt(&part[kv[j]], v[j]);
+    }
+    for (int j = 0; j < 3; j++) {
+        int j2 = (j + 1) % 3;
+        const float *p = v[j], *q = v[j2];
+        int kp = kv[j], kq = kv[j2];
+        if (kp > kq) {
+            const float *t = p; p = q; q = t;
+            int tk = kp; kp = kq; kq = tk;
+        }
+        float dpa = q[a] - p[a];
+        for (int k = kp; k < kq; k++) {
+            float plane = lo + (float)(k + 1) / scale, x[3];
+            float t = dpa > 0.0f ? (plane - p[a]) / dpa : 0.0f;
+            t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
+            for (int i = 0; i < 3; i++)
+                x[i] = p[i] + t * (q[i] - p[i]);
+            x[a] = plane;
+            box_grow_pt(&part[k], x);
+            box_grow_pt(&part[k + 1], x);
+        }
+    }
+    for (int k = k0; k <= k1; k++) {
+        box_clip(&part[k], r);
+        if (box_valid(&part[k]))
+            box_grow(&bins[k], &part[k]);
+    }
+}
+
+/* Binned spatial split: nb equal slabs of the node's box bb per axis; a
+ * reference is cut into every slab it spans and counted entering its first
+ * and leaving its last. */
+static void spatial_split(const Builder *b, const Ref *refs, uint32_t count, const Box *bb, int nb, Split *best)
+{
+    for (int a = 0; a < 3; a++) {
+        float w = bb->hi[a] - bb->lo[a];
+        if (!(w > 0.0f))
+            continue;
+        float scale = (float)nb / w;
+        Box bins[RT_BVH_BINS];
+        uint32_t enter[RT_BVH_BINS], leave[RT_BVH_BINS];
+        for (int k = 0; k < nb; k++) {
+            box_empty(&bins[k]);
+            enter[k] = leave[k] = 0;
+        }
+        for (uint32_t i = 0; i < count; i++) {
+            int k0 = (int)((refs[i].box.lo[a] - bb->lo[a]) * scale);
+            int k1 = (int)((refs[i].box.hi[a] - bb->lo[a]) * scale);
+            k0 = k0 < 0 ? 0 : (k0 >= nb ? nb - 1 : k0);
+            k1 = k1 < k0 ? k0 : (k1 >= nb ? nb - 1 : k1);
+            enter[k0]++;
+            leave[k1]++;
+            if (k0 == k1 || (b->prims[refs[i].prim].id & RT_PRIM_SPHERE_BIT))
+                for (int k = k0; k <= k1; k++) {
+                    Box part = refs[i].box;
+                    part.lo[a] = k > k0 ? bb->lo[a] + (float)k / scale : part.lo[a];
+                    part.hi[a] = k < k1 ? bb->lo[a] + (float)(k + 1) / scale : part.hi[a];
+                    box_grow(&bins[k], &part);
+                }
+            else
+                chop(b->verts[refs[i].prim], &refs[i].box, a, bb->lo[a], scale, k0, k1, bins);
+        }
+        Split s = *best;
+        sweep(bins, enter, leave, nb, a, &s, 1);
+        if (s.cost < best->cost) {
+            *best = s;
+            best->pos = bb->lo[a] + (float)(best->bin + 1) / scale;
+        }
+    }
+}
+
+/* Partitions refs by the spatial split s into left and right; a reference
+ * that straddles the plane is cut in two, or goes whole to one side when
+ * that is cheaper ("reference unsplitting"). Returns 0 when the split
+ * separates nothing, cuts every reference, or would exceed the reference
+ * budget. */
+static int spatial_partition(Builder *b, const Ref *refs, uint32_t count, const Split *s, Ref *left,
+                             uint32_t *nl_out, Ref *right, uint32_t *nr_out)
+{
+    int a = s->axis;
+    Box lb, rb;
+    box_empty(&lb);
+    box_empty(&rb);
+    uint32_t sure_l = 0, sure_r = 0;
+    for (uint32_t i = 0; i < count; i++) {
+        if (refs[i].box.hi[a] <= s->pos) {
+            box_grow(&lb, &refs[i].box);
+            sure_l++;
+        } else if (refs[i].box.lo[a] >= s->pos) {
+            box_grow(&rb, &refs[i].box);
+            sure_r++;
+        }
+    }
+    float nl_all = (float)(count - sure_r), nr_all = (float)(count - sure_l);
+    uint32_t nl = 0, nr = 0;
+    for (uint32_t i = 0; i < count; i++) {
+        const Ref *r = &refs[i];
+        if (r->box.hi[a] <= s->pos) {
+            left[nl++] = *r;
+            continue;
+        }
+        if (r->box.lo[a] >= s->pos) {
+            right[nr++] = *r;
+            continue;
+        }
+        Box L, R;
+        ref_split(b, r, a, s->pos, &L, &R);
+        int side = 0; /* 0: cut, 1: whole to the left, 2: whole to the right */
+        if (!box_valid(&L)) {
+            side = 2;
+        } else if (!box_valid(&R)) {
+            side = 1;
+        } else {
+            Box lu = lb, ru = rb, lc = lb, rc = rb;
+            box_grow(&lu, &r->box);
+            box_grow(&ru, &r->box);
+            box_grow(&lc, &L);
+            box_grow(&rc, &R);
+            float cut = box_area(&lc) * nl_all + box_area(&rc) * nr_all;
+            float to_l = box_area(&lu) * nl_all + box_area(&rb) * (nr_all - 1.0f);
+            float to_r = box_area(&lb) * (nl_all - 1.0f) + box_area(&ru) * nr_all;
+            if (to_l < cut && to_l <= to_r)
+                side = 1;
+            else if (to_r < cut)
+                side = 2;
+        }
+        if (side == 1) {
+            left[nl++] = *r;
+            box_grow(&lb, &r->box);
+            nr_all -= 1.0f;
+        } else if (side == 2) {
+            right[nr++] = *r;
+            box_grow(&rb, &r->box);
+            nl_all -= 1.0f;
+        } else {
+            left[nl] = *r;
+            left[nl++].box = L;
+            right[nr] = *r;
+            right[nr++].box = R;
+            box_grow(&lb, &L);
+            box_grow(&rb, &R);
+        }
+    }
+    /* (a split that cuts every reference only doubles them) */
+    if (nl == 0 || nr == 0 || (nl == count && nr == count) || nl + nr - count > b->refs_left)
+        return 0;
+    b->refs_left -= nl + nr - count;
+    *nl_out = nl;
+    *nr_out = nr;
+    return 1;
+}
+
+/* qsort context for the median fallback (the build is single-threaded). */
+static int sort_axis;
+static int cmp_ref(const void *x, const void *y)
+{
+    float a = ref_cent(x, sort_axis), c = ref_cent(y, sort_axis);
     return a < c ? -1 : (a > c ? 1 : 0);
 }
 
-static uint32_t build(Builder *b, uint32_t begin, uint32_t end, uint32_t depth)
+/* Builds the subtree over refs[0..count) (which it frees) and returns its
+ * node; the nodes are written depth-first. */
+static uint32_t build(Builder *b, Ref *refs, uint32_t count, uint32_t depth)
 {
     uint32_t ni = b->nnodes++;
     Box bb, cb;
     box_empty(&bb);
     box_empty(&cb);
-    for (uint32_t i = begin; i < end; i++) {
-        box_grow(&bb, &b->boxes[b->idx[i]]);
-        box_grow_pt(&cb, &b->cent[3 * b->idx[i]]);
+    for (uint32_t i = 0; i < count; i++) {
+        float c[3] = {ref_cent(&refs[i], 0), ref_cent(&refs[i], 1), ref_cent(&refs[i], 2)};
+        box_grow(&bb, &refs[i].box);
+        box_grow_pt(&cb, c);
     }
     RtBvhNode *n = &b->nodes[ni];
     memcpy(n->lo, bb.lo, sizeof n->lo);
     memcpy(n->hi, bb.hi, sizeof n->hi);
-    uint32_t count = end - begin;
     if (depth > b->max_depth)
         b->max_depth = depth;
 
-    /* Choose the split. */
-    int axis = -1;
-    uint32_t mid = begin;
-    float leaf_cost = (float)count;
-    int ext_axis = 0;
+    /* Choose the split: the cheaper of the object and the spatial split. */
+    Ref *left = NULL, *right = NULL;
+    uint32_t nl = 0, nr = 0;
+    int axis = -1, ext_axis = 0;
     float ext = -1.0f;
     for (int a = 0; a < 3; a++)
         if (cb.hi[a] - cb.lo[a] > ext) {
             ext = cb.hi[a] - cb.lo[a];
             ext_axis = a;
         }
-    if (count > 1 && ext > 0.0f && depth < RT_BVH_SAH_DEPTH) {
-        float best = RT_INF;
-        int best_axis = -1, best_bin = 0, best_nb = RT_BVH_BINS;
-        /* Small nodes get one bin per primitive (at least 4): sweeping 32
-         * bins for 6 primitives costs more than it can gain. */
+    float parea = box_area(&bb);
+    if (count > 1 && depth < RT_BVH_SAH_DEPTH && parea > 0.0f) {
+        /* Small nodes get one bin per reference (at least 4): sweeping 32
+         * bins for 6 references costs more than it can gain. */
         int nb = count < RT_BVH_BINS ? (count < 4 ? 4 : (int)count) : RT_BVH_BINS;
-        for (int a = 0; a < 3; a++) {
-            float w = cb.hi[a] - cb.lo[a];
-            if (!(w > 0.0f))
-                continue;
-            float scale = (float)nb / w;
-            Box bins[RT_BVH_BINS];
-            uint32_t cnt[RT_BVH_BINS];
-            for (int k = 0; k < nb; k++) {
-                box_empty(&bins[k]);
-                cnt[k] = 0;
-            }
-            for (uint32_t i = begin; i < end; i++) {
-                uint32_t p = b->idx[i];
-                int k = (int)((b->cent[3 * p + a] - cb.lo[a]) * scale);
-                k = k < 0 ? 0 : (k >= nb ? nb - 1 : k);
-                cnt[k]++;
-                box_grow(&bins[k], &b->boxes[p]);
-            }
-            /* Sweep: right-side areas, then left-to-right. */
-            float rarea[RT_BVH_BINS];
-            uint32_t rcnt[RT_BVH_BINS];
-            Box acc;
-            box_empty(&acc);
-            uint32_t c = 0;
-            for (int k = nb - 1; k > 0; k--) {
-                box_grow(&acc, &bins[k]);
-                c += cnt[k];
-                rarea[k] = box_area(&acc);
-                rcnt[k] = c;
-            }
-            box_empty(&acc);
-            c = 0;
-            for (int k = 0; k < nb - 1; k++) {
-                box_grow(&acc, &bins[k]);
-                c += cnt[k];
-                if (c == 0 || rcnt[k + 1] == 0)
-                    continue;
-                float cost = box_area(&acc) * (float)c + rarea[k + 1] * (float)rcnt[k + 1];
-                if (cost < best) {
-                    best = cost;
-                    best_axis = a;
-                    best_bin = k;
-                    best_nb = nb;
-                }
-            }
-        }
-        float parea = box_area(&bb);
+        Split s = {.cost = RT_INF, .axis = -1};
+        object_split(refs, count, &cb, nb, &s);
+        /* Spatial splits only where the object split's children overlap by
+         * more than RT_BVH_SPATIAL_OVERLAP of the node's area, and not in
+         * small nodes: there binning the cut triangles costs the most build
+         * time for the least gain. */
+        Box overlap = s.left;
+        box_clip(&overlap, &s.right);
+        if (count >= RT_BVH_SPATIAL_MIN && b->refs_left > 0 &&
+            (s.axis < 0 || box_area(&overlap) > RT_BVH_SPATIAL_OVERLAP * parea))
+            spatial_split(b, refs, count, &bb, nb, &s);
         /* SAH: traversal cost 1, intersection cost 1 per primitive. */
-        float split_cost = parea > 0.0f ? 1.0f + best / parea : RT_INF;
-        if (best_axis >= 0 && (count > RT_BVH_LEAF_MAX || split_cost < leaf_cost)) {
-            float w = cb.hi[best_axis] - cb.lo[best_axis];
-            float scale = (float)best_nb / w;
-            uint32_t i = begin, j = end;
-            while (i < j) {
-                uint32_t p = b->idx[i];
-                int k = (int)((b->cent[3 * p + best_axis] - cb.lo[best_axis]) * scale);
-                k = k < 0 ? 0 : (k >= best_nb ? best_nb - 1 : k);
-                if (k <= best_bin) {
-                    i++;
-                } else {
-                    j--;
-                    b->idx[i] = b->idx[j];
-                    b->idx[j] = p;
-                }
+        float split_cost = 1.0f + s.cost / parea;
+        if (s.axis >= 0 && (count > RT_BVH_LEAF_MAX || split_cost < (float)count)) {
+            left = malloc((size_t)count * sizeof *left);
+            right = malloc((size_t)count * sizeof *right);
+            if (!left || !right) {
+                free(left);
+                free(right);
+                free(refs);
+                b->oom = 1;
+                return ni;
             }
-            if (i > begin && i < end) {
-                axis = best_axis;
-                mid = i;
+            if (s.spatial) {
+                if (spatial_partition(b, refs, count, &s, left, &nl, right, &nr))
+                    axis = s.axis;
+            } else {
+                float scale = (float)s.nbins / (cb.hi[s.axis] - cb.lo[s.axis]);
+                for (uint32_t i = 0; i < count; i++) {
+                    int k = (int)((ref_cent(&refs[i], s.axis) - cb.lo[s.axis]) * scale);
+                    k = k < 0 ? 0 : (k >= s.nbins ? s.nbins - 1 : k);
+                    if (k <= s.bin)
+                        left[nl++] = refs[i];
+                    else
+                        right[nr++] = refs[i];
+                }
+                if (nl > 0 && nr > 0)
+                    axis = s.axis;
             }
         }
     }
     if (axis < 0 && count > RT_BVH_LEAF_MAX) {
-        /* No useful SAH split (equal centroids, or too deep): the object
-         * median on the widest centroid axis, which halves the count. */
-        axis = ext_axis;
-        mid = begin + count / 2;
-        if (ext > 0.0f) {
-            sort_cent = b->cent;
-            sort_axis = axis;
-            qsort(b->idx + begin, count, sizeof *b->idx, cmp_cent);
+        /* No useful split (equal centroids, or too deep): the object median
+         * on the widest centroid axis, which halves the count. */
+        if (!left) {
+            left = malloc((size_t)count * sizeof *left);
+            right = malloc((size_t)count * sizeof *right);
+            if (!left || !right) {
+                free(left);
+                free(right);
+                free(refs);
+                b->oom = 1;
+                return ni;
+            }
         }
+        axis = ext_axis;
+        if (ext > 0.0f) {
+            sort_axis = axis;
+            qsort(refs, count, sizeof *refs, cmp_ref);
+        }
+        nl = count / 2;
+        nr = count - nl;
+        memcpy(left, refs, nl * sizeof *refs);
+        memcpy(right, refs + nl, nr * sizeof *refs);
     }
     if (axis < 0) {
-        n->index = begin;
+        n->index = b->norder;
         n->meta = count;
+        for (uint32_t i = 0; i < count; i++)
+            b->order[b->norder++] = refs[i].prim;
         b->leaves++;
+        free(left);
+        free(right);
+        free(refs);
         return ni;
     }
-    build(b, begin, mid, depth + 1);
-    uint32_t right = build(b, mid, end, depth + 1);
+    free(refs);
+    build(b, left, nl, depth + 1);
+    uint32_t r = build(b, right, nr, depth + 1);
     n = &b->nodes[ni]; /* (nodes never move: capacity reserved up front) */
-    n->index = right;
+    n->index = r;
     n->meta = (uint32_t)axis << 8;
     return ni;
 }
@@ -314,14 +634,42 @@ static void widen_fill(Widen *w, uint32_t wi, const uint32_t *cand, int nc)
     o->count = (uint32_t)nc;
 }
 
+/* The records under binary node bi when they are at most RT_WIDE_MERGE (a
+ * subtree's leaves are contiguous: the nodes are written depth-first), or 0. */
+static uint32_t small_subtree(const RtBvhNode *bin, uint32_t bi, uint32_t *first)
+{
+    uint32_t stack[RT_WIDE_MERGE], lo = 0xffffffffu, total = 0;
+    int sp = 0;
+    stack[sp++] = bi;
+    while (sp > 0) {
+        const RtBvhNode *n = &bin[stack[--sp]];
+        uint32_t count = n->meta & 0xffu;
+        if (count) {
+            lo = n->index < lo ? n->index : lo;
+            total += count;
+        } else if (sp + 2 > RT_WIDE_MERGE) {
+            return 0; /* (more leaves than records allowed) */
+        } else {
+            stack[sp++] = (uint32_t)(n - bin) + 1;
+            stack[sp++] = n->index;
+        }
+        if (total > RT_WIDE_MERGE)
+            return 0;
+    }
+    *first = lo;
+    return total;
+}
+
 /* The reference to binary node bi in the wide tree: a leaf range, or a new
- * wide node collapsed from bi's subtree. */
+ * wide node collapsed from bi's subtree. A subtree of at most RT_WIDE_MERGE
+ * records left over when its parent's four slots are full becomes one leaf
+ * range: a ray tests it as one leaf instead of visiting a node of leaves. */
 static uint32_t widen_ref(Widen *w, uint32_t bi)
 {
     const RtBvhNode *b = &w->bin[bi];
-    uint32_t count = b->meta & 0xffu;
-    if (count)
-        return RT_WIDE_LEAF | (b->index << 3) | (count - 1);
+    uint32_t count = b->meta & 0xffu, first = b->index;
+    if (count || (count = small_subtree(w->bin, bi, &first)) != 0)
+        return RT_WIDE_LEAF | (first << 3) | (count - 1);
     uint32_t cand[4] = {bi + 1, b->index, 0, 0};
     int nc = 2;
     while (nc < 4) {
@@ -360,7 +708,9 @@ static int widen(RtAccel *a)
     w.wide = malloc(((size_t)a->nnodes + 1) * sizeof *w.wide);
     if (!w.wide)
         return -1;
-    if (a->nodes[0].meta & 0xffu) {
+    uint32_t first;
+    if ((a->nodes[0].meta & 0xffu) || small_subtree(a->nodes, 0, &first)) {
+        /* the whole tree is one leaf range: a root with one child */
         uint32_t root = 0;
         w.n = 1;
         widen_fill(&w, 0, &root, 1);
@@ -386,33 +736,47 @@ int rt_accel_build(const RtScene *s, RtAccelKind kind, RtAccel *a, RtError *err)
         a->prims = prims;
         return 0;
     }
-    Box *boxes = malloc((size_t)n * sizeof *boxes);
-    float *cent = malloc((size_t)n * 3 * sizeof *cent);
-    uint32_t *idx = malloc((size_t)n * sizeof *idx);
-    /* A binary tree with leaves of >= 1 primitive has at most 2n-1 nodes. */
-    RtBvhNode *nodes = malloc(((size_t)2 * n) * sizeof *nodes);
-    RtPrim *ordered = malloc((size_t)n * sizeof *ordered);
-    if (!boxes || !cent || !idx || !nodes || !ordered) {
-        free(boxes); free(cent); free(idx); free(nodes); free(ordered); free(prims);
+    /* Spatial splits may add up to one reference per primitive. */
+    uint32_t budget = n < RT_WIDE_MAX_FIRST / 4 ? n : 0;
+    uint32_t total = n + budget;
+    Ref *refs = malloc((size_t)n * sizeof *refs);
+    float (*verts)[3][3] = malloc((size_t)n * sizeof *verts);
+    /* A binary tree with leaves of >= 1 reference has at most 2 refs - 1 nodes. */
+    RtBvhNode *nodes = malloc((size_t)2 * total * sizeof *nodes);
+    uint32_t *order = malloc((size_t)total * sizeof *order);
+    if (!refs || !verts || !nodes || !order) {
+        free(refs); free(verts); free(nodes); free(order); free(prims);
         return rt_fail(err, "out of memory building a BVH over %u primitives", n);
     }
     for (uint32_t i = 0; i < n; i++) {
-        prim_box(s, &prims[i], &boxes[i]);
-        for (int k = 0; k < 3; k++)
-            cent[3 * i + k] = 0.5f * (boxes[i].lo[k] + boxes[i].hi[k]);
-        idx[i] = i;
+        prim_box(s, &prims[i], &refs[i].box);
+        refs[i].prim = i;
+        if (!(prims[i].id & RT_PRIM_SPHERE_BIT)) {
+            const RtTriangle *t = &s->triangles[prims[i].id - s->nspheres];
+            for (int k = 0; k < 3; k++) {
+                const RtVec3 *q = &s->vertices[t->v[k]];
+                verts[i][k][0] = q->x; verts[i][k][1] = q->y; verts[i][k][2] = q->z;
+            }
+        }
     }
     Builder b;
     memset(&b, 0, sizeof b);
-    b.boxes = boxes;
-    b.cent = cent;
-    b.idx = idx;
+    b.scene = s;
+    b.prims = prims;
+    b.verts = (const float(*)[3][3])verts;
     b.nodes = nodes;
-    b.cap = 2 * n;
-    build(&b, 0, n, 0);
-    for (uint32_t i = 0; i < n; i++)
-        ordered[i] = prims[idx[i]];
-    free(boxes); free(cent); free(idx); free(prims);
+    b.order = order;
+    b.refs_left = budget;
+    build(&b, refs, n, 0);
+    free(verts);
+    RtPrim *ordered = b.oom ? NULL : malloc((size_t)b.norder * sizeof *ordered);
+    if (!ordered) {
+        free(nodes); free(order); free(prims);
+        return rt_fail(err, "out of memory building a BVH over %u primitives", n);
+    }
+    for (uint32_t i = 0; i < b.norder; i++)
+        ordered[i] = prims[order[i]];
+    free(order); free(prims);
     if (b.max_depth >= RT_BVH_MAX_DEPTH) {
         free(nodes); free(ordered);
         return rt_fail(err, "BVH depth %u exceeds the traversal stack (%d)", b.max_depth, RT_BVH_MAX_DEPTH);
@@ -421,6 +785,8 @@ int rt_accel_build(const RtScene *s, RtAccelKind kind, RtAccel *a, RtError *err)
     a->nodes = shrunk ? shrunk : nodes;
     a->nnodes = b.nnodes;
     a->prims = ordered;
+    a->nprims = b.norder;
+    a->nsplit = b.norder - n;
     a->depth = b.max_depth;
     a->leaves = b.leaves;
     widen(a); /* optional: without it the GPU traverses the binary tree */
@@ -528,9 +894,12 @@ int rt_bvh_check(const RtAccel *a, RtError *err)
         return 0;
     if (a->nnodes == 0 || a->nnodes > 2 * a->nprims)
         return rt_fail(err, "BVH check: %u nodes for %u primitives", a->nnodes, a->nprims);
+    if (a->nsplit >= a->nprims)
+        return rt_fail(err, "BVH check: %u of %u records are spatial-split copies", a->nsplit, a->nprims);
+    uint32_t nscene = a->nprims - a->nsplit;
     uint8_t *seen_prim = calloc(a->nprims, 1);
     uint8_t *seen_node = calloc(a->nnodes, 1);
-    uint8_t *seen_id = calloc(a->nprims, 1);
+    uint8_t *seen_id = calloc(nscene, 1);
     uint32_t *stack = malloc(((size_t)RT_BVH_MAX_DEPTH + 2) * sizeof *stack);
     uint32_t *sdepth = malloc(((size_t)RT_BVH_MAX_DEPTH + 2) * sizeof *sdepth);
     int rc = 0;
@@ -580,13 +949,21 @@ int rt_bvh_check(const RtAccel *a, RtError *err)
             stack[sp] = l; sdepth[sp++] = d + 1;
         }
     }
+    /* Every primitive in at least one slot; the copies are exactly nsplit. */
+    uint32_t copies = 0;
     for (uint32_t k = 0; rc == 0 && k < a->nprims; k++) {
         uint32_t id = a->prims[k].id & ~RT_PRIM_SPHERE_BIT;
         if (!seen_prim[k])
             rc = rt_fail(err, "BVH check: primitive slot %u is in no leaf", k);
-        else if (id >= a->nprims || seen_id[id]++)
-            rc = rt_fail(err, "BVH check: primitive %u appears twice or is out of range", id);
+        else if (id >= nscene)
+            rc = rt_fail(err, "BVH check: primitive %u is out of range (%u)", id, nscene);
+        else if (seen_id[id])
+            copies++;
+        else
+            seen_id[id] = 1;
     }
+    if (rc == 0 && copies != a->nsplit)
+        rc = rt_fail(err, "BVH check: %u primitive copies, the build made %u", copies, a->nsplit);
     for (uint32_t k = 0; rc == 0 && k < a->nnodes; k++)
         if (!seen_node[k])
             rc = rt_fail(err, "BVH check: node %u is unreachable", k);

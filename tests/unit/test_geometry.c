@@ -121,6 +121,7 @@ static void random_scene(RtScene *s, unsigned long long *seed, int ntri, int nsp
 static void test_bvh_random(void)
 {
     unsigned long long seed = 12345;
+    uint32_t copies = 0;
     for (int round = 0; round < 12; round++) {
         RtScene s;
         int ntri = (int)(check_rand(&seed) % 3000), nsph = (int)(check_rand(&seed) % 300);
@@ -132,7 +133,9 @@ static void test_bvh_random(void)
         CHECK(rt_accel_build(&s, RT_ACCEL_BVH, &bvh, &e) == 0, "%s", e.msg);
         CHECK(rt_accel_build(&s, RT_ACCEL_NONE, &none, &e) == 0, "%s", e.msg);
         CHECK(rt_bvh_check(&bvh, &e) == 0, "round %d: %s", round, e.msg);
-        CHECK(bvh.nprims == (uint32_t)(ntri + nsph), "prim count");
+        CHECK(bvh.nprims - bvh.nsplit == (uint32_t)(ntri + nsph), "prim count: %u records, %u copies", bvh.nprims,
+              bvh.nsplit);
+        copies += bvh.nsplit;
         RtCamera cam;
         memset(&cam, 0, sizeof cam);
         RtSceneView vb = rt_scene_view(&s, &bvh, &cam), vn = rt_scene_view(&s, &none, &cam);
@@ -175,6 +178,47 @@ static void test_bvh_random(void)
         CHECK(wide_mismatches == 0, "round %d: %d rays disagree between the wide tree and brute force", round,
               wide_mismatches);
         CHECK(ntri + nsph < 50 || hits > 0, "round %d: no ray hit anything", round);
+        rt_accel_free(&bvh);
+        rt_accel_free(&none);
+        rt_scene_free(&s);
+    }
+    /* the random triangles overlap: spatial splits put some of them in
+     * several leaves, and the hits above still matched brute force */
+    CHECK(copies > 0, "no spatial split in 12 random scenes");
+}
+
+/* Scenes of 1..12 primitives: the wide tree of a tree that fits in one
+ * merged leaf still has a root node, passes the checks and finds the hits
+ * brute force finds. */
+static void test_bvh_tiny(void)
+{
+    unsigned long long seed = 99;
+    for (int n = 1; n <= 12; n++) {
+        RtScene s;
+        random_scene(&s, &seed, n, n % 3 == 0 ? 1 : 0);
+        RtAccel bvh, none;
+        RtError e;
+        CHECK(rt_accel_build(&s, RT_ACCEL_BVH, &bvh, &e) == 0, "%s", e.msg);
+        CHECK(rt_accel_build(&s, RT_ACCEL_NONE, &none, &e) == 0, "%s", e.msg);
+        CHECK(rt_bvh_check(&bvh, &e) == 0, "%d primitives: %s", n, e.msg);
+        CHECK(bvh.wide && bvh.nwide >= 1 && bvh.wide[0].count >= 1, "%d primitives: wide root", n);
+        RtCamera cam;
+        memset(&cam, 0, sizeof cam);
+        RtSceneView vb = rt_scene_view(&s, &bvh, &cam), vn = rt_scene_view(&s, &none, &cam);
+        int mismatches = 0;
+        for (int k = 0; k < 500; k++) {
+            RtVec3 o = rt_v3(check_randf(&seed, -15, 15), check_randf(&seed, -15, 15), check_randf(&seed, -15, 15));
+            RtVec3 d = rt_normalize(rt_v3(-o.x + check_randf(&seed, -3, 3), -o.y + check_randf(&seed, -3, 3),
+                                          -o.z + check_randf(&seed, -3, 3)));
+            RtHit hw, hn;
+            RtCounters c;
+            memset(&c, 0, sizeof c);
+            int fw = rt_trace_ray_wide(&vb, o, d, RT_INF, 0, &hw, &c);
+            int fn = rt_trace_ray(&vn, o, d, RT_INF, 0, &hn, &c);
+            if (fw != fn || (fn && (hw.t != hn.t || hw.id != hn.id)))
+                mismatches++;
+        }
+        CHECK(mismatches == 0, "%d primitives: %d rays disagree between the wide tree and brute force", n, mismatches);
         rt_accel_free(&bvh);
         rt_accel_free(&none);
         rt_scene_free(&s);
@@ -245,20 +289,27 @@ static void test_bvh_check_catches(void)
         break;
     }
     /* an empty slot must hold an inside-out box: the traversal's slab test
-     * misses it without looking at the child */
+     * misses it without looking at the child (a 3-triangle scene is one
+     * leaf under a root with three empty slots) */
+    RtScene ts;
+    RtAccel t;
+    random_scene(&ts, &seed, 3, 0);
+    CHECK(rt_accel_build(&ts, RT_ACCEL_BVH, &t, &e) == 0, "%s", e.msg);
     int empty_seen = 0;
-    for (uint32_t i = 0; i < a.nwide && !empty_seen; i++)
-        if (a.wide[i].count < 4) {
-            const uint32_t k = a.wide[i].count;
-            CHECK(a.wide[i].lo_x[k] == INFINITY && a.wide[i].hi_z[k] == -INFINITY, "empty slot %u of node %u: box", k, i);
-            float saved = a.wide[i].lo_y[k];
-            a.wide[i].lo_y[k] = 0.0f;
-            CHECK(rt_bvh_check(&a, &e) != 0, "empty wide slot with a box not caught");
-            a.wide[i].lo_y[k] = saved;
-            CHECK(rt_bvh_check(&a, &e) == 0, "restored wide tree refused: %s", e.msg);
+    for (uint32_t i = 0; i < t.nwide && !empty_seen; i++)
+        if (t.wide[i].count < 4) {
+            const uint32_t k = t.wide[i].count;
+            CHECK(t.wide[i].lo_x[k] == INFINITY && t.wide[i].hi_z[k] == -INFINITY, "empty slot %u of node %u: box", k, i);
+            float saved = t.wide[i].lo_y[k];
+            t.wide[i].lo_y[k] = 0.0f;
+            CHECK(rt_bvh_check(&t, &e) != 0, "empty wide slot with a box not caught");
+            t.wide[i].lo_y[k] = saved;
+            CHECK(rt_bvh_check(&t, &e) == 0, "restored wide tree refused: %s", e.msg);
             empty_seen = 1;
         }
-    CHECK(empty_seen, "the wide tree of a 100-primitive scene has a node with an empty slot");
+    CHECK(empty_seen, "the wide tree of a 3-triangle scene has a node with an empty slot");
+    rt_accel_free(&t);
+    rt_scene_free(&ts);
     a.nodes[0].hi[0] = a.nodes[0].lo[0]; /* children now stick out */
     CHECK(rt_bvh_check(&a, &e) != 0, "child outside parent not caught");
     rt_accel_free(&a);
@@ -272,6 +323,7 @@ int main(void)
     test_camera();
     test_tie_break();
     test_bvh_random();
+    test_bvh_tiny();
     test_bvh_check_catches();
     return check_report("test_geometry");
 }
