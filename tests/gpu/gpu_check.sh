@@ -10,7 +10,7 @@
 # `pairs`: the wide traversal with two lanes per pixel (RAYBENCH_CUDA_PAIRS=1),
 # or `cover`: the wide traversal with the tiles in the cover order
 # (RAYBENCH_CUDA_ORDER=cover); other renders set PAIRS=0 and the tile order:
-#   full   cuda+bvh in blocks 8x8 16x16 32x8 32x32 13x7 128x1 (odd and
+#   full   cuda+bvh in blocks 8x8 16x8 16x16 32x8 32x32 13x7 128x1 (odd and
 #          1024-thread shapes included), pixel pairs in 8x8 and 32x4, the
 #          cover order in 8x8, the binary tree's traversals (ldg, shared) in
 #          16x16, and cuda+none in 16x16 and 32x32;
@@ -83,7 +83,7 @@ for sc in "$@"; do
     ref="$TMP/$name-serial.ppm"
     rec_s=$("$RT" -q --backend serial --accel bvh -o "$ref" "$DIR/$sc.txt") || { echo "FAIL $name: serial render"; fail=1; continue; }
     case $MODE in
-        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:8x8:pairs bvh:32x4:pairs bvh:8x8:cover bvh:16x16:ldg bvh:16x16:shared} none:16x16 none:32x32" ;;
+        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:8x8:pairs bvh:32x4:pairs bvh:8x8:cover bvh:16x16:ldg bvh:16x16:shared} none:16x16 none:32x32" ;;
         *) runs="${GPU_CHECK_BLOCKS:-bvh:16x16 bvh:32x32}" ;;
     esac
     for r in $runs; do

@@ -171,12 +171,16 @@ extern "C" {
 
 #include "cuda_check.h"
 
-/* Default block shape, chosen by the block-size sweeps on the H100
- * (docs/gpu.md, "Fourth round"; results/gpu-blocks-round4.csv): 8x8 with the
- * grid schedule was fastest on the dragon and arm-reach and within 1% of the
- * best geometric mean over the report's scenes. */
-#define RT_CUDA_DEFAULT_BX 8
+/* Default block shapes, chosen by the block-size sweeps on the H100
+ * (docs/gpu.md, "Fourth round" and "Seventh round"; results/gpu-blocks-round4.csv,
+ * results/gpu-round7-blocks.csv): for the tree, 16x8 with the grid schedule
+ * is the fastest on the dragon and has the best geometric mean over the
+ * report's scenes with the spatial-split tree (8x8 had been, within 1%, with
+ * the earlier tree); brute force keeps 8x8 (persistent schedule). */
+#define RT_CUDA_DEFAULT_BX 16
 #define RT_CUDA_DEFAULT_BY 8
+#define RT_CUDA_DEFAULT_NONE_BX 8
+#define RT_CUDA_DEFAULT_NONE_BY 8
 #define RT_CUDA_DEFAULT_RUNS 21
 /* Host milliseconds of warm-up launches before the timed ones. */
 #define RT_CUDA_DEFAULT_WARMUP_MS 50
@@ -857,8 +861,8 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     uint32_t nchunks = 0;
     size_t shmem = 0;
     const char *timeline = NULL;
-    int bx = job->block_x > 0 ? job->block_x : RT_CUDA_DEFAULT_BX;
-    int by = job->block_y > 0 ? job->block_y : RT_CUDA_DEFAULT_BY;
+    int bx = job->block_x > 0 ? job->block_x : (hv->nnodes ? RT_CUDA_DEFAULT_BX : RT_CUDA_DEFAULT_NONE_BX);
+    int by = job->block_y > 0 ? job->block_y : (hv->nnodes ? RT_CUDA_DEFAULT_BY : RT_CUDA_DEFAULT_NONE_BY);
     const int threads = bx * by;
     const char *sched_env = getenv("RAYBENCH_CUDA_SCHED");
     /* Default schedule by measurement (docs/gpu.md, "Fourth round"): grid for
