@@ -467,6 +467,23 @@ static int cmp_ref(const void *x, const void *y)
     return a < c ? -1 : (a > c ? 1 : 0);
 }
 
+/* The children's reference arrays of a node of count references, allocated
+ * once; 0 (and b->oom) when out of memory. */
+static int halves(Builder *b, uint32_t count, Ref **left, Ref **right)
+{
+    if (*left)
+        return 1;
+    *left = malloc((size_t)count * sizeof **left);
+    *right = malloc((size_t)count * sizeof **right);
+    if (*left && *right)
+        return 1;
+    free(*left);
+    free(*right);
+    *left = *right = NULL;
+    b->oom = 1;
+    return 0;
+}
+
 /* Builds the subtree over refs[0..count) (which it frees) and returns its
  * node; the nodes are written depth-first. */
 static uint32_t build(Builder *b, Ref *refs, uint32_t count, uint32_t depth)
@@ -515,13 +532,8 @@ static uint32_t build(Builder *b, Ref *refs, uint32_t count, uint32_t depth)
         /* SAH: traversal cost 1, intersection cost 1 per primitive. */
         float split_cost = 1.0f + s.cost / parea;
         if (s.axis >= 0 && (count > RT_BVH_LEAF_MAX || split_cost < (float)count)) {
-            left = malloc((size_t)count * sizeof *left);
-            right = malloc((size_t)count * sizeof *right);
-            if (!left || !right) {
-                free(left);
-                free(right);
+            if (!halves(b, count, &left, &right)) {
                 free(refs);
-                b->oom = 1;
                 return ni;
             }
             if (s.spatial) {
@@ -545,16 +557,9 @@ static uint32_t build(Builder *b, Ref *refs, uint32_t count, uint32_t depth)
     if (axis < 0 && count > RT_BVH_LEAF_MAX) {
         /* No useful split (equal centroids, or too deep): the object median
          * on the widest centroid axis, which halves the count. */
-        if (!left) {
-            left = malloc((size_t)count * sizeof *left);
-            right = malloc((size_t)count * sizeof *right);
-            if (!left || !right) {
-                free(left);
-                free(right);
-                free(refs);
-                b->oom = 1;
-                return ni;
-            }
+        if (!halves(b, count, &left, &right)) {
+            free(refs);
+            return ni;
         }
         axis = ext_axis;
         if (ext > 0.0f) {
