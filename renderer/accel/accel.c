@@ -235,6 +235,15 @@ static void ref_split(const Builder *b, const Ref *r, int axis, float pos, Box *
     box_clip(R, &r->box);
 }
 
+/* The bin first..last of coordinate x for bins of width 1/scale from lo;
+ * clamped in float, so a point far outside (or a NaN) never overflows the
+ * conversion. */
+static int bin_of(float x, float lo, float scale, int first, int last)
+{
+    float f = (x - lo) * scale;
+    return f >= (float)last ? last : (f >= (float)first ? (int)f : first);
+}
+
 /* Sweeps nb bins (boxes, and counts entering from the left and right) for
  * the cheapest plane between two bins; updates *best when cheaper. */
 static void sweep(const Box *bins, const uint32_t *lcnt, const uint32_t *rcnt, int nb, int axis, Split *best,
@@ -284,8 +293,7 @@ static void object_split(const Ref *refs, uint32_t count, const Box *cb, int nb,
             cnt[k] = 0;
         }
         for (uint32_t i = 0; i < count; i++) {
-            int k = (int)((ref_cent(&refs[i], a) - cb->lo[a]) * scale);
-            k = k < 0 ? 0 : (k >= nb ? nb - 1 : k);
+            int k = bin_of(ref_cent(&refs[i], a), cb->lo[a], scale, 0, nb - 1);
             cnt[k]++;
             box_grow(&bins[k], &refs[i].box);
         }
@@ -305,8 +313,7 @@ static void chop(const float (*v)[3], const Box *r, int a, float lo, float scale
         box_empty(&part[k]);
     int kv[3];
     for (int j = 0; j < 3; j++) {
-        int k = (int)((v[j][a] - lo) * scale);
-        kv[j] = k < k0 ? k0 : (k > k1 ? k1 : k);
+        kv[j] = bin_of(v[j][a], lo, scale, k0, k1);
         box_grow_pt(&part[kv[j]], v[j]);
     }
     for (int j = 0; j < 3; j++) {
@@ -353,10 +360,8 @@ static void spatial_split(const Builder *b, const Ref *refs, uint32_t count, con
             enter[k] = leave[k] = 0;
         }
         for (uint32_t i = 0; i < count; i++) {
-            int k0 = (int)((refs[i].box.lo[a] - bb->lo[a]) * scale);
-            int k1 = (int)((refs[i].box.hi[a] - bb->lo[a]) * scale);
-            k0 = k0 < 0 ? 0 : (k0 >= nb ? nb - 1 : k0);
-            k1 = k1 < k0 ? k0 : (k1 >= nb ? nb - 1 : k1);
+            int k0 = bin_of(refs[i].box.lo[a], bb->lo[a], scale, 0, nb - 1);
+            int k1 = bin_of(refs[i].box.hi[a], bb->lo[a], scale, k0, nb - 1);
             enter[k0]++;
             leave[k1]++;
             if (k0 == k1 || (b->prims[refs[i].prim].id & RT_PRIM_SPHERE_BIT))
@@ -518,16 +523,17 @@ static uint32_t build(Builder *b, Ref *refs, uint32_t count, uint32_t depth)
         /* Small nodes get one bin per reference (at least 4): sweeping 32
          * bins for 6 references costs more than it can gain. */
         int nb = count < RT_BVH_BINS ? (count < 4 ? 4 : (int)count) : RT_BVH_BINS;
-        Split s = {.cost = RT_INF, .axis = -1};
-        object_split(refs, count, &cb, nb, &s);
+        Split obj = {.cost = RT_INF, .axis = -1};
+        object_split(refs, count, &cb, nb, &obj);
         /* Spatial splits only where the object split's children overlap by
          * more than RT_BVH_SPATIAL_OVERLAP of the node's area, and not in
          * small nodes: there binning the cut triangles costs the most build
          * time for the least gain. */
-        Box overlap = s.left;
-        box_clip(&overlap, &s.right);
+        Split s = obj;
+        Box overlap = obj.left;
+        box_clip(&overlap, &obj.right);
         if (count >= RT_BVH_SPATIAL_MIN && b->refs_left > 0 &&
-            (s.axis < 0 || box_area(&overlap) > RT_BVH_SPATIAL_OVERLAP * parea))
+            (obj.axis < 0 || box_area(&overlap) > RT_BVH_SPATIAL_OVERLAP * parea))
             spatial_split(b, refs, count, &bb, nb, &s);
         /* SAH: traversal cost 1, intersection cost 1 per primitive. */
         float split_cost = 1.0f + s.cost / parea;
@@ -536,21 +542,21 @@ static uint32_t build(Builder *b, Ref *refs, uint32_t count, uint32_t depth)
                 free(refs);
                 return ni;
             }
-            if (s.spatial) {
-                if (spatial_partition(b, refs, count, &s, left, &nl, right, &nr))
-                    axis = s.axis;
-            } else {
-                float scale = (float)s.nbins / (cb.hi[s.axis] - cb.lo[s.axis]);
+            if (s.spatial && spatial_partition(b, refs, count, &s, left, &nl, right, &nr))
+                axis = s.axis;
+            else if (obj.axis >= 0) {
+                /* the object split, also when the spatial one separated
+                 * nothing or ran out of its reference budget */
+                nl = nr = 0;
+                float scale = (float)obj.nbins / (cb.hi[obj.axis] - cb.lo[obj.axis]);
                 for (uint32_t i = 0; i < count; i++) {
-                    int k = (int)((ref_cent(&refs[i], s.axis) - cb.lo[s.axis]) * scale);
-                    k = k < 0 ? 0 : (k >= s.nbins ? s.nbins - 1 : k);
-                    if (k <= s.bin)
+                    if (bin_of(ref_cent(&refs[i], obj.axis), cb.lo[obj.axis], scale, 0, obj.nbins - 1) <= obj.bin)
                         left[nl++] = refs[i];
                     else
                         right[nr++] = refs[i];
                 }
                 if (nl > 0 && nr > 0)
-                    axis = s.axis;
+                    axis = obj.axis;
             }
         }
     }
