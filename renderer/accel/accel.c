@@ -148,13 +148,7 @@ static void prim_box(const RtScene *s, const RtPrim *p, Box *b)
             box_grow_pt(b, q);
         }
     }
-    /* A hair of padding so a hit on the box boundary is never lost to the
-     * rounding of the slab test. */
-    for (int i = 0; i < 3; i++) {
-        float pad = 1e-6f * (fabsf(b->lo[i]) + fabsf(b->hi[i])) + 1e-30f;
-        b->lo[i] -= pad;
-        b->hi[i] += pad;
-    }
+    box_pad(b);
 }
 
 /* A reference: a primitive and the part of its box a node holds. Without
@@ -180,9 +174,9 @@ typedef struct Builder {
     int oom;
 } Builder;
 
-/* The best split of a node found so far. */
 static float ref_cent(const Ref *r, int a) { return 0.5f * (r->box.lo[a] + r->box.hi[a]); }
 
+/* The best split of a node found so far. */
 typedef struct Split {
     float cost;       /* SAH numerator: area(left) * n(left) + area(right) * n(right) */
     int axis;         /* -1: none */
