@@ -131,7 +131,18 @@ static RtPrim *make_prims(const RtScene *s, uint32_t *n_out, RtError *err)
     return p;
 }
 
-static void prim_box(const RtScene *s, const RtPrim *p, Box *b)
+/* The vertices of triangle record p, from the scene's vertex pool. */
+static void prim_verts(const RtScene *s, const RtPrim *p, float v[3][3])
+{
+    const RtTriangle *t = &s->triangles[p->id - s->nspheres];
+    for (int k = 0; k < 3; k++) {
+        const RtVec3 *q = &s->vertices[t->v[k]];
+        v[k][0] = q->x; v[k][1] = q->y; v[k][2] = q->z;
+    }
+}
+
+/* The padded box of record p (v: its vertices, for a triangle). */
+static void prim_box(const RtPrim *p, const float v[3][3], Box *b)
 {
     if (p->id & RT_PRIM_SPHERE_BIT) {
         float r = p->e1[0];
@@ -140,13 +151,9 @@ static void prim_box(const RtScene *s, const RtPrim *p, Box *b)
             b->hi[i] = p->p0[i] + r;
         }
     } else {
-        const RtTriangle *t = &s->triangles[p->id - s->nspheres];
         box_empty(b);
-        for (int k = 0; k < 3; k++) {
-            const RtVec3 *v = &s->vertices[t->v[k]];
-            float q[3] = {v->x, v->y, v->z};
-            box_grow_pt(b, q);
-        }
+        for (int k = 0; k < 3; k++)
+            box_grow_pt(b, v[k]);
     }
     box_pad(b);
 }
@@ -162,7 +169,6 @@ typedef struct Ref {
 } Ref;
 
 typedef struct Builder {
-    const RtScene *scene;
     const RtPrim *prims;  /* original order */
     const float (*verts)[3][3]; /* per primitive: a triangle's vertices */
     RtBvhNode *nodes;
@@ -741,7 +747,9 @@ int rt_accel_build(const RtScene *s, RtAccelKind kind, RtAccel *a, RtError *err)
         a->prims = prims;
         return 0;
     }
-    /* Spatial splits may add up to one reference per primitive. */
+    /* Spatial splits may add up to one reference per primitive (none in a
+     * scene so large that twice its count would pass the wide tree's limit
+     * on a leaf's first record). */
     uint32_t budget = n < RT_WIDE_MAX_FIRST / 4 ? n : 0;
     uint32_t total = n + budget;
     Ref *refs = malloc((size_t)n * sizeof *refs);
@@ -754,19 +762,13 @@ int rt_accel_build(const RtScene *s, RtAccelKind kind, RtAccel *a, RtError *err)
         return rt_fail(err, "out of memory building a BVH over %u primitives", n);
     }
     for (uint32_t i = 0; i < n; i++) {
-        prim_box(s, &prims[i], &refs[i].box);
+        if (!(prims[i].id & RT_PRIM_SPHERE_BIT))
+            prim_verts(s, &prims[i], verts[i]);
+        prim_box(&prims[i], (const float(*)[3])verts[i], &refs[i].box);
         refs[i].prim = i;
-        if (!(prims[i].id & RT_PRIM_SPHERE_BIT)) {
-            const RtTriangle *t = &s->triangles[prims[i].id - s->nspheres];
-            for (int k = 0; k < 3; k++) {
-                const RtVec3 *q = &s->vertices[t->v[k]];
-                verts[i][k][0] = q->x; verts[i][k][1] = q->y; verts[i][k][2] = q->z;
-            }
-        }
     }
     Builder b;
     memset(&b, 0, sizeof b);
-    b.scene = s;
     b.prims = prims;
     b.verts = (const float(*)[3][3])verts;
     b.nodes = nodes;
