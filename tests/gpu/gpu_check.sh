@@ -18,12 +18,16 @@
 #   nogpu  expects `--backend cuda` to fail with one line and exit 1 (the
 #          CI machine has no GPU); skipped where a GPU is present;
 #   badenv expects each measurement variable given a value it refuses
-#          (RAYBENCH_CUDA_SPEC=0, RAYBENCH_CUDA_PAIRS=2, pairs in a block of
-#          an odd width, a timeline file that cannot be written) to fail with
-#          one line and exit 1, writing no image.
+#          (an unknown word, an integer out of range or with trailing
+#          characters: checked before the GPU is touched, so this part runs
+#          without a GPU and the message must name the variable; with a GPU
+#          also pairs in a block of an odd width and a timeline file that
+#          cannot be written) to fail with one line and exit 1, writing no
+#          image.
 # SCENE is Group/name under SCENE_DIR (the course scenes, e.g.
-# InterestingScenes/dragon). Exit 77 (Meson's "skipped") without a GPU, or
-# when the course scenes are not beside the checkout. GPU_CHECK_CSV=FILE
+# InterestingScenes/dragon). Exit 77 (Meson's "skipped") without a GPU
+# (but nogpu and badenv), or when the course scenes are not beside the
+# checkout. GPU_CHECK_CSV=FILE
 # appends one row per comparison; GPU_CHECK_BLOCKS overrides the bvh blocks.
 set -u
 RT=$1; DIFF=$2; DIR=$3; MODE=$4; shift 4
@@ -44,14 +48,19 @@ if [ "$MODE" = nogpu ]; then
     exit 0
 fi
 
-if ! have_gpu; then echo "SKIP: no GPU (nvidia-smi finds none)"; exit 77; fi
-[ -d "$DIR" ] || { echo "SKIP: no course scenes at $DIR"; exit 77; }
-
 if [ "$MODE" = badenv ]; then
+    [ -d "$DIR" ] || { echo "SKIP: no course scenes at $DIR"; exit 77; }
     fail=0
     out=/tmp/gpu_check_badenv.$$.ppm
-    for case in "RAYBENCH_CUDA_SPEC=0|8x8" "RAYBENCH_CUDA_PAIRS=2|8x8" "RAYBENCH_CUDA_PAIRS=1|7x8" \
-                "RAYBENCH_CUDA_TIMELINE=/nonexistent-dir/t.csv|8x8"; do
+    # Values no variable accepts are refused before the GPU is touched, so
+    # these run without one too; the message must name the variable.
+    cases="RAYBENCH_CUDA_SCHED=gird|8x8 RAYBENCH_CUDA_TRAVERSAL=binary|8x8 RAYBENCH_CUDA_ORDER=random|8x8
+           RAYBENCH_CUDA_PAIRS=2|8x8 RAYBENCH_CUDA_SPEC=0|8x8 RAYBENCH_CUDA_RUNS=0|8x8 RAYBENCH_CUDA_RUNS=65|8x8
+           RAYBENCH_CUDA_RUNS=5x|8x8 RAYBENCH_CUDA_WARMUP_MS=-1|8x8 RAYBENCH_CUDA_MINB=5|8x8
+           RAYBENCH_CUDA_CARVEOUT=101|8x8"
+    # With a GPU, also what depends on the block or the file system.
+    have_gpu && cases="$cases RAYBENCH_CUDA_PAIRS=1|7x8 RAYBENCH_CUDA_TIMELINE=/nonexistent-dir/t.csv|8x8"
+    for case in $cases; do
         kv=${case%|*}; blk=${case#*|}
         rm -f "$out"
         msg=$(env "$kv" "$RT" -q --backend cuda --block "$blk" -o "$out" "$DIR/$1.txt" 2>&1 >/dev/null)
@@ -60,9 +69,15 @@ if [ "$MODE" = badenv ]; then
         echo "$kv --block $blk: exit $rc, $lines line(s): $msg"
         if [ -e "$out" ]; then echo "FAIL: $kv: an image was written"; rm -f "$out"; fail=1; fi
         [ "$rc" -eq 1 ] && [ "$lines" -eq 1 ] && [ -n "$msg" ] || { echo "FAIL: $kv: expected one line and exit 1"; fail=1; }
+        case $blk in 8x8)
+            case $msg in *"${kv%%=*}"*) ;; *) echo "FAIL: $kv: the message does not name ${kv%%=*}"; fail=1 ;; esac ;;
+        esac
     done
     exit $fail
 fi
+
+if ! have_gpu; then echo "SKIP: no GPU (nvidia-smi finds none)"; exit 77; fi
+[ -d "$DIR" ] || { echo "SKIP: no course scenes at $DIR"; exit 77; }
 
 TMP=$(mktemp -d) || exit 1
 trap 'rm -rf "$TMP"' EXIT

@@ -848,6 +848,61 @@ static int rt_cuda_write_timeline(const char *path, const unsigned char *dchunks
     return 0;
 }
 
+/* The measurement variables (docs/gpu.md, "Environment"), every one checked
+ * before the GPU is touched: a value the backend would not use is a one-line
+ * error naming the variable, not a silent default (and CI, without a GPU,
+ * can test it). Combinations that depend on the block or the device are
+ * checked where they are known. */
+typedef struct RtCudaEnvVar {
+    const char *name;
+    const char *words; /* the accepted values, space-separated; NULL: an integer in lo..hi */
+    int lo, hi;
+    const char *why;   /* appended to the message, or NULL */
+} RtCudaEnvVar;
+
+static const RtCudaEnvVar rt_cuda_env_vars[] = {
+    {"RAYBENCH_CUDA_SCHED", "grid persistent", 0, 0, NULL},
+    {"RAYBENCH_CUDA_TRAVERSAL", "wide ldg shared", 0, 0, NULL},
+    {"RAYBENCH_CUDA_ORDER", "tiles scatter oracle cover", 0, 0, NULL},
+    {"RAYBENCH_CUDA_PAIRS", "0 1 auto", 0, 0, NULL},
+    {"RAYBENCH_CUDA_SPEC", "1", 0, 0,
+     "only 1 is left: the wide traversal always postpones leaves (docs/gpu.md, \"Sixth round\")"},
+    {"RAYBENCH_CUDA_RUNS", NULL, 1, 64, NULL},
+    {"RAYBENCH_CUDA_WARMUP_MS", NULL, 0, 10000, NULL},
+    {"RAYBENCH_CUDA_MINB", NULL, 1, 4, NULL},
+    {"RAYBENCH_CUDA_CARVEOUT", NULL, -1, 100, NULL},
+};
+
+static int rt_cuda_check_env(RtError *err)
+{
+    for (size_t i = 0; i < sizeof rt_cuda_env_vars / sizeof rt_cuda_env_vars[0]; i++) {
+        const RtCudaEnvVar *v = &rt_cuda_env_vars[i];
+        const char *s = getenv(v->name);
+        if (!s || !*s)
+            continue;
+        if (v->words) {
+            const size_t n = strlen(s);
+            const char *p = v->words;
+            int ok = 0;
+            while (*p && !ok) {
+                const size_t k = strcspn(p, " ");
+                ok = k == n && strncmp(p, s, n) == 0;
+                p += k + (p[k] == ' ');
+            }
+            if (!ok)
+                return rt_fail(err, "%s=%s: expected one of: %s%s%s", v->name, s, v->words, v->why ? "; " : "",
+                               v->why ? v->why : "");
+        } else {
+            char *end;
+            errno = 0;
+            const long x = strtol(s, &end, 10);
+            if (errno || end == s || *end != '\0' || x < v->lo || x > v->hi)
+                return rt_fail(err, "%s=%s: expected an integer from %d to %d", v->name, s, v->lo, v->hi);
+        }
+    }
+    return 0;
+}
+
 static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 {
     /* All locals first: RT_CUDA_CHECK jumps to fail:, and C++ forbids jumping
@@ -891,6 +946,8 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     memset(parts, 0, sizeof parts);
     memset(&g, 0, sizeof g);
 
+    if (rt_cuda_check_env(err))
+        return -1;
     /* No driver, no GPU: one clear line, before anything else is touched. */
     e = cudaGetDeviceCount(&ndev);
     if (e != cudaSuccess)
@@ -922,25 +979,13 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * lane per pixel costs no wave, and it shortens the chains the frame waits
      * on (docs/gpu.md, "Fifth round"). */
     minb = rt_cuda_env_int("RAYBENCH_CUDA_MINB", 1, 4, RT_CUDA_DEFAULT_MINB);
-    {
-        /* The leaf vote is compiled in (RT_WIDE_LEAF_VOTE above); the record
-         * keeps saying spec=1. */
-        const char *se = getenv("RAYBENCH_CUDA_SPEC");
-        if (se && *se && strcmp(se, "1") != 0) {
-            rt_fail(err, "RAYBENCH_CUDA_SPEC=%s: only 1 is left (the wide traversal always postpones leaves; "
-                         "docs/gpu.md, \"Sixth round\")", se);
-            goto fail;
-        }
-    }
+    /* RAYBENCH_CUDA_SPEC accepts only 1 (rt_cuda_check_env): the leaf vote is
+     * compiled in (RT_WIDE_LEAF_VOTE above); the record keeps saying spec=1. */
     {
         const char *pe = getenv("RAYBENCH_CUDA_PAIRS");
         const int can = !persistent && bx % 2 == 0 && threads % 32 == 0;
         if (pe && *pe && strcmp(pe, "auto") != 0) {
-            pairs = rt_cuda_env_int("RAYBENCH_CUDA_PAIRS", 0, 1, -1);
-            if (pairs < 0) {
-                rt_fail(err, "RAYBENCH_CUDA_PAIRS=%s: expected 0, 1 or auto", pe);
-                goto fail;
-            }
+            pairs = rt_cuda_env_int("RAYBENCH_CUDA_PAIRS", 0, 1, 0); /* 0 or 1 (rt_cuda_check_env) */
             if (pairs && !can) {
                 rt_fail(err, "RAYBENCH_CUDA_PAIRS=1: needs the grid schedule and blocks of an even width and a "
                              "multiple of 32 threads (got %dx%d, %s)",
