@@ -745,14 +745,82 @@ static int rt_cuda_cmp_double(const void *a, const void *b)
     return x < y ? -1 : (x > y ? 1 : 0);
 }
 
-static int rt_cuda_env_int(const char *name, int lo, int hi, int def)
+/* s as a whole decimal integer in lo..hi (into *out when not NULL). */
+static int rt_cuda_parse_int(const char *s, int lo, int hi, int *out)
+{
+    char *end;
+    errno = 0;
+    const long x = strtol(s, &end, 10);
+    if (errno || end == s || *end != '\0' || x < lo || x > hi)
+        return 0;
+    if (out)
+        *out = (int)x;
+    return 1;
+}
+
+/* The measurement variables (docs/gpu.md, "Environment"), every one checked
+ * before the GPU is touched: a value the backend would not use is a one-line
+ * error naming the variable, not a silent default (and CI, without a GPU,
+ * can test it). Combinations that depend on the block or the device are
+ * checked where they are known. */
+typedef struct RtCudaEnvVar {
+    const char *name;
+    const char *words; /* the accepted values, space-separated; NULL: an integer in lo..hi */
+    int lo, hi;
+    const char *why;   /* appended to the message, or NULL */
+} RtCudaEnvVar;
+
+static const RtCudaEnvVar rt_cuda_env_vars[] = {
+    {"RAYBENCH_CUDA_SCHED", "grid persistent", 0, 0, NULL},
+    {"RAYBENCH_CUDA_TRAVERSAL", "wide ldg shared", 0, 0, NULL},
+    {"RAYBENCH_CUDA_ORDER", "tiles scatter oracle cover", 0, 0, NULL},
+    {"RAYBENCH_CUDA_PAIRS", "0 1 auto", 0, 0, NULL},
+    {"RAYBENCH_CUDA_SPEC", "1", 0, 0,
+     "only 1 is left: the wide traversal always postpones leaves (docs/gpu.md, \"Sixth round\")"},
+    {"RAYBENCH_CUDA_RUNS", NULL, 1, 64, NULL},
+    {"RAYBENCH_CUDA_WARMUP_MS", NULL, 0, 10000, NULL},
+    {"RAYBENCH_CUDA_MINB", NULL, 1, 4, NULL},
+    {"RAYBENCH_CUDA_CARVEOUT", NULL, -1, 100, NULL},
+};
+
+static int rt_cuda_check_env(RtError *err)
+{
+    for (size_t i = 0; i < sizeof rt_cuda_env_vars / sizeof rt_cuda_env_vars[0]; i++) {
+        const RtCudaEnvVar *v = &rt_cuda_env_vars[i];
+        const char *s = getenv(v->name);
+        if (!s || !*s)
+            continue;
+        if (v->words) {
+            const size_t n = strlen(s);
+            const char *p = v->words;
+            int ok = 0;
+            while (*p && !ok) {
+                const size_t k = strcspn(p, " ");
+                ok = k == n && strncmp(p, s, n) == 0;
+                p += k + (p[k] == ' ');
+            }
+            if (!ok)
+                return rt_fail(err, "%s=%s: expected one of: %s%s%s", v->name, s, v->words, v->why ? "; " : "",
+                               v->why ? v->why : "");
+        } else if (!rt_cuda_parse_int(s, v->lo, v->hi, NULL))
+            return rt_fail(err, "%s=%s: expected an integer from %d to %d", v->name, s, v->lo, v->hi);
+    }
+    return 0;
+}
+
+/* An integer measurement variable (its range in rt_cuda_env_vars), or def
+ * when unset or empty; rt_cuda_check_env has refused anything else. */
+static int rt_cuda_env_int(const char *name, int def)
 {
     const char *s = getenv(name);
     if (!s || !*s)
         return def;
-    char *end;
-    long v = strtol(s, &end, 10);
-    return (*end == '\0' && v >= lo && v <= hi) ? (int)v : def;
+    for (size_t i = 0; i < sizeof rt_cuda_env_vars / sizeof rt_cuda_env_vars[0]; i++)
+        if (strcmp(rt_cuda_env_vars[i].name, name) == 0 && !rt_cuda_env_vars[i].words) {
+            rt_cuda_parse_int(s, rt_cuda_env_vars[i].lo, rt_cuda_env_vars[i].hi, &def);
+            break;
+        }
+    return def;
 }
 
 /* The n chunk records of a recorded launch, downloaded into a malloc'd
@@ -848,61 +916,6 @@ static int rt_cuda_write_timeline(const char *path, const unsigned char *dchunks
     return 0;
 }
 
-/* The measurement variables (docs/gpu.md, "Environment"), every one checked
- * before the GPU is touched: a value the backend would not use is a one-line
- * error naming the variable, not a silent default (and CI, without a GPU,
- * can test it). Combinations that depend on the block or the device are
- * checked where they are known. */
-typedef struct RtCudaEnvVar {
-    const char *name;
-    const char *words; /* the accepted values, space-separated; NULL: an integer in lo..hi */
-    int lo, hi;
-    const char *why;   /* appended to the message, or NULL */
-} RtCudaEnvVar;
-
-static const RtCudaEnvVar rt_cuda_env_vars[] = {
-    {"RAYBENCH_CUDA_SCHED", "grid persistent", 0, 0, NULL},
-    {"RAYBENCH_CUDA_TRAVERSAL", "wide ldg shared", 0, 0, NULL},
-    {"RAYBENCH_CUDA_ORDER", "tiles scatter oracle cover", 0, 0, NULL},
-    {"RAYBENCH_CUDA_PAIRS", "0 1 auto", 0, 0, NULL},
-    {"RAYBENCH_CUDA_SPEC", "1", 0, 0,
-     "only 1 is left: the wide traversal always postpones leaves (docs/gpu.md, \"Sixth round\")"},
-    {"RAYBENCH_CUDA_RUNS", NULL, 1, 64, NULL},
-    {"RAYBENCH_CUDA_WARMUP_MS", NULL, 0, 10000, NULL},
-    {"RAYBENCH_CUDA_MINB", NULL, 1, 4, NULL},
-    {"RAYBENCH_CUDA_CARVEOUT", NULL, -1, 100, NULL},
-};
-
-static int rt_cuda_check_env(RtError *err)
-{
-    for (size_t i = 0; i < sizeof rt_cuda_env_vars / sizeof rt_cuda_env_vars[0]; i++) {
-        const RtCudaEnvVar *v = &rt_cuda_env_vars[i];
-        const char *s = getenv(v->name);
-        if (!s || !*s)
-            continue;
-        if (v->words) {
-            const size_t n = strlen(s);
-            const char *p = v->words;
-            int ok = 0;
-            while (*p && !ok) {
-                const size_t k = strcspn(p, " ");
-                ok = k == n && strncmp(p, s, n) == 0;
-                p += k + (p[k] == ' ');
-            }
-            if (!ok)
-                return rt_fail(err, "%s=%s: expected one of: %s%s%s", v->name, s, v->words, v->why ? "; " : "",
-                               v->why ? v->why : "");
-        } else {
-            char *end;
-            errno = 0;
-            const long x = strtol(s, &end, 10);
-            if (errno || end == s || *end != '\0' || x < v->lo || x > v->hi)
-                return rt_fail(err, "%s=%s: expected an integer from %d to %d", v->name, s, v->lo, v->hi);
-        }
-    }
-    return 0;
-}
-
 static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 {
     /* All locals first: RT_CUDA_CHECK jumps to fail:, and C++ forbids jumping
@@ -978,14 +991,14 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * schedule's blocks of pairs all fit on the GPU at once -- then the second
      * lane per pixel costs no wave, and it shortens the chains the frame waits
      * on (docs/gpu.md, "Fifth round"). */
-    minb = rt_cuda_env_int("RAYBENCH_CUDA_MINB", 1, 4, RT_CUDA_DEFAULT_MINB);
+    minb = rt_cuda_env_int("RAYBENCH_CUDA_MINB", RT_CUDA_DEFAULT_MINB);
     /* RAYBENCH_CUDA_SPEC accepts only 1 (rt_cuda_check_env): the leaf vote is
      * compiled in (RT_WIDE_LEAF_VOTE above); the record keeps saying spec=1. */
     {
         const char *pe = getenv("RAYBENCH_CUDA_PAIRS");
         const int can = !persistent && bx % 2 == 0 && threads % 32 == 0;
         if (pe && *pe && strcmp(pe, "auto") != 0) {
-            pairs = rt_cuda_env_int("RAYBENCH_CUDA_PAIRS", 0, 1, 0); /* 0 or 1 (rt_cuda_check_env) */
+            pairs = strcmp(pe, "1") == 0; /* 0 or 1 here (rt_cuda_check_env) */
             if (pairs && !can) {
                 rt_fail(err, "RAYBENCH_CUDA_PAIRS=1: needs the grid schedule and blocks of an even width and a "
                              "multiple of 32 threads (got %dx%d, %s)",
@@ -1037,7 +1050,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     }
     /* Shared memory / L1 split (percent of the most shared memory; 0 = the
      * largest L1). Unset: the driver's choice. */
-    carveout = rt_cuda_env_int("RAYBENCH_CUDA_CARVEOUT", -1, 100, -1);
+    carveout = rt_cuda_env_int("RAYBENCH_CUDA_CARVEOUT", -1);
     if (carveout >= 0)
         RT_CUDA_CHECK(cudaFuncSetAttribute(kernel, cudaFuncAttributePreferredSharedMemoryCarveout, carveout));
     RT_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&blocks_per_sm, kernel, threads, 0));
@@ -1141,8 +1154,8 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     RT_CUDA_CHECK(cudaMemcpyToSymbol(rt_cuda_traversal, &traversal, sizeof traversal));
     RT_CUDA_CHECK(cudaEventCreate(&ev0));
     RT_CUDA_CHECK(cudaEventCreate(&ev1));
-    max_runs = rt_cuda_env_int("RAYBENCH_CUDA_RUNS", 1, 64, RT_CUDA_DEFAULT_RUNS);
-    warmup_ms = rt_cuda_env_int("RAYBENCH_CUDA_WARMUP_MS", 0, 10000, RT_CUDA_DEFAULT_WARMUP_MS);
+    max_runs = rt_cuda_env_int("RAYBENCH_CUDA_RUNS", RT_CUDA_DEFAULT_RUNS);
+    warmup_ms = rt_cuda_env_int("RAYBENCH_CUDA_WARMUP_MS", RT_CUDA_DEFAULT_WARMUP_MS);
     /* Warm-up launches (module load, caches, and the GPU's clocks: an idle
      * H100 sits at a low SM clock and needs some milliseconds of work to boost)
      * are timed but kept out of render_ms: first_ms is the cold first launch.
