@@ -8,12 +8,15 @@
 # MODE picks the renders compared with serial (bvh), each ACCEL:BLOCK[:TRAV]
 # with TRAV the GPU traversal (RAYBENCH_CUDA_TRAVERSAL; default wide), or
 # `pairs`: the wide traversal with two lanes per pixel (RAYBENCH_CUDA_PAIRS=1),
-# or `cover`: the wide traversal with the tiles in the cover order
-# (RAYBENCH_CUDA_ORDER=cover); other renders set PAIRS=0 and the tile order:
+# `cover` or `center`: the wide traversal with the tiles in that order
+# (RAYBENCH_CUDA_ORDER), `pairs-center`: both, or `default`: no variable set
+# (the record must say order=center for the tree, tiles for brute force);
+# other renders set PAIRS=0 and the row-major tile order:
 #   full   cuda+bvh in blocks 8x8 16x8 16x16 32x8 32x32 13x7 128x1 (odd and
 #          1024-thread shapes included), pixel pairs in 8x8 and 32x4, the
-#          cover order in 8x8, the binary tree's traversals (ldg, shared) in
-#          16x16, and cuda+none in 16x16 and 32x32;
+#          cover order in 8x8, the centre order in 16x8 (at the defaults),
+#          13x7 and with pairs in 32x4, the binary tree's traversals (ldg,
+#          shared) in 16x16, and cuda+none in 16x16 and 32x32;
 #   bvh    cuda+bvh in 16x16 and 32x32 only (scenes whose brute force is slow);
 #   nogpu  expects `--backend cuda` to fail with one line and exit 1 (the
 #          CI machine has no GPU); skipped where a GPU is present;
@@ -96,28 +99,37 @@ for sc in "$@"; do
     ref="$TMP/$name-serial.ppm"
     rec_s=$("$RT" -q --backend serial --accel bvh -o "$ref" "$DIR/$sc.txt") || { echo "FAIL $name: serial render"; fail=1; continue; }
     case $MODE in
-        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:8x8:pairs bvh:32x4:pairs bvh:8x8:cover bvh:16x16:ldg bvh:16x16:shared} none:16x16 none:32x32" ;;
+        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:8x8:pairs bvh:32x4:pairs bvh:8x8:cover bvh:16x8:default bvh:13x7:center bvh:32x4:pairs-center bvh:16x16:ldg bvh:16x16:shared} none:16x16 none:32x32" ;;
         *) runs="${GPU_CHECK_BLOCKS:-bvh:16x16 bvh:32x32}" ;;
     esac
     for r in $runs; do
         accel=${r%%:*}; blk=${r#*:}; trav=wide
         case $blk in *:*) trav=${blk#*:}; blk=${blk%%:*} ;; esac
-        pairs=0; order=tiles
-        [ "$trav" = pairs ] && { pairs=1; trav=wide; }
-        [ "$trav" = cover ] && { order=cover; trav=wide; }
-        img="$TMP/$name-cuda-$accel-$blk-$trav-$pairs-$order.ppm"
+        pairs=0; order=tiles; kind=$trav
+        case $kind in
+            pairs) pairs=1; trav=wide ;;
+            cover | center) order=$kind; trav=wide ;;
+            pairs-center) pairs=1; order=center; trav=wide ;;
+            default) pairs=; order=; trav=wide ;;
+        esac
+        img="$TMP/$name-cuda-$accel-$blk-$kind.ppm"
+        # an empty value is the default (as unset); pairs then stay auto
         rec_c=$(RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_PAIRS=$pairs RAYBENCH_CUDA_ORDER=$order RAYBENCH_CUDA_RUNS=1 "$RT" -q --verify --backend cuda --accel "$accel" --block "$blk" -o "$img" "$DIR/$sc.txt")
         if [ $? -ne 0 ]; then echo "FAIL $name $accel $blk $trav pairs=$pairs: cuda render"; fail=1; continue; fi
         # brute force has no tree: its record says ldg
         want=$trav; [ "$accel" = none ] && want=ldg
         case $rec_c in *" traversal=$want "*) ;; *) echo "FAIL $name $accel $blk: the record does not say traversal=$want"; fail=1; continue ;; esac
-        case $rec_c in *" pairs=$pairs "*) ;; *) echo "FAIL $name $accel $blk: the record does not say pairs=$pairs"; fail=1; continue ;; esac
-        [ $pairs = 1 ] && { trav=pairs; want=pairs; }
-        # brute force has no tree to project: its order stays tiles
-        if [ $order = cover ] && [ "$accel" = bvh ]; then
-            case $rec_c in *" order=cover "*) ;; *) echo "FAIL $name $accel $blk: the record does not say order=cover"; fail=1; continue ;; esac
-            trav=cover; want=cover
+        if [ -n "$pairs" ]; then
+            case $rec_c in *" pairs=$pairs "*) ;; *) echo "FAIL $name $accel $blk: the record does not say pairs=$pairs"; fail=1; continue ;; esac
         fi
+        # the default order is center on the grid (the tree's schedule)
+        [ "$kind" = default ] && order=center
+        # brute force has no tree to project and runs the persistent schedule:
+        # its order stays tiles
+        if [ "$order" != tiles ] && [ "$accel" = bvh ]; then
+            case $rec_c in *" order=$order "*) ;; *) echo "FAIL $name $accel $blk: the record does not say order=$order"; fail=1; continue ;; esac
+        fi
+        case $kind in pairs | cover | center | pairs-center | default) trav=$kind; want=$kind ;; esac
         d=$("$DIFF" "$ref" "$img" --min-psnr 45 --max-over2 0.2); drc=$?
         ok=ok; [ $drc -eq 0 ] || ok=image
         for k in primary_rays shadow_rays secondary_rays; do

@@ -2,7 +2,7 @@
 # gpu_sanitize.sh RAYTRACE SCENE_DIR - compute-sanitizer memcheck and
 # racecheck on two scenes (a glass/mirror sphere scene, deepest ray stacks, and
 # the dragon mesh through the BVH, both accels; pixel pairs, the timeline
-# recording and the cover order too), at a reduced resolution:
+# recording, the cover and the centre orders too), at a reduced resolution:
 # the tools slow kernels down a hundredfold or more. Any report fails the test.
 # Exit 77 without a GPU or without compute-sanitizer.
 set -u
@@ -17,12 +17,13 @@ for tool in memcheck racecheck; do
     for run in "SphereExamples/spheres2 bvh 16x16 160x120 wide" "InterestingScenes/dragon bvh 13x7 128x96 wide" \
                "InterestingScenes/dragon bvh 32x8 128x96 ldg" "InterestingScenes/dragon none 32x32 64x48 ldg" \
                "SphereExamples/spheres2 none 32x8 160x120 ldg" "SphereExamples/spheres2 bvh 16x8 160x120 wide 1" \
-               "InterestingScenes/dragon bvh 8x8 128x96 wide 1 timeline" "InterestingScenes/dragon bvh 16x8 128x96 wide 0 cover"; do
+               "InterestingScenes/dragon bvh 8x8 128x96 wide 1 timeline" "InterestingScenes/dragon bvh 16x8 128x96 wide 0 cover" \
+               "InterestingScenes/dragon bvh 13x7 128x96 wide 0 center"; do
         set -- $run
         log="$TMP/log"
-        # 6th field: pixel pairs (default 0); 7th: record a timeline too, or the cover order
+        # 6th field: pixel pairs (default 0); 7th: record a timeline too, or an order (else tiles)
         tl=""; [ "${7:-}" = timeline ] && tl="$TMP/timeline.csv"
-        ord=tiles; [ "${7:-}" = cover ] && ord=cover
+        ord=tiles; case ${7:-} in cover | center) ord=$7 ;; esac
         RAYBENCH_CUDA_ORDER=$ord RAYBENCH_CUDA_TIMELINE=$tl RAYBENCH_CUDA_PAIRS=${6:-0} RAYBENCH_CUDA_TRAVERSAL=$5 RAYBENCH_CUDA_RUNS=1 "$CS" --tool "$tool" --error-exitcode 3 "$RT" -q --backend cuda --accel "$2" \
             --block "$3" -r "$4" -o "$TMP/out.ppm" "$DIR/$1.txt" >"$log" 2>&1
         rc=$?

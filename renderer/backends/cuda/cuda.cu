@@ -188,10 +188,13 @@ extern "C" {
 #define RT_CUDA_DEFAULT_MINB 1
 /* Work order (RAYBENCH_CUDA_ORDER): row-major tiles; scattered tiles
  * (persistent schedule); tiles by leaf coverage (grid schedule,
- * rt_cover_order_kernel); or the oracle order (either schedule, a
- * measurement only: rt_cuda_oracle_order). */
-enum { RT_ORDER_TILES = 0, RT_ORDER_SCATTER = 1, RT_ORDER_ORACLE = 2, RT_ORDER_COVER = 3 };
-#define RT_CUDA_DEFAULT_ORDER RT_ORDER_TILES
+ * rt_cover_order_kernel); tiles from the image's centre outwards (grid
+ * schedule, rt_cuda_center_order: its default, by measurement, docs/gpu.md
+ * "Ninth round"); or the oracle order (either schedule, a measurement only:
+ * rt_cuda_oracle_order). */
+enum { RT_ORDER_TILES = 0, RT_ORDER_SCATTER = 1, RT_ORDER_ORACLE = 2, RT_ORDER_COVER = 3, RT_ORDER_CENTER = 4 };
+#define RT_CUDA_DEFAULT_GRID_ORDER RT_ORDER_CENTER
+#define RT_CUDA_DEFAULT_PERSISTENT_ORDER RT_ORDER_TILES
 /* The default traversal: the 4-wide tree (docs/gpu.md). */
 #define RT_CUDA_DEFAULT_TRAVERSAL RT_TRAV_WIDE
 /* Timed launches stop once they have used this much kernel time in total, so a
@@ -211,7 +214,7 @@ typedef struct RtCudaGrid {
     /* Oracle order (RAYBENCH_CUDA_ORDER=oracle, a measurement): the n-th
      * 32-item chunk handed out is chunk_order[n]. NULL: off. */
     const uint32_t *chunk_order;
-    /* Grid schedule, with an order (cover, oracle): block b renders tile
+    /* Grid schedule, with an order (cover, center, oracle): block b renders tile
      * units[b] if b < *nunits (else it returns at once). NULL: block b renders
      * tile b. */
     const uint32_t *units;
@@ -542,7 +545,9 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
         }
     } else {
         {
-            const uint32_t tile = EXTRAS && g.units ? g.units[blockIdx.x] : blockIdx.x;
+            /* The block's tile: from the order's table (the centre order,
+             * the default; cover; the oracle), or the block index. */
+            const uint32_t tile = g.units ? g.units[blockIdx.x] : blockIdx.x;
             int px, py;
             const bool valid = rt_cuda_unit_pixel(view, g, tile, PAIRS, tid, &px, &py);
             /* Chunk records by warp of the launch. */
@@ -773,7 +778,7 @@ typedef struct RtCudaEnvVar {
 static const RtCudaEnvVar rt_cuda_env_vars[] = {
     {"RAYBENCH_CUDA_SCHED", "grid persistent", 0, 0, NULL},
     {"RAYBENCH_CUDA_TRAVERSAL", "wide ldg shared", 0, 0, NULL},
-    {"RAYBENCH_CUDA_ORDER", "tiles scatter oracle cover", 0, 0, NULL},
+    {"RAYBENCH_CUDA_ORDER", "tiles scatter oracle cover center", 0, 0, NULL},
     {"RAYBENCH_CUDA_PAIRS", "0 1 auto", 0, 0, NULL},
     {"RAYBENCH_CUDA_SPEC", "1", 0, 0,
      "only 1 is left: the wide traversal always postpones leaves (docs/gpu.md, \"Sixth round\")"},
@@ -916,6 +921,51 @@ static int rt_cuda_write_timeline(const char *path, const unsigned char *dchunks
     return 0;
 }
 
+/* RAYBENCH_CUDA_ORDER=center: the grid's tiles by the distance of their
+ * centres from the image's centre, nearest first (ties: raster order). A
+ * frame's heavy work is mostly on its subject, and a subject is mostly near
+ * the middle of the frame, so its tiles start in the first wave instead of
+ * wherever the rows put them (arm-reach's slowest warps lie 70% down the
+ * image). Depends on the image and tile sizes only, not on the scene. */
+typedef struct RtCudaTileKey {
+    unsigned long long d2;
+    uint32_t tile;
+} RtCudaTileKey;
+
+static int rt_cuda_cmp_tile_key(const void *a, const void *b)
+{
+    const RtCudaTileKey *x = (const RtCudaTileKey *)a, *y = (const RtCudaTileKey *)b;
+    if (x->d2 != y->d2)
+        return x->d2 < y->d2 ? -1 : 1;
+    return x->tile < y->tile ? -1 : (x->tile > y->tile ? 1 : 0);
+}
+
+static uint32_t *rt_cuda_center_order(const RtCudaGrid *g, int w, int h, RtError *err)
+{
+    RtCudaTileKey *k = (RtCudaTileKey *)malloc((size_t)g->ntiles * sizeof *k);
+    uint32_t *order = (uint32_t *)malloc((size_t)g->ntiles * sizeof *order);
+    if (!k || !order) {
+        free(k);
+        free(order);
+        rt_fail(err, "cuda: out of memory for the centre order of %u tiles", g->ntiles);
+        return NULL;
+    }
+    for (uint32_t t = 0; t < g->ntiles; t++) {
+        /* doubled pixel coordinates: tile centre against image centre, exact */
+        const long long cx = 2LL * (t % (uint32_t)g->tiles_x) * g->bx + g->bx - w;
+        const long long cy = 2LL * (t / (uint32_t)g->tiles_x) * g->by + g->by - h;
+        k[t].d2 = (unsigned long long)(cx * cx + cy * cy);
+        k[t].tile = t;
+    }
+    qsort(k, g->ntiles, sizeof *k, rt_cuda_cmp_tile_key);
+    for (uint32_t t = 0; t < g->ntiles; t++)
+        order[t] = k[t].tile;
+    free(k);
+    return order;
+}
+
+static const char *const rt_cuda_order_names[] = {"tiles", "scatter", "oracle", "cover", "center"};
+
 static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 {
     /* All locals first: RT_CUDA_CHECK jumps to fail:, and C++ forbids jumping
@@ -926,7 +976,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     const int dev = job->device;
     int rc = -1, ndev = 0, traversal = 0, order_mode = 0, carveout = -1, warmup_ms = 0, warmups = 0;
     int blocks_per_sm = 0, nblocks = 0, runs = 0, max_runs = 0, pairs = 0, minb = 1;
-    uint32_t nchunks = 0;
+    uint32_t nchunks = 0, *center_order = NULL;
     size_t shmem = 0;
     const char *timeline = NULL;
     int bx = job->block_x > 0 ? job->block_x : (hv->nnodes ? RT_CUDA_DEFAULT_BX : RT_CUDA_DEFAULT_NONE_BX);
@@ -1014,19 +1064,22 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
             pairs = pair_tiles <= (unsigned long long)pb * (unsigned long long)prop.multiProcessorCount;
         }
     }
-    /* Chunk order and timeline: both need the kernels with the extras. */
+    /* The order; the oracle, cover and timeline need the kernels with the
+     * extras, the centre order does not (a table of tiles, like cover's). */
     {
         const char *ord = getenv("RAYBENCH_CUDA_ORDER");
-        order_mode = !ord                           ? RT_CUDA_DEFAULT_ORDER
+        order_mode = !ord || !*ord ? (persistent ? RT_CUDA_DEFAULT_PERSISTENT_ORDER : RT_CUDA_DEFAULT_GRID_ORDER)
                      : strcmp(ord, "scatter") == 0 ? RT_ORDER_SCATTER
                      : strcmp(ord, "oracle") == 0  ? RT_ORDER_ORACLE
                      : strcmp(ord, "cover") == 0   ? RT_ORDER_COVER
+                     : strcmp(ord, "center") == 0  ? RT_ORDER_CENTER
                                                    : RT_ORDER_TILES;
     }
     /* scatter: the persistent schedule's; cover: the grid's, with a tree;
-     * the oracle (either schedule) needs whole 32-item chunks. */
+     * center: the grid's; the oracle (either schedule) needs whole 32-item
+     * chunks. */
     if ((order_mode == RT_ORDER_SCATTER && !persistent) || (order_mode == RT_ORDER_ORACLE && threads % 32 != 0) ||
-        (order_mode == RT_ORDER_COVER && (persistent || hv->nnodes == 0)))
+        (order_mode == RT_ORDER_COVER && (persistent || hv->nnodes == 0)) || (order_mode == RT_ORDER_CENTER && persistent))
         order_mode = RT_ORDER_TILES;
     timeline = getenv("RAYBENCH_CUDA_TIMELINE"); /* empty: off, as unset */
     if (timeline && !*timeline)
@@ -1100,9 +1153,18 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     parts[P_WORK].bytes = sizeof(unsigned int);
     /* Chunk records: the persistent schedule's 32-item chunks, or the grid's warps. */
     nchunks = persistent ? g.total_items / 32u : (uint32_t)nblocks * (uint32_t)(threads / 32);
-    parts[P_ORDER].bytes = order_mode == RT_ORDER_ORACLE || order_mode == RT_ORDER_COVER
+    parts[P_ORDER].bytes = order_mode == RT_ORDER_ORACLE || order_mode == RT_ORDER_COVER || order_mode == RT_ORDER_CENTER
                                ? (size_t)(persistent ? nchunks : (uint32_t)nblocks) * sizeof(uint32_t) : 0;
     parts[P_NUNITS].bytes = sizeof(uint32_t);
+    if (order_mode == RT_ORDER_CENTER) {
+        /* A static order (image and tile sizes only, like the launch grid):
+         * made and uploaded with the scene, outside the timed launches. */
+        center_order = rt_cuda_center_order(&g, w, h, err);
+        if (!center_order)
+            goto fail;
+        parts[P_ORDER].host = center_order;
+        parts[P_NUNITS].host = &g.ntiles;
+    }
     parts[P_CHUNKS].bytes = order_mode == RT_ORDER_ORACLE || timeline ? (size_t)nchunks * sizeof(RtCudaChunk) : 0;
     arena_bytes = rt_cuda_layout(parts);
     e = cudaMalloc((void **)&arena, arena_bytes);
@@ -1166,7 +1228,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         RT_CUDA_CHECK(cudaMemset(arena + parts[P_CHUNKS].offset, 0, parts[P_CHUNKS].bytes));
     if (order_mode == RT_ORDER_ORACLE)
         g.chunks = (RtCudaChunk *)(arena + parts[P_CHUNKS].offset);
-    if (order_mode == RT_ORDER_COVER) {
+    if (order_mode == RT_ORDER_COVER || order_mode == RT_ORDER_CENTER) {
         g.units = (const uint32_t *)(arena + parts[P_ORDER].offset);
         g.nunits = (const uint32_t *)(arena + parts[P_NUNITS].offset);
     }
@@ -1264,11 +1326,12 @@ fail:
         cudaEventDestroy(ev1);
     if (arena)
         cudaFree(arena);
+    free(center_order);
     if (rc == 0) {
         snprintf(out->extra, sizeof out->extra,
                  " block=%dx%d pairs=%d sched=%s order=%s carveout=%d traversal=%s spec=1 kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
                  "download_ms=%.3f wall_ms=%.3f regs=%d local_bytes=%zu bounds=%dx%d blocks_per_sm=%d grid=%d gpu=%s",
-                 bx, by, pairs, persistent ? "persistent" : "grid", order_mode == RT_ORDER_ORACLE ? "oracle" : (order_mode == RT_ORDER_SCATTER ? "scatter" : (order_mode == RT_ORDER_COVER ? "cover" : "tiles")), carveout,
+                 bx, by, pairs, persistent ? "persistent" : "grid", rt_cuda_order_names[order_mode], carveout,
                  traversal == RT_TRAV_WIDE ? "wide" : (traversal == RT_TRAV_LDG ? "ldg" : "shared"), runs, times[0], warmups, first_ms, init_ms, upload_ms,
                  download_ms, rt_now_ms() - t_wall0, fa.numRegs, (size_t)fa.localSizeBytes, variant->maxt, variant->minb,
                  blocks_per_sm, nblocks,
