@@ -964,6 +964,7 @@ static uint32_t *rt_cuda_center_order(const RtCudaGrid *g, int w, int h, RtError
     return order;
 }
 
+/* Indexed by RT_ORDER_*: the names RAYBENCH_CUDA_ORDER takes and the record says. */
 static const char *const rt_cuda_order_names[] = {"tiles", "scatter", "oracle", "cover", "center"};
 
 static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
@@ -1068,12 +1069,10 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * extras, the centre order does not (a table of tiles, like cover's). */
     {
         const char *ord = getenv("RAYBENCH_CUDA_ORDER");
-        order_mode = !ord || !*ord ? (persistent ? RT_CUDA_DEFAULT_PERSISTENT_ORDER : RT_CUDA_DEFAULT_GRID_ORDER)
-                     : strcmp(ord, "scatter") == 0 ? RT_ORDER_SCATTER
-                     : strcmp(ord, "oracle") == 0  ? RT_ORDER_ORACLE
-                     : strcmp(ord, "cover") == 0   ? RT_ORDER_COVER
-                     : strcmp(ord, "center") == 0  ? RT_ORDER_CENTER
-                                                   : RT_ORDER_TILES;
+        order_mode = persistent ? RT_CUDA_DEFAULT_PERSISTENT_ORDER : RT_CUDA_DEFAULT_GRID_ORDER;
+        for (int i = 0; ord && *ord && i < (int)(sizeof rt_cuda_order_names / sizeof rt_cuda_order_names[0]); i++)
+            if (strcmp(ord, rt_cuda_order_names[i]) == 0)
+                order_mode = i; /* (rt_cuda_check_env refused any other word) */
     }
     /* scatter: the persistent schedule's; cover: the grid's, with a tree;
      * center: the grid's; the oracle (either schedule) needs whole 32-item
