@@ -470,6 +470,100 @@ static inline RT_HD uint32_t rt_wide_key(const RtWideRay *w, float nx, float ny,
 static inline RT_HD uint32_t rt_umin(uint32_t a, uint32_t b) { return a < b ? a : b; }
 static inline RT_HD uint32_t rt_umax(uint32_t a, uint32_t b) { return a > b ? a : b; }
 
+/* The wide traversal's stack entry: sort key (rt_wide_key) in the high word,
+ * reference in the low. Pops the nearest entry not beyond t (ties are
+ * visited), RT_WIDE_DONE when none is left: for keys and t >= 0,
+ * (key & ~3) <= bits(t) is key <= bits(t) | 3. */
+static inline RT_HD uint32_t rt_wide_pop(const uint64_t *st, int *sp, float t)
+{
+    const uint32_t lim = rt_float_bits(t) | 3u;
+    while (*sp > 0) {
+        const uint64_t e = st[--*sp];
+        if ((uint32_t)(e >> 32) <= lim)
+            return (uint32_t)e;
+    }
+    return RT_WIDE_DONE;
+}
+
+/* One visit of inner node ref for a ray whose closest hit so far is at t:
+ * the four child boxes tested, the entered ones stacked farthest first (any
+ * = 1 with RT_WIDE_ANY_SORT=0: in slot order) and the nearest returned as
+ * the next node to visit, or the pop's. */
+static inline RT_HD uint32_t rt_wide_visit(const RtSceneView *s, const RtWideRay *wr, uint32_t ref, float t, int any,
+                                           uint64_t *st, int *sp)
+{
+    float nx[4], fx[4], ny[4], fy[4], nz[4], fz[4];
+    uint32_t c[4];
+#if defined(__CUDA_ARCH__)
+    /* The node as float4 rows lo_x, hi_x, lo_y, hi_y, lo_z, hi_z,
+     * child: each axis's near row, then its far row. */
+    const float4 *q = (const float4 *)s->wide;
+    const uint32_t r = ref * 8u;
+    float4 a;
+    a = __ldg(q + (r + wr->sx)); nx[0] = a.x; nx[1] = a.y; nx[2] = a.z; nx[3] = a.w;
+    a = __ldg(q + (r + 1u - wr->sx)); fx[0] = a.x; fx[1] = a.y; fx[2] = a.z; fx[3] = a.w;
+    a = __ldg(q + (r + 2u + wr->sy)); ny[0] = a.x; ny[1] = a.y; ny[2] = a.z; ny[3] = a.w;
+    a = __ldg(q + (r + 3u - wr->sy)); fy[0] = a.x; fy[1] = a.y; fy[2] = a.z; fy[3] = a.w;
+    a = __ldg(q + (r + 4u + wr->sz)); nz[0] = a.x; nz[1] = a.y; nz[2] = a.z; nz[3] = a.w;
+    a = __ldg(q + (r + 5u - wr->sz)); fz[0] = a.x; fz[1] = a.y; fz[2] = a.z; fz[3] = a.w;
+    const uint4 cc = __ldg((const uint4 *)(q + (r + 6u)));
+    c[0] = cc.x; c[1] = cc.y; c[2] = cc.z; c[3] = cc.w;
+#else
+    const RtBvh4Node *n = &s->wide[ref];
+    const float *px = wr->sx ? n->hi_x : n->lo_x, *qx = wr->sx ? n->lo_x : n->hi_x;
+    const float *py = wr->sy ? n->hi_y : n->lo_y, *qy = wr->sy ? n->lo_y : n->hi_y;
+    const float *pz = wr->sz ? n->hi_z : n->lo_z, *qz = wr->sz ? n->lo_z : n->hi_z;
+    for (int k = 0; k < 4; k++) {
+        nx[k] = px[k]; fx[k] = qx[k];
+        ny[k] = py[k]; fy[k] = qy[k];
+        nz[k] = pz[k]; fz[k] = qz[k];
+        c[k] = n->child[k];
+    }
+#endif
+    uint32_t key[4];
+#if defined(__CUDA_ARCH__)
+#pragma unroll
+#endif
+    for (int k = 0; k < 4; k++) /* all four tested, then selected: no branch per child */
+        key[k] = rt_wide_key(wr, nx[k], ny[k], nz[k], fx[k], fy[k], fz[k], t, (uint32_t)k);
+#if !RT_WIDE_ANY_SORT
+    if (any) {
+        /* Slot order; the first entered child next. */
+#define RT_WIDE_PUSHK(k)                                                       \
+    {                                                                          \
+        st[*sp] = ((uint64_t)key[k] << 32) | c[k];                             \
+        *sp += key[k] != RT_WIDE_MISS_KEY;                                     \
+    }
+        RT_WIDE_PUSHK(3) RT_WIDE_PUSHK(2) RT_WIDE_PUSHK(1)
+#undef RT_WIDE_PUSHK
+        return key[0] != RT_WIDE_MISS_KEY ? c[0] : rt_wide_pop(st, sp, t);
+    }
+#else
+    (void)any;
+#endif
+    /* A 5-exchange sorting network, nearest first. */
+#define RT_WIDE_CX(i, j)                                                       \
+    {                                                                          \
+        const uint32_t lo_ = rt_umin(key[i], key[j]);                          \
+        key[j] = rt_umax(key[i], key[j]);                                      \
+        key[i] = lo_;                                                          \
+    }
+    RT_WIDE_CX(0, 1) RT_WIDE_CX(2, 3) RT_WIDE_CX(0, 2) RT_WIDE_CX(1, 3) RT_WIDE_CX(1, 2)
+#undef RT_WIDE_CX
+#define RT_WIDE_CHILD(kk) (((kk) & 2u) ? (((kk) & 1u) ? c[3] : c[2]) : (((kk) & 1u) ? c[1] : c[0]))
+    /* Pushes without branches: every entry is written, and the top moves
+     * past it only if it is a hit (the stack has a spare slot). */
+#define RT_WIDE_PUSH(kk)                                                       \
+    {                                                                          \
+        st[*sp] = ((uint64_t)(kk) << 32) | RT_WIDE_CHILD(kk);                  \
+        *sp += (kk) != RT_WIDE_MISS_KEY;                                       \
+    }
+    RT_WIDE_PUSH(key[3]) RT_WIDE_PUSH(key[2]) RT_WIDE_PUSH(key[1])
+#undef RT_WIDE_PUSH
+    return key[0] != RT_WIDE_MISS_KEY ? RT_WIDE_CHILD(key[0]) : rt_wide_pop(st, sp, t);
+#undef RT_WIDE_CHILD
+}
+
 static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit,
                                           RtCounters *cnt)
 {
@@ -478,26 +572,11 @@ static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3
     hit->id = 0xffffffffu;
     int found = 0;
     const RtWideRay wr = rt_wide_ray(o, d);
-    /* Stack entry: sort key (below) in the high word, reference in the low. */
-    uint64_t st[RT_WIDE_STACK];
+    uint64_t st[RT_WIDE_STACK]; /* entries of rt_wide_pop */
     int sp = 0;
     uint32_t ref = 0;  /* the next node to visit; RT_WIDE_DONE: none */
     uint32_t leaf = 0; /* a postponed leaf; 0: none (a leaf reference has its top bit set) */
     uint32_t visits = 0, tests = 0;
-    /* Pop, skipping entries beyond the closest hit (ties are visited): for
-     * keys and hit->t >= 0, (key & ~3) <= bits(t) is key <= bits(t) | 3. */
-#define RT_WIDE_POP(dst)                                                       \
-    {                                                                          \
-        const uint32_t lim_ = rt_float_bits(hit->t) | 3u;                      \
-        (dst) = RT_WIDE_DONE;                                                  \
-        while (sp > 0) {                                                       \
-            const uint64_t e_ = st[--sp];                                      \
-            if ((uint32_t)(e_ >> 32) <= lim_) {                                \
-                (dst) = (uint32_t)e_;                                          \
-                break;                                                         \
-            }                                                                  \
-        }                                                                      \
-    }
     /* Inner nodes and leaves in two phases (Aila & Laine's while-while with
      * speculative traversal): a ray that reaches a leaf puts it aside and
      * goes on through inner nodes until every ray of its warp has a leaf
@@ -508,87 +587,10 @@ static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3
     for (;;) {
         while (!(ref & RT_WIDE_LEAF)) {
             visits++;
-            float nx[4], fx[4], ny[4], fy[4], nz[4], fz[4];
-            uint32_t c[4];
-#if defined(__CUDA_ARCH__)
-            /* The node as float4 rows lo_x, hi_x, lo_y, hi_y, lo_z, hi_z,
-             * child: each axis's near row, then its far row. */
-            const float4 *q = (const float4 *)s->wide;
-            const uint32_t r = ref * 8u;
-            float4 a;
-            a = __ldg(q + (r + wr.sx)); nx[0] = a.x; nx[1] = a.y; nx[2] = a.z; nx[3] = a.w;
-            a = __ldg(q + (r + 1u - wr.sx)); fx[0] = a.x; fx[1] = a.y; fx[2] = a.z; fx[3] = a.w;
-            a = __ldg(q + (r + 2u + wr.sy)); ny[0] = a.x; ny[1] = a.y; ny[2] = a.z; ny[3] = a.w;
-            a = __ldg(q + (r + 3u - wr.sy)); fy[0] = a.x; fy[1] = a.y; fy[2] = a.z; fy[3] = a.w;
-            a = __ldg(q + (r + 4u + wr.sz)); nz[0] = a.x; nz[1] = a.y; nz[2] = a.z; nz[3] = a.w;
-            a = __ldg(q + (r + 5u - wr.sz)); fz[0] = a.x; fz[1] = a.y; fz[2] = a.z; fz[3] = a.w;
-            const uint4 cc = __ldg((const uint4 *)(q + (r + 6u)));
-            c[0] = cc.x; c[1] = cc.y; c[2] = cc.z; c[3] = cc.w;
-#else
-            const RtBvh4Node *n = &s->wide[ref];
-            const float *px = wr.sx ? n->hi_x : n->lo_x, *qx = wr.sx ? n->lo_x : n->hi_x;
-            const float *py = wr.sy ? n->hi_y : n->lo_y, *qy = wr.sy ? n->lo_y : n->hi_y;
-            const float *pz = wr.sz ? n->hi_z : n->lo_z, *qz = wr.sz ? n->lo_z : n->hi_z;
-            for (int k = 0; k < 4; k++) {
-                nx[k] = px[k]; fx[k] = qx[k];
-                ny[k] = py[k]; fy[k] = qy[k];
-                nz[k] = pz[k]; fz[k] = qz[k];
-                c[k] = n->child[k];
-            }
-#endif
-            uint32_t key[4];
-#if defined(__CUDA_ARCH__)
-#pragma unroll
-#endif
-            for (int k = 0; k < 4; k++) /* all four tested, then selected: no branch per child */
-                key[k] = rt_wide_key(&wr, nx[k], ny[k], nz[k], fx[k], fy[k], fz[k], hit->t, (uint32_t)k);
-#if !RT_WIDE_ANY_SORT
-            if (any) {
-                /* Slot order; the first entered child next. */
-#define RT_WIDE_PUSHK(k)                                                       \
-    {                                                                          \
-        st[sp] = ((uint64_t)key[k] << 32) | c[k];                              \
-        sp += key[k] != RT_WIDE_MISS_KEY;                                      \
-    }
-                RT_WIDE_PUSHK(3) RT_WIDE_PUSHK(2) RT_WIDE_PUSHK(1)
-#undef RT_WIDE_PUSHK
-                if (key[0] != RT_WIDE_MISS_KEY)
-                    ref = c[0];
-                else
-                    RT_WIDE_POP(ref);
-                goto wide_next;
-            }
-#endif
-            /* A 5-exchange sorting network, nearest first. */
-#define RT_WIDE_CX(i, j)                                                       \
-    {                                                                          \
-        const uint32_t lo_ = rt_umin(key[i], key[j]);                          \
-        key[j] = rt_umax(key[i], key[j]);                                      \
-        key[i] = lo_;                                                          \
-    }
-            RT_WIDE_CX(0, 1) RT_WIDE_CX(2, 3) RT_WIDE_CX(0, 2) RT_WIDE_CX(1, 3) RT_WIDE_CX(1, 2)
-#undef RT_WIDE_CX
-#define RT_WIDE_CHILD(kk) (((kk) & 2u) ? (((kk) & 1u) ? c[3] : c[2]) : (((kk) & 1u) ? c[1] : c[0]))
-            /* Pushes without branches: every entry is written, and the top
-             * moves past it only if it is a hit (the stack has a spare slot). */
-#define RT_WIDE_PUSH(kk)                                                       \
-    {                                                                          \
-        st[sp] = ((uint64_t)(kk) << 32) | RT_WIDE_CHILD(kk);                   \
-        sp += (kk) != RT_WIDE_MISS_KEY;                                        \
-    }
-            RT_WIDE_PUSH(key[3]) RT_WIDE_PUSH(key[2]) RT_WIDE_PUSH(key[1])
-#undef RT_WIDE_PUSH
-            if (key[0] != RT_WIDE_MISS_KEY)
-                ref = RT_WIDE_CHILD(key[0]);
-            else
-                RT_WIDE_POP(ref);
-#undef RT_WIDE_CHILD
-#if !RT_WIDE_ANY_SORT
-        wide_next:
-#endif
+            ref = rt_wide_visit(s, &wr, ref, hit->t, any, st, &sp);
             if ((ref & RT_WIDE_LEAF) && ref != RT_WIDE_DONE && !leaf) {
                 leaf = ref;
-                RT_WIDE_POP(ref);
+                ref = rt_wide_pop(st, &sp, hit->t);
             }
             if (RT_WIDE_LEAF_VOTE(leaf != 0, any))
                 break;
@@ -603,13 +605,12 @@ static inline RT_HD int rt_trace_ray_wide(const RtSceneView *s, RtVec3 o, RtVec3
             leaf = 0;
             if ((ref & RT_WIDE_LEAF) && ref != RT_WIDE_DONE) {
                 leaf = ref;
-                RT_WIDE_POP(ref);
+                ref = rt_wide_pop(st, &sp, hit->t);
             }
         }
         if (ref == RT_WIDE_DONE)
             break;
     }
-#undef RT_WIDE_POP
 done:
     cnt->node_visits += visits;
     cnt->prim_tests += tests;
