@@ -9,14 +9,17 @@
 # with TRAV the GPU traversal (RAYBENCH_CUDA_TRAVERSAL; default wide), or
 # `pairs`: the wide traversal with two lanes per pixel (RAYBENCH_CUDA_PAIRS=1),
 # `cover` or `center`: the wide traversal with the tiles in that order
-# (RAYBENCH_CUDA_ORDER), `pairs-center`: both, or `default`: no variable set
-# (the record must say order=center for the tree, tiles for brute force);
+# (RAYBENCH_CUDA_ORDER), `pairs-center`: both, `default`: no variable set
+# (the record must say order=center for the tree, tiles for brute force), or
+# `large`: no variable and no --block (BLOCK is `-`) at 2560x1920, against
+# serial at that size (the record must say large=1 sched=persistent);
 # other renders set PAIRS=0 and the row-major tile order:
 #   full   cuda+bvh in blocks 8x8 16x8 16x16 32x8 32x32 13x7 128x1 (odd and
 #          1024-thread shapes included), pixel pairs in 8x8 and 32x4, the
 #          cover order in 8x8, the centre order in 16x8 (at the defaults),
-#          13x7 and with pairs in 32x4, the binary tree's traversals (ldg,
-#          shared) in 16x16, and cuda+none in 16x16 and 32x32;
+#          13x7 and with pairs in 32x4, the large-image defaults, the binary
+#          tree's traversals (ldg, shared) in 16x16, and cuda+none in 16x16
+#          and 32x32;
 #   bvh    cuda+bvh in 16x16 and 32x32 only (scenes whose brute force is slow);
 #   nogpu  expects `--backend cuda` to fail with one line and exit 1 (the
 #          CI machine has no GPU); skipped where a GPU is present;
@@ -98,23 +101,34 @@ for sc in "$@"; do
     name=$(basename "$sc")
     ref="$TMP/$name-serial.ppm"
     rec_s=$("$RT" -q --backend serial --accel bvh -o "$ref" "$DIR/$sc.txt") || { echo "FAIL $name: serial render"; fail=1; continue; }
+    rec_l="" # serial at 2560x1920, made for the first `large` render
     case $MODE in
-        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:8x8:pairs bvh:32x4:pairs bvh:8x8:cover bvh:16x8:default bvh:13x7:center bvh:32x4:pairs-center bvh:16x16:ldg bvh:16x16:shared} none:16x16 none:32x32" ;;
+        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:8x8:pairs bvh:32x4:pairs bvh:8x8:cover bvh:16x8:default bvh:-:large bvh:13x7:center bvh:32x4:pairs-center bvh:16x16:ldg bvh:16x16:shared} none:16x16 none:32x32" ;;
         *) runs="${GPU_CHECK_BLOCKS:-bvh:16x16 bvh:32x32}" ;;
     esac
     for r in $runs; do
         accel=${r%%:*}; blk=${r#*:}; trav=wide
         case $blk in *:*) trav=${blk#*:}; blk=${blk%%:*} ;; esac
-        pairs=0; order=tiles; kind=$trav
+        pairs=0; order=tiles; kind=$trav; size=""; bref=$ref; srec=$rec_s; blkopt="--block $blk"
         case $kind in
             pairs) pairs=1; trav=wide ;;
             cover | center) order=$kind; trav=wide ;;
             pairs-center) pairs=1; order=center; trav=wide ;;
             default) pairs=; order=; trav=wide ;;
+            large)
+                pairs=; order=; trav=wide; size="-r 2560x1920"; blkopt=""
+                bref="$TMP/$name-serial-large.ppm"
+                if [ -z "$rec_l" ]; then
+                    # shellcheck disable=SC2086
+                    rec_l=$("$RT" -q --backend serial --accel bvh $size -o "$bref" "$DIR/$sc.txt") ||
+                        { echo "FAIL $name: serial render at 2560x1920"; fail=1; continue; }
+                fi
+                srec=$rec_l ;;
         esac
         img="$TMP/$name-cuda-$accel-$blk-$kind.ppm"
         # an empty value is the default (as unset); pairs then stay auto
-        rec_c=$(RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_PAIRS=$pairs RAYBENCH_CUDA_ORDER=$order RAYBENCH_CUDA_RUNS=1 "$RT" -q --verify --backend cuda --accel "$accel" --block "$blk" -o "$img" "$DIR/$sc.txt")
+        # shellcheck disable=SC2086
+        rec_c=$(RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_PAIRS=$pairs RAYBENCH_CUDA_ORDER=$order RAYBENCH_CUDA_RUNS=1 "$RT" -q --verify --backend cuda --accel "$accel" $blkopt $size -o "$img" "$DIR/$sc.txt")
         if [ $? -ne 0 ]; then echo "FAIL $name $accel $blk $trav pairs=$pairs: cuda render"; fail=1; continue; fi
         # brute force has no tree: its record says ldg
         want=$trav; [ "$accel" = none ] && want=ldg
@@ -122,24 +136,33 @@ for sc in "$@"; do
         if [ -n "$pairs" ]; then
             case $rec_c in *" pairs=$pairs "*) ;; *) echo "FAIL $name $accel $blk: the record does not say pairs=$pairs"; fail=1; continue ;; esac
         fi
-        # the default order is center on the grid (the tree's schedule)
+        # the default order is center on the grid (the tree's schedule); at
+        # 2560x1920 the defaults are the large image's: persistent, row-major
         [ "$kind" = default ] && order=center
+        if [ "$kind" = default ] || [ "$kind" = large ]; then
+            lw=0; [ "$kind" = large ] && lw=1
+            case $rec_c in *" large=$lw "*) ;; *) echo "FAIL $name $accel $kind: the record does not say large=$lw"; fail=1; continue ;; esac
+            if [ "$kind" = large ]; then
+                order=tiles
+                case $rec_c in *" sched=persistent "*) ;; *) echo "FAIL $name $accel $kind: the record does not say sched=persistent"; fail=1; continue ;; esac
+            fi
+        fi
         # brute force has no tree to project and runs the persistent schedule:
         # its order stays tiles
         if [ "$order" != tiles ] && [ "$accel" = bvh ]; then
             case $rec_c in *" order=$order "*) ;; *) echo "FAIL $name $accel $blk: the record does not say order=$order"; fail=1; continue ;; esac
         fi
-        case $kind in pairs | cover | center | pairs-center | default) trav=$kind; want=$kind ;; esac
-        d=$("$DIFF" "$ref" "$img" --min-psnr 45 --max-over2 0.2); drc=$?
+        case $kind in pairs | cover | center | pairs-center | default | large) trav=$kind; want=$kind ;; esac
+        d=$("$DIFF" "$bref" "$img" --min-psnr 45 --max-over2 0.2); drc=$?
         ok=ok; [ $drc -eq 0 ] || ok=image
         for k in primary_rays shadow_rays secondary_rays; do
-            rays_ok "$(field "$rec_s" $k)" "$(field "$rec_c" $k)" || ok="$ok+$k"
+            rays_ok "$(field "$srec" $k)" "$(field "$rec_c" $k)" || ok="$ok+$k"
         done
         [ "$ok" = ok ] || { ok=FAIL:$ok; fail=1; }
-        rs=$(field "$rec_s" rays); rcu=$(field "$rec_c" rays)
+        rs=$(field "$srec" rays); rcu=$(field "$rec_c" rays)
         pct=$(awk -v a="$rs" -v b="$rcu" 'BEGIN { printf "%.4f", a ? (b - a) * 100 / a : 0 }')
         echo "$name $accel $blk $trav: $d rays $rs/$rcu ($pct%) $ok"
-        [ -n "$CSV" ] && echo "$name,$accel,$blk,$(field "$d" psnr),$(field "$d" over2 | tr -d %),$(field "$d" maxdiff),$rs,$rcu,$pct,$(field "$rec_s" node_visits),$(field "$rec_c" node_visits),$ok,$want" >>"$CSV"
+        [ -n "$CSV" ] && echo "$name,$accel,$blk,$(field "$d" psnr),$(field "$d" over2 | tr -d %),$(field "$d" maxdiff),$rs,$rcu,$pct,$(field "$srec" node_visits),$(field "$rec_c" node_visits),$ok,$want" >>"$CSV"
     done
 done
 exit $fail

@@ -181,6 +181,15 @@ extern "C" {
 #define RT_CUDA_DEFAULT_BY 8
 #define RT_CUDA_DEFAULT_NONE_BX 8
 #define RT_CUDA_DEFAULT_NONE_BY 8
+/* Large images, tree (docs/gpu.md, "Tenth round"; results/gpu-round10-large.csv):
+ * from 2560x1920 up (73 and more waves of the grid default's resident
+ * threads on the H100) the persistent schedule in 4x8 blocks at MINB 3 was
+ * faster than the grid default on all seven scenes (5-16%); at 1600x1200
+ * (28 waves) it was mixed, so the switch sits between. */
+#define RT_CUDA_LARGE_WAVES 48.0
+#define RT_CUDA_LARGE_BX 4
+#define RT_CUDA_LARGE_BY 8
+#define RT_CUDA_LARGE_MINB 3
 #define RT_CUDA_DEFAULT_RUNS 21
 /* Host milliseconds of warm-up launches before the timed ones. */
 #define RT_CUDA_DEFAULT_WARMUP_MS 50
@@ -982,11 +991,13 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     const char *timeline = NULL;
     int bx = job->block_x > 0 ? job->block_x : (hv->nnodes ? RT_CUDA_DEFAULT_BX : RT_CUDA_DEFAULT_NONE_BX);
     int by = job->block_y > 0 ? job->block_y : (hv->nnodes ? RT_CUDA_DEFAULT_BY : RT_CUDA_DEFAULT_NONE_BY);
-    const int threads = bx * by;
+    int threads = bx * by;
     const char *sched_env = getenv("RAYBENCH_CUDA_SCHED");
+    const int sched_asked = sched_env && *sched_env;
     /* Default schedule by measurement (docs/gpu.md, "Fourth round"): grid for
-     * the tree, persistent for brute force. */
-    const int persistent = sched_env && *sched_env ? strcmp(sched_env, "grid") != 0 : hv->nnodes == 0;
+     * the tree, persistent for brute force; large images below. */
+    int persistent = sched_asked ? strcmp(sched_env, "grid") != 0 : hv->nnodes == 0;
+    int large = 0;
     cudaError_t e = cudaSuccess;
     cudaDeviceProp prop;
     cudaFuncAttributes fa;
@@ -1029,6 +1040,24 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     RT_CUDA_CHECK(cudaGetDeviceProperties(&prop, dev));
     rt_cuda_gpu_name(prop.name, gpu, sizeof gpu);
 
+    /* Large images with the tree, when neither the block nor the schedule
+     * was asked for: at least RT_CUDA_LARGE_WAVES times the pixels the grid
+     * default keeps resident take the persistent schedule in 4x8 blocks at
+     * RT_CUDA_LARGE_MINB (record: large=1). */
+    if (hv->nnodes && job->block_x <= 0 && !sched_asked) {
+        int pb = 0;
+        RT_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(
+            &pb, rt_cuda_pick_kernel(threads, RT_CUDA_DEFAULT_MINB, 0)->kernel, threads, 0));
+        const double resident = (double)pb * (double)threads * (double)prop.multiProcessorCount;
+        if (resident > 0.0 && (double)npix >= RT_CUDA_LARGE_WAVES * resident) {
+            large = 1;
+            persistent = 1;
+            bx = RT_CUDA_LARGE_BX;
+            by = RT_CUDA_LARGE_BY;
+            threads = bx * by;
+        }
+    }
+
     /* The block shape, checked against this kernel's real limits before any
      * allocation or launch: it renders correctly or fails here, loudly. */
     if (bx < 1 || by < 1 || threads > 1024 || threads > prop.maxThreadsPerBlock || bx > prop.maxThreadsDim[0] ||
@@ -1042,7 +1071,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * schedule's blocks of pairs all fit on the GPU at once -- then the second
      * lane per pixel costs no wave, and it shortens the chains the frame waits
      * on (docs/gpu.md, "Fifth round"). */
-    minb = rt_cuda_env_int("RAYBENCH_CUDA_MINB", RT_CUDA_DEFAULT_MINB);
+    minb = rt_cuda_env_int("RAYBENCH_CUDA_MINB", large ? RT_CUDA_LARGE_MINB : RT_CUDA_DEFAULT_MINB);
     /* RAYBENCH_CUDA_SPEC accepts only 1 (rt_cuda_check_env): the leaf vote is
      * compiled in (RT_WIDE_LEAF_VOTE above); the record keeps saying spec=1. */
     {
@@ -1328,9 +1357,9 @@ fail:
     free(center_order);
     if (rc == 0) {
         snprintf(out->extra, sizeof out->extra,
-                 " block=%dx%d pairs=%d sched=%s order=%s carveout=%d traversal=%s spec=1 kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
+                 " block=%dx%d large=%d pairs=%d sched=%s order=%s carveout=%d traversal=%s spec=1 kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
                  "download_ms=%.3f wall_ms=%.3f regs=%d local_bytes=%zu bounds=%dx%d blocks_per_sm=%d grid=%d gpu=%s",
-                 bx, by, pairs, persistent ? "persistent" : "grid", rt_cuda_order_names[order_mode], carveout,
+                 bx, by, large, pairs, persistent ? "persistent" : "grid", rt_cuda_order_names[order_mode], carveout,
                  traversal == RT_TRAV_WIDE ? "wide" : (traversal == RT_TRAV_LDG ? "ldg" : "shared"), runs, times[0], warmups, first_ms, init_ms, upload_ms,
                  download_ms, rt_now_ms() - t_wall0, fa.numRegs, (size_t)fa.localSizeBytes, variant->maxt, variant->minb,
                  blocks_per_sm, nblocks,
