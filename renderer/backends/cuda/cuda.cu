@@ -17,6 +17,8 @@
  *   grid (default for --accel bvh): one block per BXxBY tile, as the report
  *     launched it; with small blocks the hardware's block scheduler balances
  *     as well, and it measured faster with the speculative wide traversal.
+ *     Large images (RT_CUDA_LARGE_WAVES) take the persistent schedule in 4x8
+ *     blocks instead, when no block or schedule was asked for.
  * In both, the block shape BXxBY is the pixel tile a block covers, so a warp
  * covers a 32-pixel piece of a BXxBY tile (8x4 pixels for 8x8 blocks, a row of
  * 32 for 32xN): that is what makes the shape matter for ray coherence.
