@@ -183,12 +183,13 @@ extern "C" {
 #define RT_CUDA_DEFAULT_BY 8
 #define RT_CUDA_DEFAULT_NONE_BX 8
 #define RT_CUDA_DEFAULT_NONE_BY 8
-/* Large images, tree (docs/gpu.md, "Tenth round"; results/gpu-round10-large.csv):
- * from 2560x1920 up (73 and more waves of the grid default's resident
- * threads on the H100) the persistent schedule in 4x8 blocks at MINB 3 was
- * faster than the grid default on all seven scenes (5-16%); at 1600x1200
- * (28 waves) it was mixed, so the switch sits between. */
-#define RT_CUDA_LARGE_WAVES 48.0
+/* Large images, tree (docs/gpu.md, "Tenth round"; results/gpu-round10-large.csv,
+ * results/gpu-round10-threshold.csv): from 2048x1536 up (46 and more waves
+ * of the grid default's resident threads on the H100) the persistent
+ * schedule in 4x8 blocks at MINB 3 was faster than the grid default on all
+ * seven report scenes (3-17%); at 1920x1080 (31 waves) and 1600x1200 (28)
+ * arm-reach was 10% and 3% slower with it, so the switch sits between. */
+#define RT_CUDA_LARGE_WAVES 40.0
 #define RT_CUDA_LARGE_BX 4
 #define RT_CUDA_LARGE_BY 8
 #define RT_CUDA_LARGE_MINB 3
