@@ -4,7 +4,7 @@
 # the dragon mesh through the BVH, both accels; pixel pairs, the timeline
 # recording, the cover and the centre orders too), at a reduced resolution:
 # the tools slow kernels down a hundredfold or more. The large-image
-# defaults (persistent 4x8 blocks at MINB 3) on the sphere scene at
+# defaults (persistent 8x8 blocks at MINB 3) on the sphere scene at
 # 2560x1920, with no --block. Any report fails the test.
 # Exit 77 without a GPU or without compute-sanitizer.
 set -u
