@@ -87,6 +87,10 @@ static int check_dim_value(int dim, const char *v, char *why, size_t n)
 {
     const char *const *set = NULL;
     long a, b;
+    /* block: "-" is the renderer's default, which depends on the image
+     * (docs/gpu.md, large images), swept beside explicit shapes */
+    if (dim == HX_DIM_BLOCK && strcmp(v, "-") == 0)
+        return 0;
     switch (dim) {
     case HX_DIM_BACKEND: set = backends; break;
     case HX_DIM_ACCEL: set = accels; break;

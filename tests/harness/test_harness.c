@@ -125,6 +125,14 @@ static void test_config(void)
     expect_error("scenes: a\nrepeats: 1 2\n", "t.conf:3: key 'repeats' takes one value");
     expect_error("scenes: a\nrepeats: 0\n", "t.conf:3: repeats");
     expect_error("scenes: a\nblock: 8by8\n", "t.conf:3: block: expected WxH");
+    /* block "-": the renderer's default, as a value beside explicit shapes */
+    rc = parse("scenes: a\nbackend: cuda\nblock: - 16x8\n", &cfg, err, sizeof err);
+    CHECK(rc == 0);
+    CHECK(cfg.dim[HX_DIM_BLOCK].n == 2);
+    CHECK_STR(cfg.dim[HX_DIM_BLOCK].v[0], "-");
+    hx_config_free(&cfg);
+    expect_error("scenes: a\nblock: - -\n", "value '-' listed twice");
+    expect_error("scenes: a\ntile: -\n", "t.conf:3: tile: expected WxH");
     expect_error("scenes: a\ntimeout: soon\n", "t.conf:3: timeout");
     expect_error("scenes: a\naccel:\n", "t.conf:3: key 'accel' has no value");
     expect_error("scenes: nosuch\n", "t.conf:2: scene 'nosuch' not found");
