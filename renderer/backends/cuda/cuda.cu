@@ -977,8 +977,21 @@ static uint32_t *rt_cuda_center_order(const RtCudaGrid *g, int w, int h, RtError
     return order;
 }
 
-/* Indexed by RT_ORDER_*: the names RAYBENCH_CUDA_ORDER takes and the record says. */
+/* Indexed by RT_ORDER_* and RT_TRAV_*: the names RAYBENCH_CUDA_ORDER and
+ * RAYBENCH_CUDA_TRAVERSAL take and the record says. */
 static const char *const rt_cuda_order_names[] = {"tiles", "scatter", "oracle", "cover", "center"};
+static const char *const rt_cuda_trav_names[] = {"shared", "ldg", "wide"};
+
+/* The index of variable name's value in names[0..n), or def when unset or
+ * empty (rt_cuda_check_env has refused any other word). */
+static int rt_cuda_env_word(const char *name, const char *const *names, int n, int def)
+{
+    const char *s = getenv(name);
+    for (int i = 0; s && *s && i < n; i++)
+        if (strcmp(s, names[i]) == 0)
+            return i;
+    return def;
+}
 
 static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 {
@@ -1101,13 +1114,9 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     }
     /* The order; the oracle, cover and timeline need the kernels with the
      * extras, the centre order does not (a table of tiles, like cover's). */
-    {
-        const char *ord = getenv("RAYBENCH_CUDA_ORDER");
-        order_mode = persistent ? RT_CUDA_DEFAULT_PERSISTENT_ORDER : RT_CUDA_DEFAULT_GRID_ORDER;
-        for (int i = 0; ord && *ord && i < (int)(sizeof rt_cuda_order_names / sizeof rt_cuda_order_names[0]); i++)
-            if (strcmp(ord, rt_cuda_order_names[i]) == 0)
-                order_mode = i; /* (rt_cuda_check_env refused any other word) */
-    }
+    order_mode = rt_cuda_env_word("RAYBENCH_CUDA_ORDER", rt_cuda_order_names,
+                                  (int)(sizeof rt_cuda_order_names / sizeof rt_cuda_order_names[0]),
+                                  persistent ? RT_CUDA_DEFAULT_PERSISTENT_ORDER : RT_CUDA_DEFAULT_GRID_ORDER);
     /* scatter: the persistent schedule's; cover: the grid's, with a tree;
      * center: the grid's; the oracle (either schedule) needs whole 32-item
      * chunks. */
@@ -1234,18 +1243,11 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * never writes cannot pass as black in --verify or the tests. */
     RT_CUDA_CHECK(cudaMemset(arena + parts[P_IMAGE].offset, 0xff, parts[P_IMAGE].bytes));
 
-    {
-        const char *tv = getenv("RAYBENCH_CUDA_TRAVERSAL");
-        traversal = RT_CUDA_DEFAULT_TRAVERSAL;
-        if (tv && strcmp(tv, "shared") == 0)
-            traversal = RT_TRAV_SHARED;
-        else if (tv && strcmp(tv, "ldg") == 0)
-            traversal = RT_TRAV_LDG;
-        else if (tv && strcmp(tv, "wide") == 0)
-            traversal = RT_TRAV_WIDE;
-        if (traversal == RT_TRAV_WIDE && !hv->wide)
-            traversal = RT_TRAV_LDG; /* brute force, or no wide tree */
-    }
+    traversal = rt_cuda_env_word("RAYBENCH_CUDA_TRAVERSAL", rt_cuda_trav_names,
+                                 (int)(sizeof rt_cuda_trav_names / sizeof rt_cuda_trav_names[0]),
+                                 RT_CUDA_DEFAULT_TRAVERSAL);
+    if (traversal == RT_TRAV_WIDE && !hv->wide)
+        traversal = RT_TRAV_LDG; /* brute force, or no wide tree */
     RT_CUDA_CHECK(cudaMemcpyToSymbol(rt_cuda_traversal, &traversal, sizeof traversal));
     RT_CUDA_CHECK(cudaEventCreate(&ev0));
     RT_CUDA_CHECK(cudaEventCreate(&ev1));
@@ -1365,7 +1367,7 @@ fail:
                  " block=%dx%d large=%d pairs=%d sched=%s order=%s carveout=%d traversal=%s spec=1 kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
                  "download_ms=%.3f wall_ms=%.3f regs=%d local_bytes=%zu bounds=%dx%d blocks_per_sm=%d grid=%d gpu=%s",
                  bx, by, large, pairs, persistent ? "persistent" : "grid", rt_cuda_order_names[order_mode], carveout,
-                 traversal == RT_TRAV_WIDE ? "wide" : (traversal == RT_TRAV_LDG ? "ldg" : "shared"), runs, times[0], warmups, first_ms, init_ms, upload_ms,
+                 rt_cuda_trav_names[traversal], runs, times[0], warmups, first_ms, init_ms, upload_ms,
                  download_ms, rt_now_ms() - t_wall0, fa.numRegs, (size_t)fa.localSizeBytes, variant->maxt, variant->minb,
                  blocks_per_sm, nblocks,
                  gpu);
