@@ -92,6 +92,15 @@ CSV=${GPU_CHECK_CSV:-}
 # key=value from a record line
 field() { printf '%s\n' "$1" | tr ' ' '\n' | sed -n "s/^$2=//p"; }
 
+# the CUDA record says KEY=VALUE, or a FAIL line (the caller goes on to the
+# next render)
+says() {
+    case $rec_c in *" $1=$2 "*) return 0 ;; esac
+    echo "FAIL $name $accel $blk $kind: the record does not say $1=$2"
+    fail=1
+    return 1
+}
+
 # |a-b|/a*100 <= 0.1 for each ray counter
 rays_ok() {
     awk -v a="$1" -v b="$2" 'BEGIN { d = a > b ? a - b : b - a; if (a == 0) exit (b != 0); exit (d * 1000 > a) }'
@@ -132,25 +141,25 @@ for sc in "$@"; do
         if [ $? -ne 0 ]; then echo "FAIL $name $accel $blk $trav pairs=$pairs: cuda render"; fail=1; continue; fi
         # brute force has no tree: its record says ldg
         want=$trav; [ "$accel" = none ] && want=ldg
-        case $rec_c in *" traversal=$want "*) ;; *) echo "FAIL $name $accel $blk: the record does not say traversal=$want"; fail=1; continue ;; esac
+        says traversal "$want" || continue
         if [ -n "$pairs" ]; then
-            case $rec_c in *" pairs=$pairs "*) ;; *) echo "FAIL $name $accel $blk: the record does not say pairs=$pairs"; fail=1; continue ;; esac
+            says pairs "$pairs" || continue
         fi
         # the default order is center on the grid (the tree's schedule); at
         # 2560x1920 the defaults are the large image's: persistent, row-major
         [ "$kind" = default ] && order=center
         if [ "$kind" = default ] || [ "$kind" = large ]; then
             lw=0; [ "$kind" = large ] && lw=1
-            case $rec_c in *" large=$lw "*) ;; *) echo "FAIL $name $accel $kind: the record does not say large=$lw"; fail=1; continue ;; esac
+            says large "$lw" || continue
             if [ "$kind" = large ]; then
                 order=tiles
-                case $rec_c in *" sched=persistent "*) ;; *) echo "FAIL $name $accel $kind: the record does not say sched=persistent"; fail=1; continue ;; esac
+                says sched persistent || continue
             fi
         fi
         # brute force has no tree to project and runs the persistent schedule:
         # its order stays tiles
         if [ "$order" != tiles ] && [ "$accel" = bvh ]; then
-            case $rec_c in *" order=$order "*) ;; *) echo "FAIL $name $accel $blk: the record does not say order=$order"; fail=1; continue ;; esac
+            says order "$order" || continue
         fi
         case $kind in pairs | cover | center | pairs-center | default | large) trav=$kind; want=$kind ;; esac
         d=$("$DIFF" "$bref" "$img" --min-psnr 45 --max-over2 0.2); drc=$?
