@@ -31,7 +31,7 @@ if [ "$nvcc" != none ]; then
 __global__ void k(RtSceneView s, float *rgb, RtCounters *c)
 {
     RtCounters mine = {0, 0, 0, 0, 0};
-    rt_render_pixel(&s, (int)threadIdx.x, (int)blockIdx.x, rgb, &mine);
+    rt_render_pixel(&s, (int)threadIdx.x, (int)blockIdx.x, RT_ANY_HIT_SLOT, rgb, &mine);
     atomicAdd((unsigned long long *)&c->primary_rays, (unsigned long long)mine.primary_rays);
 }
 CU

@@ -171,7 +171,7 @@ static inline void rt_cpu_render_pixels(RtCpuPool *p, const RtSceneView *v, int 
 #pragma omp for collapse(2) schedule(static) nowait
         for (int j = y0; j < y1; j++)
             for (int i = x0; i < x1; i++)
-                rt_render_pixel(v, i, j, rgb, &cnt);
+                rt_render_pixel(v, i, j, RT_ANY_HIT, rgb, &cnt);
         rt_cpu_note(slot);
         rt_counters_add(&slot->cnt, &cnt);
     }

@@ -151,14 +151,15 @@ static inline RT_HD void rt_push_children(RtPending *stack, int *sp, const RtPen
 /* The colour of one primary ray, unclamped: trace() of RENDERING-RULES with
  * the recursion unrolled into the pending-ray stack. Each popped ray is traced
  * for its closest hit; the hit's shadow rays are traced in the inner loop over
- * the lights. The colour is summed exactly as trace(): ambient, then each
- * light in order, then weight * local into the pixel.
+ * the lights, as shadow_any queries (RT_ANY_HIT or RT_ANY_HIT_SLOT). The
+ * colour is summed exactly as trace(): ambient, then each light in order,
+ * then weight * local into the pixel.
  *
  * Two traversal call sites (closest and any hit) measured faster on the GPU
  * than one call site serving every ray kind from a single loop: 0.444 vs
  * 0.633 ms kernel time on the dragon (H100, docs/gpu.md); on the CPU they were
  * equal within 3%. */
-static inline RT_HD RtVec3 rt_trace_path(const RtSceneView *s, RtRay primary, RtCounters *cnt)
+static inline RT_HD RtVec3 rt_trace_path(const RtSceneView *s, RtRay primary, int shadow_any, RtCounters *cnt)
 {
     RtPending stack[RT_RAY_STACK];
     RtVec3 color = rt_v3(0.0f, 0.0f, 0.0f);
@@ -192,7 +193,7 @@ static inline RT_HD RtVec3 rt_trace_path(const RtSceneView *s, RtRay primary, Rt
                 continue;
             RtHit sh;
             cnt->shadow_rays++;
-            if (!rt_trace_ray(s, so, L, dist, 1, &sh, cnt))
+            if (!rt_trace_ray(s, so, L, dist, shadow_any, &sh, cnt))
                 local = rt_add(local, c);
         }
         color = rt_add(color, rt_mul(r.w, local));
@@ -202,23 +203,26 @@ static inline RT_HD RtVec3 rt_trace_path(const RtSceneView *s, RtRay primary, Rt
     return color;
 }
 
-/* Renders pixels [x0,x1) x [y0,y1) into rgb (float RGB, row-major, stride =
- * image width). The one loop every CPU backend calls. */
-static inline RT_HD void rt_render_pixel(const RtSceneView *s, int i, int j, float *rgb, RtCounters *cnt)
+/* Renders pixel (i, j) into rgb (float RGB, row-major, stride = image
+ * width); shadow_any is the shadow rays' query, RT_ANY_HIT or
+ * RT_ANY_HIT_SLOT (rt_traverse.h): the same image either way. */
+static inline RT_HD void rt_render_pixel(const RtSceneView *s, int i, int j, int shadow_any, float *rgb,
+                                         RtCounters *cnt)
 {
-    RtVec3 c = rt_trace_path(s, rt_camera_ray(&s->cam, i, j), cnt);
+    RtVec3 c = rt_trace_path(s, rt_camera_ray(&s->cam, i, j), shadow_any, cnt);
     float *px = rgb + 3 * ((size_t)j * (size_t)s->cam.width + (size_t)i);
     px[0] = c.x;
     px[1] = c.y;
     px[2] = c.z;
 }
 
+/* Renders pixels [x0,x1) x [y0,y1): the one loop every CPU backend calls. */
 static inline RT_HD void rt_render_tile(const RtSceneView *s, int x0, int y0, int x1, int y1, float *rgb,
                                         RtCounters *cnt)
 {
     for (int j = y0; j < y1; j++)
         for (int i = x0; i < x1; i++)
-            rt_render_pixel(s, i, j, rgb, cnt);
+            rt_render_pixel(s, i, j, RT_ANY_HIT, rgb, cnt);
 }
 
 /* Output rule: clamp to [0,1], times 255, round to nearest. */

@@ -267,7 +267,16 @@ static inline RT_HD int rt_leaf_hits(const RtSceneView *s, uint32_t first, uint3
     return 0;
 }
 
-/* Closest hit (any = 0) or any hit closer than tmax (any = 1). Returns 1 on a hit. */
+/* The `any` argument of the traversals: 0, the closest hit; RT_ANY_HIT,
+ * any hit closer than tmax (a shadow ray); RT_ANY_HIT_SLOT, the same query,
+ * for which the 4-wide traversal stacks a node's entered children in slot
+ * order instead of sorting them (rt_wide_visit; the other traversals treat
+ * it as RT_ANY_HIT). Same answers either way; which is faster depends on
+ * the frame (docs/gpu.md, "Eleventh round"), so the caller chooses. */
+#define RT_ANY_HIT 1
+#define RT_ANY_HIT_SLOT 2
+
+/* Closest hit (any = 0) or any hit closer than tmax (any != 0). Returns 1 on a hit. */
 static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any,
                                      RtHit *hit, RtCounters *cnt)
 {
@@ -378,15 +387,6 @@ done:
  * and tests it: on the CPU at once; cuda.cu defines it before including this
  * as a vote of the warp's active lanes (all have a leaf aside). `any` lets a
  * backend treat shadow rays apart (none does: docs/gpu.md). */
-/* RT_WIDE_ANY_SORT=0 (a build switch, e.g. meson setup -Dc_args=... and
- * -Dcuda_args=...): any-hit queries stack a node's entered children in slot
- * order, without the sorting network. Same answers; on the H100 it makes
- * arm-reach 9% faster and the dragon 2% slower (docs/gpu.md, "Ninth
- * round"), so the default (1) sorts every query's children. */
-#ifndef RT_WIDE_ANY_SORT
-#define RT_WIDE_ANY_SORT 1
-#endif
-
 #ifndef RT_WIDE_LEAF_VOTE
 #define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf)
 #endif
@@ -487,8 +487,9 @@ static inline RT_HD uint32_t rt_wide_pop(const uint64_t *st, int *sp, float t)
 
 /* One visit of inner node ref for a ray whose closest hit so far is at t:
  * the four child boxes tested, the entered ones stacked farthest first (any
- * = 1 with RT_WIDE_ANY_SORT=0: in slot order) and the nearest returned as
- * the next node to visit, or the pop's. */
+ * = RT_ANY_HIT_SLOT: in slot order, without the sorting network) and the
+ * nearest (the first entered) returned as the next node to visit, or the
+ * pop's. */
 static inline RT_HD uint32_t rt_wide_visit(const RtSceneView *s, const RtWideRay *wr, uint32_t ref, float t, int any,
                                            uint64_t *st, int *sp)
 {
@@ -526,8 +527,7 @@ static inline RT_HD uint32_t rt_wide_visit(const RtSceneView *s, const RtWideRay
 #endif
     for (int k = 0; k < 4; k++) /* all four tested, then selected: no branch per child */
         key[k] = rt_wide_key(wr, nx[k], ny[k], nz[k], fx[k], fy[k], fz[k], t, (uint32_t)k);
-#if !RT_WIDE_ANY_SORT
-    if (any) {
+    if (any == RT_ANY_HIT_SLOT) {
         /* Slot order; the first entered child next. */
 #define RT_WIDE_PUSHK(k)                                                       \
     {                                                                          \
@@ -538,9 +538,6 @@ static inline RT_HD uint32_t rt_wide_visit(const RtSceneView *s, const RtWideRay
 #undef RT_WIDE_PUSHK
         return key[0] != RT_WIDE_MISS_KEY ? c[0] : rt_wide_pop(st, sp, t);
     }
-#else
-    (void)any;
-#endif
     /* A 5-exchange sorting network, nearest first. */
 #define RT_WIDE_CX(i, j)                                                       \
     {                                                                          \

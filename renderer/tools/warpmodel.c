@@ -100,7 +100,7 @@ static void wm_trace_pixel(const RtSceneView *s, RtRay primary, WmPixel *px)
             if (!rt_light_sample(s, &sf, m, rt_neg(r.d), li, &c, &L, &dist))
                 continue;
             c0 = cnt;
-            rt_trace_ray_wide(s, so, L, dist, 1, &h, &cnt);
+            rt_trace_ray_wide(s, so, L, dist, RT_ANY_HIT_SLOT, &h, &cnt); /* as the default kernel */
             wm_add(px, bounce, (int)li, &c0, &cnt);
         }
         if (r.depth > 1)

@@ -1,7 +1,8 @@
 /* test_wide.c SCENE... - the 4-wide BVH traversal against the binary one on
  * real scenes: every primary ray of the scene's camera, and from each hit the
- * shadow ray towards every light (any hit) and the mirror ray (closest hit),
- * must give bit-identical hits (t, u, v, primitive). Exit 77 when a scene
+ * shadow ray towards every light (any hit, both queries: RT_ANY_HIT, children
+ * sorted, and RT_ANY_HIT_SLOT, children in slot order) and the mirror ray
+ * (closest hit), must give bit-identical hits (t, u, v, primitive). Exit 77 when a scene
  * file is missing (../shared not beside the checkout). */
 #include <stdio.h>
 #include <stdlib.h>
@@ -31,10 +32,11 @@ static void check_scene(const char *path)
     CHECK(rt_accel_build(&s, RT_ACCEL_BVH, &a, &e) == 0, "%s", e.msg);
     RtSceneView v = rt_scene_view(&s, &a, &cam);
     CHECK(v.wide != NULL, "%s: no wide tree", path);
-    RtCounters cb, cw;
+    RtCounters cb, cw, cs; /* binary, wide, wide shadow rays in slot order */
     memset(&cb, 0, sizeof cb);
     memset(&cw, 0, sizeof cw);
-    long rays = 0, bad = 0;
+    memset(&cs, 0, sizeof cs);
+    long rays = 0, bad = 0, shadows = 0, bad_slot = 0;
     for (int j = 0; v.wide && j < cam.height; j++)
         for (int i = 0; i < cam.width; i++) {
             RtRay r = rt_camera_ray(&cam, i, j);
@@ -54,9 +56,12 @@ static void check_scene(const char *path)
                 if (!rt_light_sample(&v, &sf, m, rt_neg(r.d), li, &c, &L, &dist))
                     continue;
                 fb = rt_trace_ray(&v, so, L, dist, 1, &hb, &cb);
-                fw = rt_trace_ray_wide(&v, so, L, dist, 1, &hw, &cw);
+                fw = rt_trace_ray_wide(&v, so, L, dist, RT_ANY_HIT, &hw, &cw);
+                const int fs = rt_trace_ray_wide(&v, so, L, dist, RT_ANY_HIT_SLOT, &hw, &cs);
                 rays++;
+                shadows++;
                 bad += fb != fw;
+                bad_slot += fb != fs;
             }
             RtVec3 R = rt_normalize(rt_sub(r.d, rt_scale(sf.n, 2.0f * rt_dot(r.d, sf.n))));
             RtVec3 ro = rt_madd(sf.p, R, RT_SECONDARY_OFFSET);
@@ -66,9 +71,13 @@ static void check_scene(const char *path)
             bad += !same(fb, &hb, fw, &hw);
         }
     CHECK(bad == 0, "%s: %ld of %ld rays differ between the wide and the binary tree", path, bad, rays);
+    CHECK(bad_slot == 0, "%s: %ld of %ld shadow rays in slot order differ between the wide and the binary tree", path,
+          bad_slot, shadows);
     printf("%s: %ld rays, %u binary / %u wide nodes, visits %.2f / %.2f per ray, tests %.2f / %.2f\n", path, rays,
            a.nnodes, a.nwide, (double)cb.node_visits / (double)rays, (double)cw.node_visits / (double)rays,
            (double)cb.prim_tests / (double)rays, (double)cw.prim_tests / (double)rays);
+    printf("%s: %ld shadow rays in slot order, visits %.2f per ray\n", path, shadows,
+           shadows ? (double)cs.node_visits / (double)shadows : 0.0);
     rt_accel_free(&a);
     rt_scene_free(&s);
 }

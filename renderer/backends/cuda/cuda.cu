@@ -237,8 +237,11 @@ typedef struct RtCudaGrid {
     struct RtCudaChunk *chunks;
 } RtCudaGrid;
 
-/* Kernel modes (rt_render_kernel's MODE; rt_cuda_variants). */
-enum { RT_MODE_PAIRS = 1, RT_MODE_EXTRAS = 2 };
+/* Kernel modes (rt_render_kernel's MODE; rt_cuda_variants). RT_MODE_SLOT:
+ * shadow rays are RT_ANY_HIT_SLOT queries (a node's entered children stacked
+ * in slot order, rt_traverse.h) instead of RT_ANY_HIT (sorted); on its own
+ * only, not with the other two. */
+enum { RT_MODE_PAIRS = 1, RT_MODE_EXTRAS = 2, RT_MODE_SLOT = 4 };
 
 /* One 32-item chunk (a warp's pixels) of a recorded launch: when it started
  * and ended (%globaltimer, ns), on which multiprocessor, and the traversal
@@ -498,10 +501,15 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
                                                                const RtCudaGrid g)
 {
     /* MODE: RT_MODE_PAIRS (pixel pairs), RT_MODE_EXTRAS (chunk records and
-     * the grid's work units: orders and timelines). Both are instantiations
-     * of their own: compiled into the default kernel, the extras' code cost
-     * it 16% on the dragon even when unused (docs/gpu.md, "Fifth round"). */
+     * the grid's work units: orders and timelines), RT_MODE_SLOT (shadow rays
+     * in slot order). Each is an instantiation of its own: compiled into
+     * the default kernel, the extras' code cost it 16% on the dragon even
+     * when unused (docs/gpu.md, "Fifth round"). */
     constexpr bool PAIRS = (MODE & RT_MODE_PAIRS) != 0, EXTRAS = (MODE & RT_MODE_EXTRAS) != 0;
+    /* The shadow rays' query, a constant of the instantiation: a runtime
+     * choice between the two measured slower than either (docs/gpu.md,
+     * "Ninth round"). */
+    constexpr int SHADOW = (MODE & RT_MODE_SLOT) ? RT_ANY_HIT_SLOT : RT_ANY_HIT;
     __shared__ unsigned long long block_cnt[RT_NCOUNTERS];
     __shared__ unsigned long long chunk_t0[32]; /* per warp: start of its chunk (RtCudaGrid.chunks) */
     __shared__ uint32_t chunk_id[32];
@@ -546,7 +554,7 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
             {
                 int px, py;
                 if (item < g.total_items && rt_cuda_item_pixel(view, g, item, &px, &py))
-                    rt_render_pixel(&view, px, py, rgb, &cnt);
+                    rt_render_pixel(&view, px, py, SHADOW, rgb, &cnt);
             }
             if (EXTRAS && g.chunks) {
                 /* the leader's pixel: the chunk's first (found again, not kept live) */
@@ -570,7 +578,7 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
             if (PAIRS)
                 rt_cuda_pair_item(view, px, py, valid, tid & 1u, rgb, &cnt);
             else if (valid)
-                rt_render_pixel(&view, px, py, rgb, &cnt);
+                rt_render_pixel(&view, px, py, SHADOW, rgb, &cnt);
         }
         if (EXTRAS && g.chunks) {
             /* one item per lane: its counters are its chunk's; the leader's
@@ -694,8 +702,8 @@ typedef struct RtCudaVariant {
     RtCudaKernel kernel;
 } RtCudaVariant;
 
-/* The default kernels at every register cap; pixel pairs and the extras
- * (RT_MODE_*) at MINB 1 only. */
+/* The default kernels at every register cap, with shadow rays sorted and in
+ * slot order; pixel pairs and the extras (RT_MODE_*) at MINB 1 only. */
 #define RT_CUDA_VARIANT(T, B, M) {T, B, M, rt_render_kernel<T, B, M>}
 #define RT_CUDA_MODES(T)                                                       \
     RT_CUDA_VARIANT(T, 1, RT_MODE_PAIRS), RT_CUDA_VARIANT(T, 1, RT_MODE_EXTRAS), \
@@ -704,6 +712,9 @@ static const RtCudaVariant rt_cuda_variants[] = {
     RT_CUDA_VARIANT(256, 1, 0), RT_CUDA_VARIANT(256, 2, 0), RT_CUDA_VARIANT(256, 3, 0), RT_CUDA_VARIANT(256, 4, 0),
     RT_CUDA_VARIANT(512, 1, 0), RT_CUDA_VARIANT(512, 2, 0), RT_CUDA_VARIANT(1024, 1, 0),
     RT_CUDA_MODES(256), RT_CUDA_MODES(512), RT_CUDA_MODES(1024),
+    RT_CUDA_VARIANT(256, 1, RT_MODE_SLOT), RT_CUDA_VARIANT(256, 2, RT_MODE_SLOT), RT_CUDA_VARIANT(256, 3, RT_MODE_SLOT),
+    RT_CUDA_VARIANT(256, 4, RT_MODE_SLOT), RT_CUDA_VARIANT(512, 1, RT_MODE_SLOT), RT_CUDA_VARIANT(512, 2, RT_MODE_SLOT),
+    RT_CUDA_VARIANT(1024, 1, RT_MODE_SLOT),
 };
 #undef RT_CUDA_MODES
 #undef RT_CUDA_VARIANT
@@ -793,6 +804,7 @@ static const RtCudaEnvVar rt_cuda_env_vars[] = {
     {"RAYBENCH_CUDA_TRAVERSAL", "wide ldg shared", 0, 0, NULL},
     {"RAYBENCH_CUDA_ORDER", "tiles scatter oracle cover center", 0, 0, NULL},
     {"RAYBENCH_CUDA_PAIRS", "0 1 auto", 0, 0, NULL},
+    {"RAYBENCH_CUDA_ANYHIT", "sorted slot auto", 0, 0, NULL},
     {"RAYBENCH_CUDA_SPEC", "1", 0, 0,
      "only 1 is left: the wide traversal always postpones leaves (docs/gpu.md, \"Sixth round\")"},
     {"RAYBENCH_CUDA_RUNS", NULL, 1, 64, NULL},
@@ -981,6 +993,8 @@ static uint32_t *rt_cuda_center_order(const RtCudaGrid *g, int w, int h, RtError
  * RAYBENCH_CUDA_TRAVERSAL take and the record says. */
 static const char *const rt_cuda_order_names[] = {"tiles", "scatter", "oracle", "cover", "center"};
 static const char *const rt_cuda_trav_names[] = {"shared", "ldg", "wide"};
+/* RAYBENCH_CUDA_ANYHIT's words but auto; the record's anyhit= */
+static const char *const rt_cuda_anyhit_names[] = {"sorted", "slot"};
 
 /* The index of variable name's value in names[0..n), or def when unset or
  * empty (rt_cuda_check_env has refused any other word). */
@@ -1002,7 +1016,8 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     const int w = hv->cam.width, h = hv->cam.height;
     const int dev = job->device;
     int rc = -1, ndev = 0, traversal = 0, order_mode = 0, carveout = -1, warmup_ms = 0, warmups = 0;
-    int blocks_per_sm = 0, nblocks = 0, runs = 0, max_runs = 0, pairs = 0, minb = 1;
+    int blocks_per_sm = 0, nblocks = 0, runs = 0, max_runs = 0, pairs = 0, minb = 1, mode = 0, slot = 0;
+    double waves = 0.0;
     uint32_t nchunks = 0, *center_order = NULL;
     size_t shmem = 0;
     const char *timeline = NULL;
@@ -1040,6 +1055,11 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 
     if (rt_cuda_check_env(err))
         return -1;
+    traversal = rt_cuda_env_word("RAYBENCH_CUDA_TRAVERSAL", rt_cuda_trav_names,
+                                 (int)(sizeof rt_cuda_trav_names / sizeof rt_cuda_trav_names[0]),
+                                 RT_CUDA_DEFAULT_TRAVERSAL);
+    if (traversal == RT_TRAV_WIDE && !hv->wide)
+        traversal = RT_TRAV_LDG; /* brute force, or no wide tree */
     /* No driver, no GPU: one clear line, before anything else is touched. */
     e = cudaGetDeviceCount(&ndev);
     if (e != cudaSuccess)
@@ -1130,10 +1150,30 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         rt_fail(err, "RAYBENCH_CUDA_TIMELINE=%s: needs blocks of a multiple of 32 threads (got %dx%d)", timeline, bx, by);
         goto fail;
     }
-    variant = rt_cuda_pick_kernel(threads, minb,
-                                  (pairs ? RT_MODE_PAIRS : 0) |
-                                      (order_mode == RT_ORDER_ORACLE || order_mode == RT_ORDER_COVER || timeline
-                                           ? RT_MODE_EXTRAS : 0));
+    mode = (pairs ? RT_MODE_PAIRS : 0) |
+           (order_mode == RT_ORDER_ORACLE || order_mode == RT_ORDER_COVER || timeline ? RT_MODE_EXTRAS : 0);
+    /* The shadow rays' query (RAYBENCH_CUDA_ANYHIT: sorted, slot, or auto,
+     * the default): slot order with the wide traversal -- fewer instructions
+     * per node, faster on 65 of the 77 scene and image sizes measured
+     * (docs/gpu.md, "Eleventh round") -- where the kernel has the choice
+     * (not pixel pairs, not the extras). waves: the image's pixels over the
+     * threads this kernel keeps resident, for the record. */
+    {
+        int pb = 0;
+        RT_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&pb, rt_cuda_pick_kernel(threads, minb, mode)->kernel,
+                                                                    threads, 0));
+        if (pb > 0)
+            waves = (double)npix / ((double)pb * (double)threads * (double)prop.multiProcessorCount);
+        slot = rt_cuda_env_word("RAYBENCH_CUDA_ANYHIT", rt_cuda_anyhit_names, 2, -1);
+        if (slot < 0)
+            slot = mode == 0 && traversal == RT_TRAV_WIDE;
+        else if (slot && mode != 0) {
+            rt_fail(err, "RAYBENCH_CUDA_ANYHIT=slot: the kernel of %s traces shadow rays sorted only",
+                    pairs ? "pixel pairs" : (timeline ? "RAYBENCH_CUDA_TIMELINE" : "this RAYBENCH_CUDA_ORDER"));
+            goto fail;
+        }
+    }
+    variant = rt_cuda_pick_kernel(threads, minb, mode | (slot ? RT_MODE_SLOT : 0));
     kernel = variant->kernel;
     RT_CUDA_CHECK(cudaFuncGetAttributes(&fa, kernel));
     if (threads > fa.maxThreadsPerBlock) {
@@ -1243,11 +1283,6 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * never writes cannot pass as black in --verify or the tests. */
     RT_CUDA_CHECK(cudaMemset(arena + parts[P_IMAGE].offset, 0xff, parts[P_IMAGE].bytes));
 
-    traversal = rt_cuda_env_word("RAYBENCH_CUDA_TRAVERSAL", rt_cuda_trav_names,
-                                 (int)(sizeof rt_cuda_trav_names / sizeof rt_cuda_trav_names[0]),
-                                 RT_CUDA_DEFAULT_TRAVERSAL);
-    if (traversal == RT_TRAV_WIDE && !hv->wide)
-        traversal = RT_TRAV_LDG; /* brute force, or no wide tree */
     RT_CUDA_CHECK(cudaMemcpyToSymbol(rt_cuda_traversal, &traversal, sizeof traversal));
     RT_CUDA_CHECK(cudaEventCreate(&ev0));
     RT_CUDA_CHECK(cudaEventCreate(&ev1));
@@ -1364,10 +1399,11 @@ fail:
     free(center_order);
     if (rc == 0) {
         snprintf(out->extra, sizeof out->extra,
-                 " block=%dx%d large=%d pairs=%d sched=%s order=%s carveout=%d traversal=%s spec=1 kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
+                 " block=%dx%d large=%d pairs=%d sched=%s order=%s carveout=%d traversal=%s spec=1 anyhit=%s "
+                 "waves=%.2f kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
                  "download_ms=%.3f wall_ms=%.3f regs=%d local_bytes=%zu bounds=%dx%d blocks_per_sm=%d grid=%d gpu=%s",
                  bx, by, large, pairs, persistent ? "persistent" : "grid", rt_cuda_order_names[order_mode], carveout,
-                 rt_cuda_trav_names[traversal], runs, times[0], warmups, first_ms, init_ms, upload_ms,
+                 rt_cuda_trav_names[traversal], rt_cuda_anyhit_names[slot], waves, runs, times[0], warmups, first_ms, init_ms, upload_ms,
                  download_ms, rt_now_ms() - t_wall0, fa.numRegs, (size_t)fa.localSizeBytes, variant->maxt, variant->minb,
                  blocks_per_sm, nblocks,
                  gpu);
