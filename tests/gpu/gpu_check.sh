@@ -9,14 +9,18 @@
 # with TRAV the GPU traversal (RAYBENCH_CUDA_TRAVERSAL; default wide), or
 # `pairs`: the wide traversal with two lanes per pixel (RAYBENCH_CUDA_PAIRS=1),
 # `cover` or `center`: the wide traversal with the tiles in that order
-# (RAYBENCH_CUDA_ORDER), `pairs-center`: both, `default`: no variable set
-# (the record must say order=center for the tree, tiles for brute force), or
-# `large`: no variable and no --block (BLOCK is `-`) at 2560x1920, against
-# serial at that size (the record must say large=1 sched=persistent);
+# (RAYBENCH_CUDA_ORDER), `pairs-center`: both, `sorted`: the wide traversal
+# with shadow rays' children sorted (RAYBENCH_CUDA_ANYHIT=sorted; the
+# record must say anyhit=sorted), `default`: no variable set (the record
+# must say order=center for the tree, tiles for brute force, and
+# anyhit=slot, or sorted with pixel pairs), or `large`: no variable and no --block (BLOCK is `-`) at
+# 2560x1920, against serial at that size (the record must say large=1
+# sched=persistent anyhit=slot);
 # other renders set PAIRS=0 and the row-major tile order:
 #   full   cuda+bvh in blocks 8x8 16x8 16x16 32x8 32x32 13x7 128x1 (odd and
 #          1024-thread shapes included), pixel pairs in 8x8 and 32x4, the
 #          cover order in 8x8, the centre order in 16x8 (at the defaults),
+#          sorted shadow rays in 16x8,
 #          13x7 and with pairs in 32x4, the large-image defaults, the binary
 #          tree's traversals (ldg, shared) in 16x16, and cuda+none in 16x16
 #          and 32x32;
@@ -63,13 +67,16 @@ if [ "$MODE" = badenv ]; then
     cases="RAYBENCH_CUDA_SCHED=gird|8x8 RAYBENCH_CUDA_TRAVERSAL=binary|8x8 RAYBENCH_CUDA_ORDER=random|8x8
            RAYBENCH_CUDA_PAIRS=2|8x8 RAYBENCH_CUDA_SPEC=0|8x8 RAYBENCH_CUDA_RUNS=0|8x8 RAYBENCH_CUDA_RUNS=65|8x8
            RAYBENCH_CUDA_RUNS=5x|8x8 RAYBENCH_CUDA_WARMUP_MS=-1|8x8 RAYBENCH_CUDA_MINB=5|8x8
-           RAYBENCH_CUDA_CARVEOUT=101|8x8"
+           RAYBENCH_CUDA_CARVEOUT=101|8x8 RAYBENCH_CUDA_ANYHIT=sort|8x8"
     # With a GPU, also what depends on the block or the file system.
-    have_gpu && cases="$cases RAYBENCH_CUDA_PAIRS=1|7x8 RAYBENCH_CUDA_TIMELINE=/nonexistent-dir/t.csv|8x8"
+    have_gpu && cases="$cases RAYBENCH_CUDA_PAIRS=1|7x8 RAYBENCH_CUDA_TIMELINE=/nonexistent-dir/t.csv|8x8
+                       RAYBENCH_CUDA_ANYHIT=slot|8x8:RAYBENCH_CUDA_PAIRS=1"
     for case in $cases; do
         kv=${case%|*}; blk=${case#*|}
+        # BLOCK:VAR=VALUE: a second variable that the first cannot go with
+        kv2=RAYBENCH_CUDA_UNUSED=; case $blk in *:*) kv2=${blk#*:}; blk=${blk%%:*} ;; esac
         rm -f "$out"
-        msg=$(env "$kv" "$RT" -q --backend cuda --block "$blk" -o "$out" "$DIR/$1.txt" 2>&1 >/dev/null)
+        msg=$(env "$kv" "$kv2" "$RT" -q --backend cuda --block "$blk" -o "$out" "$DIR/$1.txt" 2>&1 >/dev/null)
         rc=$?
         lines=$(printf '%s\n' "$msg" | wc -l)
         echo "$kv --block $blk: exit $rc, $lines line(s): $msg"
@@ -112,14 +119,15 @@ for sc in "$@"; do
     rec_s=$("$RT" -q --backend serial --accel bvh -o "$ref" "$DIR/$sc.txt") || { echo "FAIL $name: serial render"; fail=1; continue; }
     rec_l="" # serial at 2560x1920, made for the first `large` render
     case $MODE in
-        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:8x8:pairs bvh:32x4:pairs bvh:8x8:cover bvh:16x8:default bvh:-:large bvh:13x7:center bvh:32x4:pairs-center bvh:16x16:ldg bvh:16x16:shared} none:16x16 none:32x32" ;;
+        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:8x8:pairs bvh:32x4:pairs bvh:8x8:cover bvh:16x8:sorted bvh:16x8:default bvh:-:large bvh:13x7:center bvh:32x4:pairs-center bvh:16x16:ldg bvh:16x16:shared} none:16x16 none:32x32" ;;
         *) runs="${GPU_CHECK_BLOCKS:-bvh:16x16 bvh:32x32}" ;;
     esac
     for r in $runs; do
         accel=${r%%:*}; blk=${r#*:}; trav=wide
         case $blk in *:*) trav=${blk#*:}; blk=${blk%%:*} ;; esac
-        pairs=0; order=tiles; kind=$trav; size=""; bref=$ref; srec=$rec_s; blkopt="--block $blk"
+        pairs=0; order=tiles; kind=$trav; size=""; bref=$ref; srec=$rec_s; blkopt="--block $blk"; anyhit=
         case $kind in
+            sorted) anyhit=sorted; trav=wide ;;
             pairs) pairs=1; trav=wide ;;
             cover | center) order=$kind; trav=wide ;;
             pairs-center) pairs=1; order=center; trav=wide ;;
@@ -137,7 +145,7 @@ for sc in "$@"; do
         img="$TMP/$name-cuda-$accel-$blk-$kind.ppm"
         # an empty value is the default (as unset); pairs then stay auto
         # shellcheck disable=SC2086
-        rec_c=$(RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_PAIRS=$pairs RAYBENCH_CUDA_ORDER=$order RAYBENCH_CUDA_RUNS=1 "$RT" -q --verify --backend cuda --accel "$accel" $blkopt $size -o "$img" "$DIR/$sc.txt")
+        rec_c=$(RAYBENCH_CUDA_TRAVERSAL=$trav RAYBENCH_CUDA_ANYHIT=$anyhit RAYBENCH_CUDA_PAIRS=$pairs RAYBENCH_CUDA_ORDER=$order RAYBENCH_CUDA_RUNS=1 "$RT" -q --verify --backend cuda --accel "$accel" $blkopt $size -o "$img" "$DIR/$sc.txt")
         if [ $? -ne 0 ]; then echo "FAIL $name $accel $blk $trav pairs=$pairs: cuda render"; fail=1; continue; fi
         # brute force has no tree: its record says ldg
         want=$trav; [ "$accel" = none ] && want=ldg
@@ -145,12 +153,18 @@ for sc in "$@"; do
         if [ -n "$pairs" ]; then
             says pairs "$pairs" || continue
         fi
+        if [ "$kind" = sorted ]; then
+            says anyhit sorted || continue
+        fi
         # the default order is center on the grid (the tree's schedule); at
         # 2560x1920 the defaults are the large image's: persistent, row-major
         [ "$kind" = default ] && order=center
         if [ "$kind" = default ] || [ "$kind" = large ]; then
             lw=0; [ "$kind" = large ] && lw=1
             says large "$lw" || continue
+            # slot order, but for pixel pairs (small images), which sort
+            ah=slot; case $rec_c in *" pairs=1 "*) ah=sorted ;; esac
+            says anyhit "$ah" || continue
             if [ "$kind" = large ]; then
                 order=tiles
                 says sched persistent || continue
@@ -161,7 +175,7 @@ for sc in "$@"; do
         if [ "$order" != tiles ] && [ "$accel" = bvh ]; then
             says order "$order" || continue
         fi
-        case $kind in pairs | cover | center | pairs-center | default | large) trav=$kind; want=$kind ;; esac
+        case $kind in pairs | cover | center | pairs-center | sorted | default | large) trav=$kind; want=$kind ;; esac
         d=$("$DIFF" "$bref" "$img" --min-psnr 45 --max-over2 0.2); drc=$?
         ok=ok; [ $drc -eq 0 ] || ok=image
         for k in primary_rays shadow_rays secondary_rays; do
