@@ -242,7 +242,7 @@ static inline RT_HD int rt_leaf_take(const RtPrim *p, float t, float u, float v,
 
 /* A leaf's primitives [first, first + count) against the ray, as the binary
  * traversal below tests them: closest hit (ties to the lower index), or for
- * any = 1 the first hit strictly closer than hit->t. Returns 1 when an
+ * any != 0 the first hit strictly closer than hit->t. Returns 1 when an
  * any-hit query is answered. The GPU traversals (wide; ldg in cuda.cu) use it. */
 static inline RT_HD int rt_leaf_hits(const RtSceneView *s, uint32_t first, uint32_t count, RtVec3 o, RtVec3 d,
                                      int any, RtHit *hit, int *found, uint32_t *tests)
@@ -372,8 +372,9 @@ done:
 
 /* The same query on the 4-wide tree (RtBvh4Node): one visit tests the four
  * child boxes (the binary tree's boxes, with the conservative FMA slab test
- * rt_wide_key, tmin = 0), sorts the entered ones by entry distance, goes on
- * with the nearest and stacks the others with their distances; leaf children
+ * rt_wide_key, tmin = 0), sorts the entered ones by entry distance (for
+ * RT_ANY_HIT_SLOT: takes them in slot order), goes on with the nearest (the
+ * first) and stacks the others with their distances; leaf children
  * are primitive ranges, put aside until RT_WIDE_LEAF_VOTE says to test them.
  * Same hits as rt_trace_ray: the closest t, ties to the lower index, any hit
  * strictly closer than tmax. node_visits counts wide nodes and leaves (fewer

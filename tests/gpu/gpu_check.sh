@@ -31,9 +31,9 @@
 #          (an unknown word, an integer out of range or with trailing
 #          characters: checked before the GPU is touched, so this part runs
 #          without a GPU and the message must name the variable; with a GPU
-#          also pairs in a block of an odd width and a timeline file that
-#          cannot be written) to fail with one line and exit 1, writing no
-#          image.
+#          also pairs in a block of an odd width, a timeline file that
+#          cannot be written, and slot-order shadow rays with pixel pairs)
+#          to fail with one line and exit 1, writing no image.
 # SCENE is Group/name under SCENE_DIR (the course scenes, e.g.
 # InterestingScenes/dragon). Exit 77 (Meson's "skipped") without a GPU
 # (but nogpu and badenv), or when the course scenes are not beside the
@@ -79,7 +79,8 @@ if [ "$MODE" = badenv ]; then
         msg=$(env "$kv" "$kv2" "$RT" -q --backend cuda --block "$blk" -o "$out" "$DIR/$1.txt" 2>&1 >/dev/null)
         rc=$?
         lines=$(printf '%s\n' "$msg" | wc -l)
-        echo "$kv --block $blk: exit $rc, $lines line(s): $msg"
+        with=""; [ "$kv2" = RAYBENCH_CUDA_UNUSED= ] || with=" $kv2"
+        echo "$kv$with --block $blk: exit $rc, $lines line(s): $msg"
         if [ -e "$out" ]; then echo "FAIL: $kv: an image was written"; rm -f "$out"; fail=1; fi
         [ "$rc" -eq 1 ] && [ "$lines" -eq 1 ] && [ -n "$msg" ] || { echo "FAIL: $kv: expected one line and exit 1"; fail=1; }
         case $msg in *"${kv%%=*}"*) ;; *) echo "FAIL: $kv: the message does not name ${kv%%=*}"; fail=1 ;; esac
@@ -162,8 +163,9 @@ for sc in "$@"; do
         if [ "$kind" = default ] || [ "$kind" = large ]; then
             lw=0; [ "$kind" = large ] && lw=1
             says large "$lw" || continue
-            # slot order, but for pixel pairs (small images), which sort
-            ah=slot; case $rec_c in *" pairs=1 "*) ah=sorted ;; esac
+            # slot order, but for pixel pairs (small images) and the binary
+            # traversals (brute force), which sort
+            ah=slot; case $rec_c in *" pairs=1 "* | *" traversal=ldg "* | *" traversal=shared "*) ah=sorted ;; esac
             says anyhit "$ah" || continue
             if [ "$kind" = large ]; then
                 order=tiles

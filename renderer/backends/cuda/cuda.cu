@@ -1108,8 +1108,12 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * RAYBENCH_CUDA_PAIRS 0, 1 or auto (the default): on when the grid
      * schedule's blocks of pairs all fit on the GPU at once -- then the second
      * lane per pixel costs no wave, and it shortens the chains the frame waits
-     * on (docs/gpu.md, "Fifth round"). */
+     * on (docs/gpu.md, "Fifth round"); not when slot order was asked for,
+     * which the pairs' kernel does not have. */
     minb = rt_cuda_env_int("RAYBENCH_CUDA_MINB", large ? RT_CUDA_LARGE_MINB : RT_CUDA_DEFAULT_MINB);
+    /* RAYBENCH_CUDA_ANYHIT as asked: -1 auto, 0 sorted, 1 slot (the choice
+     * is made below, once the kernel's mode is known). */
+    slot = rt_cuda_env_word("RAYBENCH_CUDA_ANYHIT", rt_cuda_anyhit_names, 2, -1);
     /* RAYBENCH_CUDA_SPEC accepts only 1 (rt_cuda_check_env): the leaf vote is
      * compiled in (RT_WIDE_LEAF_VOTE above); the record keeps saying spec=1. */
     {
@@ -1123,7 +1127,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
                         bx, by, persistent ? "persistent" : "grid");
                 goto fail;
             }
-        } else if (can) {
+        } else if (can && slot != 1) {
             int pb = 0;
             const unsigned long long pair_tiles =
                 (unsigned long long)((w + bx / 2 - 1) / (bx / 2)) * (unsigned long long)((h + by - 1) / by);
@@ -1156,23 +1160,17 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * the default): slot order with the wide traversal -- fewer instructions
      * per node, faster on 65 of the 77 scene and image sizes measured
      * (docs/gpu.md, "Eleventh round") -- where the kernel has the choice
-     * (not pixel pairs, not the extras). waves: the image's pixels over the
-     * threads this kernel keeps resident, for the record. */
-    {
-        int pb = 0;
-        RT_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&pb, rt_cuda_pick_kernel(threads, minb, mode)->kernel,
-                                                                    threads, 0));
-        if (pb > 0)
-            waves = (double)npix / ((double)pb * (double)threads * (double)prop.multiProcessorCount);
-        slot = rt_cuda_env_word("RAYBENCH_CUDA_ANYHIT", rt_cuda_anyhit_names, 2, -1);
-        if (slot < 0)
-            slot = mode == 0 && traversal == RT_TRAV_WIDE;
-        else if (slot && mode != 0) {
-            rt_fail(err, "RAYBENCH_CUDA_ANYHIT=slot: the kernel of %s traces shadow rays sorted only",
-                    pairs ? "pixel pairs" : (timeline ? "RAYBENCH_CUDA_TIMELINE" : "this RAYBENCH_CUDA_ORDER"));
-            goto fail;
-        }
+     * (not pixel pairs, not the extras: asking for slot there is an error).
+     * The binary traversals (ldg, shared; brute force) have one any-hit
+     * query: they run the sorted kernel, and the record says so. */
+    if (slot < 0)
+        slot = mode == 0;
+    else if (slot && mode != 0) {
+        rt_fail(err, "RAYBENCH_CUDA_ANYHIT=slot: the kernel of %s traces shadow rays sorted only",
+                pairs ? "pixel pairs" : (timeline ? "RAYBENCH_CUDA_TIMELINE" : "this RAYBENCH_CUDA_ORDER"));
+        goto fail;
     }
+    slot = slot && traversal == RT_TRAV_WIDE;
     variant = rt_cuda_pick_kernel(threads, minb, mode | (slot ? RT_MODE_SLOT : 0));
     kernel = variant->kernel;
     RT_CUDA_CHECK(cudaFuncGetAttributes(&fa, kernel));
@@ -1195,6 +1193,10 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
                 bx, by, threads, gpu, fa.numRegs, (size_t)fa.localSizeBytes);
         goto fail;
     }
+    /* For the record: the image's pixels over the pixels this kernel keeps
+     * in flight (a block covers half its threads' pixels with pairs). */
+    waves = (double)npix / ((double)blocks_per_sm * (double)(pairs ? threads / 2 : threads) *
+                            (double)prop.multiProcessorCount);
 
     g.pairs = pairs;
     g.bx = pairs ? bx / 2 : bx; /* the pixel tile of a block (whole unit) */
