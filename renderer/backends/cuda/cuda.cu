@@ -993,8 +993,10 @@ static uint32_t *rt_cuda_center_order(const RtCudaGrid *g, int w, int h, RtError
  * RAYBENCH_CUDA_TRAVERSAL take and the record says. */
 static const char *const rt_cuda_order_names[] = {"tiles", "scatter", "oracle", "cover", "center"};
 static const char *const rt_cuda_trav_names[] = {"shared", "ldg", "wide"};
-/* RAYBENCH_CUDA_ANYHIT's words but auto; the record's anyhit= */
+/* RAYBENCH_CUDA_ANYHIT's and RAYBENCH_CUDA_PAIRS's words but auto (the
+ * record's anyhit= and pairs=). */
 static const char *const rt_cuda_anyhit_names[] = {"sorted", "slot"};
+static const char *const rt_cuda_pairs_names[] = {"0", "1"};
 
 /* The index of variable name's value in names[0..n), or def when unset or
  * empty (rt_cuda_check_env has refused any other word). */
@@ -1113,14 +1115,16 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     minb = rt_cuda_env_int("RAYBENCH_CUDA_MINB", large ? RT_CUDA_LARGE_MINB : RT_CUDA_DEFAULT_MINB);
     /* RAYBENCH_CUDA_ANYHIT as asked: -1 auto, 0 sorted, 1 slot (the choice
      * is made below, once the kernel's mode is known). */
-    slot = rt_cuda_env_word("RAYBENCH_CUDA_ANYHIT", rt_cuda_anyhit_names, 2, -1);
+    slot = rt_cuda_env_word("RAYBENCH_CUDA_ANYHIT", rt_cuda_anyhit_names,
+                            (int)(sizeof rt_cuda_anyhit_names / sizeof rt_cuda_anyhit_names[0]), -1);
     /* RAYBENCH_CUDA_SPEC accepts only 1 (rt_cuda_check_env): the leaf vote is
      * compiled in (RT_WIDE_LEAF_VOTE above); the record keeps saying spec=1. */
     {
-        const char *pe = getenv("RAYBENCH_CUDA_PAIRS");
+        const int asked = rt_cuda_env_word("RAYBENCH_CUDA_PAIRS", rt_cuda_pairs_names,
+                                           (int)(sizeof rt_cuda_pairs_names / sizeof rt_cuda_pairs_names[0]), -1);
         const int can = !persistent && bx % 2 == 0 && threads % 32 == 0;
-        if (pe && *pe && strcmp(pe, "auto") != 0) {
-            pairs = strcmp(pe, "1") == 0; /* 0 or 1 here (rt_cuda_check_env) */
+        if (asked >= 0) { /* -1: auto, or unset */
+            pairs = asked;
             if (pairs && !can) {
                 rt_fail(err, "RAYBENCH_CUDA_PAIRS=1: needs the grid schedule and blocks of an even width and a "
                              "multiple of 32 threads (got %dx%d, %s)",
