@@ -55,7 +55,7 @@ static void usage(FILE *fp)
             "      --device N           cuda: device index (default 0)\n"
             "      --verify             poison the image first and fail unless every pixel is written\n"
             "      --calibrate          time a fixed CPU workload before rendering (record key calib_ms)\n"
-            "  -q, --quiet              no progress output\n"
+            "  -q, --quiet              no progress output (warnings and errors still go to stderr)\n"
             "  -h, --help               this text\n"
             "  -V, --version            version and the backends in this build\n\n"
             "Prints one line 'record: key=value ...' on stdout (see docs/record.md).\n",
@@ -336,7 +336,8 @@ int main(int argc, char **argv)
     const char *output = NULL;
 
     double t0 = rt_now_ms();
-    RtWarnFn warn = o.quiet || !is_root ? NULL : warn_cb;
+    /* warnings are not progress: --quiet keeps them (README) */
+    RtWarnFn warn = is_root ? warn_cb : NULL;
     if (col && col->scene_load ? col->scene_load(o.scene, o.mpi_scene, &scene, warn, NULL, &err) != 0
                                : rt_scene_load(o.scene, &scene, warn, NULL, &err) != 0)
         goto prep_fail;
@@ -353,8 +354,13 @@ int main(int argc, char **argv)
         goto prep_fail;
     output = o.output ? o.output : scene.output;
     /* only the root writes the image, so only its directory matters */
-    if (is_root && check_output(output, &err) != 0)
+    if (is_root && check_output(output, &err) != 0) {
+        if (!o.output && scene.line_output) { /* the name came from the scene: say where */
+            RtError e2 = err;
+            rt_fail(&err, "%s:%d: output_image: %s", scene.path, scene.line_output, e2.msg);
+        }
         goto prep_fail;
+    }
 
     t0 = rt_now_ms();
     if (rt_accel_build(&scene, o.accel, &accel, &err) != 0 || rt_bvh_check(&accel, &err) != 0)

@@ -43,7 +43,7 @@ typedef struct RtScene {
     char name[256];     /* scene name: file name without directory and extension */
     char path[4096];    /* file it came from */
     /* lines that set camera values (0: default), for error messages */
-    int line_fwd, line_up, line_fov, line_res, line_depth;
+    int line_fwd, line_up, line_fov, line_res, line_depth, line_output;
 } RtScene;
 
 typedef void (*RtWarnFn)(void *ctx, const char *msg);

@@ -71,6 +71,31 @@ bad "bad resolution option" "--resolution" --resolution 0x10 "$src/scenes/demo.t
 bad "bad depth option" "--max-depth" --max-depth -2 "$src/scenes/demo.txt"
 bad "unknown backend" "unknown backend" --backend vulkan "$src/scenes/demo.txt"
 bad "unknown option" "unknown option" --frobnicate "$src/scenes/demo.txt"
+printf 'sphere: 0 0 -5 1\nmaterial: 0 0 0 0 0 0 0 0 0 1 .5 .5 .5 0\n' > "$tmp/glass0.txt"
+bad "transmissive ior 0" "glass0.txt:2:.*index of refraction" "$tmp/glass0.txt"
+# an output_image name the writer cannot use: the scene's file and line, and
+# nothing written in the current directory
+printf 'film_resolution: 8 6\noutput_image: out.xyz\nsphere: 0 0 -5 1\n' > "$tmp/badout.txt"
+(cd "$tmp" && "$rt" -q badout.txt > stdout 2> stderr)
+[ $? -eq 1 ] || fail "output_image out.xyz: wrong exit status"
+[ "$(cat "$tmp/stderr")" = "badout.txt:2: output_image: out.xyz: unknown image format (use .png, .bmp or .ppm)" ] ||
+    fail "output_image out.xyz: stderr '$(cat "$tmp/stderr")'"
+[ ! -e "$tmp/out.xyz" ] || fail "output_image out.xyz: wrote a file"
+# -o overrides the scene's name, so the scene's unusable name cannot matter
+"$rt" -q -o "$tmp/ok.ppm" "$tmp/badout.txt" > /dev/null || fail "-o did not override a bad output_image"
+
+# --- the course's tools write ior 0 for opaque materials: such a scene renders
+printf 'film_resolution: 16 12\nmaterial: .1 .7 0 .1 .7 0 0 0 0 0 0 0 0 0\nsphere: 0 0 -5 1\n' > "$tmp/ior0.txt"
+printf 'film_resolution: 16 12\nmaterial: .1 .7 0 .1 .7 0 0 0 0 0 0 0 0 1\nsphere: 0 0 -5 1\n' > "$tmp/ior1.txt"
+h0=$("$rt" -q -o "$tmp/ior0.ppm" "$tmp/ior0.txt" | sed -n 's/.*image_fnv1a=\([0-9a-f]*\).*/\1/p')
+h1=$("$rt" -q -o "$tmp/ior1.ppm" "$tmp/ior1.txt" | sed -n 's/.*image_fnv1a=\([0-9a-f]*\).*/\1/p')
+[ -n "$h0" ] && [ "$h0" = "$h1" ] || fail "opaque material with ior 0: '$h0', with ior 1: '$h1'"
+
+# --- --quiet hides progress, not warnings (README)
+printf 'film_resolution: 8 6\nsphere: 0 0 -5 1\nshininess: 3\n' > "$tmp/warn.txt"
+"$rt" -q -o "$tmp/w.ppm" "$tmp/warn.txt" > /dev/null 2> "$tmp/stderr" || fail "warning scene failed"
+grep -q "warn.txt:3: warning: unknown command 'shininess'" "$tmp/stderr" || fail "--quiet hid the warning: '$(cat "$tmp/stderr")'"
+
 rm -f "$tmp/out.png"
 "$rt" -q -o "$tmp/out.tga" "$src/scenes/demo.txt" > /dev/null 2> "$tmp/stderr"
 [ $? -eq 1 ] && grep -q "unknown image format" "$tmp/stderr" || fail "unknown extension accepted"

@@ -247,6 +247,7 @@ static int cmd_output(Parser *p, const char *v)
         return perr(p, "output_image: name longer than %zu bytes", sizeof p->s->output - 1);
     memcpy(p->s->output, s, n);
     p->s->output[n] = '\0';
+    p->s->line_output = p->line;
     return 0;
 }
 
@@ -282,8 +283,12 @@ static int cmd_material(Parser *p, const char *v)
     for (int i = 10; i < 13; i++)
         if (f[i] < 0.0f)
             return perr(p, "material: value %d is negative (%g); transmission must be >= 0", i + 1, (double)f[i]);
-    if (!(f[13] > 0.0f))
-        return perr(p, "material: index of refraction must be positive, got %g", (double)f[13]);
+    /* The course's tools write ior 0 for opaque materials: the index only
+     * matters where light is transmitted (RENDERING-RULES: kt != 0). */
+    const int transmissive = f[10] > 0.0f || f[11] > 0.0f || f[12] > 0.0f;
+    if (transmissive && !(f[13] > 0.0f))
+        return perr(p, "material: index of refraction must be positive for a transmissive material (kt > 0), got %g",
+                    (double)f[13]);
     if (GROW(p, materials, "materials") != 0)
         return -1;
     RtMaterial *m = &p->s->materials[p->s->nmaterials];

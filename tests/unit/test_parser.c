@@ -200,7 +200,10 @@ static void test_bad_input(void)
     expect_error("camera_fov_ha: 0\n", 1, "strictly between 0 and 90");
     expect_error("camera_fov_ha: -10\n", 1, "strictly between 0 and 90");
     expect_error("material: 1 1 1 1 1 1 1 1 1 1 1 1 1\n", 1, "expected 14 values, got 13");
+    /* ior only matters where light is transmitted: refused there, at <= 0 */
     expect_error("material: 1 1 1 1 1 1 1 1 1 1 1 1 1 0\n", 1, "index of refraction");
+    expect_error("material: 0 0 0 0 0 0 0 0 0 1 0 0 .5 -1.5\n", 1, "transmissive");
+    expect_error("material: 0 0 0 0 0 0 0 0 0 1 .1 0 0 0\n", 1, "index of refraction must be positive");
     expect_error("directional_light: 1 1 1 0 0 0\n", 1, "zero vector");
     expect_error("spot_light: 1 1 1 0 0 0 0 -1 0 30 20\n", 1, "angle1 <= angle2");
     expect_error("output_image:   \n", 1, "expected a file name");
@@ -218,6 +221,23 @@ static void test_bad_input(void)
         big[n + 9] = '\0';
         expect_error(big, 1, "line longer than");
         free(big);
+    }
+}
+
+/* What the course's own tools write for an opaque material: ior 0 (or any
+ * value) with kt all zero. It must load, and the value is kept as written. */
+static void test_opaque_ior_lenient(void)
+{
+    const char *texts[] = {"material: .1 .7 0 .1 .7 0 0 0 0 0 0 0 0 0\nsphere: 0 0 -5 1\n",
+                           "material: .1 .7 0 .1 .7 0 0 0 0 0 0 0 0 -3\nsphere: 0 0 -5 1\n"};
+    for (int i = 0; i < 2; i++) {
+        RtScene s;
+        RtError e;
+        CHECK(parse(texts[i], &s, &e) == 0, "opaque material with ior <= 0 refused: %s", e.msg);
+        CHECK(s.nmaterials == 2 && s.materials[1].kd[1] == 0.7f && s.materials[1].kt[0] == 0.0f,
+              "opaque material not read");
+        CHECK(s.nspheres == 1 && s.spheres[0].material == 1, "sphere lost its material");
+        rt_scene_free(&s);
     }
 }
 
@@ -291,6 +311,7 @@ int main(void)
     test_no_capacity_hint();
     test_numbers();
     test_bad_input();
+    test_opaque_ior_lenient();
     test_bad_files();
     test_camera_errors();
     test_mutations();
