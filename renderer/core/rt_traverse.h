@@ -134,6 +134,15 @@ static inline RT_HD RtRayBox rt_raybox(RtVec3 o, RtVec3 d)
 #define RT_BOX_MAX rt_maxf
 #endif
 
+/* Float rounding makes a slab test's distances differ from the exact ones
+ * by a few ulps, and from the triangle test's t. Every box test widens the
+ * exit by this factor (pbrt-v4's 1 + 2*gamma(3)), and every pop compares
+ * the stored entry with the closest hit widened the same way: a box entered
+ * at a rounded-up distance must not be culled by a hit at a rounded-down one
+ * (coplanar faces, e.g. a prism standing on a floor), or BVH and brute force
+ * would disagree on a pixel. */
+#define RT_BOX_WIDEN 1.0000004f
+
 /* The scalar slab test: entry distance of the ray into the box lo..hi within
  * [tmin, tmax], or RT_INF. Every scalar box test calls it (rt_box_enter without
  * SSE, the wide traversal, the GPU's binary variant in cuda.cu). */
@@ -145,10 +154,7 @@ static inline RT_HD float rt_slab_enter(float lx, float ly, float lz, float hx, 
     float tz0 = (lz - rb->o.z) * rb->inv.z, tz1 = (hz - rb->o.z) * rb->inv.z;
     float t0 = RT_BOX_MAX(RT_BOX_MAX(RT_BOX_MIN(tx0, tx1), RT_BOX_MIN(ty0, ty1)), RT_BOX_MAX(RT_BOX_MIN(tz0, tz1), tmin));
     float t1 = RT_BOX_MIN(RT_BOX_MIN(RT_BOX_MAX(tx0, tx1), RT_BOX_MAX(ty0, ty1)), RT_BOX_MIN(RT_BOX_MAX(tz0, tz1), tmax));
-    /* Widen the exit a little (pbrt-v4's 1 + 2*gamma(3)) so float rounding in
-     * the slab test never culls a box whose primitive the exact test would hit;
-     * a culled hit would make BVH and brute force disagree on a pixel. */
-    return t0 <= t1 * 1.0000004f ? t0 : RT_INF;
+    return t0 <= t1 * RT_BOX_WIDEN ? t0 : RT_INF;
 }
 
 /* Entry distance of the ray into the node's box within [tmin, tmax], or RT_INF. */
@@ -167,7 +173,7 @@ static inline RT_HD float rt_box_enter(const RtBvhNode *n, const RtRayBox *rb, f
     tn = _mm_max_ss(tn, _mm_shuffle_ps(tn, tn, _MM_SHUFFLE(2, 3, 0, 1)));
     tf = _mm_min_ss(tf, _mm_shuffle_ps(tf, tf, _MM_SHUFFLE(2, 3, 0, 1)));
     float t0s = rt_maxf(_mm_cvtss_f32(tn), tmin), t1s = rt_minf(_mm_cvtss_f32(tf), tmax);
-    return t0s <= t1s * 1.0000004f ? t0s : RT_INF;
+    return t0s <= t1s * RT_BOX_WIDEN ? t0s : RT_INF;
 #else
     return rt_slab_enter(n->lo[0], n->lo[1], n->lo[2], n->hi[0], n->hi[1], n->hi[2], rb, tmin, tmax);
 #endif
@@ -194,7 +200,7 @@ static inline RT_HD int rt_box_enter2(const RtBvhNode *na, const RtBvhNode *nb, 
     f = _mm_min_ps(f, _mm_shuffle_ps(f, f, _MM_SHUFFLE(2, 3, 0, 1)));
     n = _mm_max_ps(n, _mm_setzero_ps());
     f = _mm_min_ps(f, _mm_set1_ps(tmax));
-    int hit = _mm_movemask_ps(_mm_cmple_ps(n, _mm_mul_ps(f, _mm_set1_ps(1.0000004f))));
+    int hit = _mm_movemask_ps(_mm_cmple_ps(n, _mm_mul_ps(f, _mm_set1_ps(RT_BOX_WIDEN))));
     *ta = _mm_cvtss_f32(n);
     *tb = _mm_cvtss_f32(_mm_movehl_ps(n, n));
     return (hit & 1) | ((hit >> 1) & 2);
@@ -352,14 +358,14 @@ static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, f
             if (mask == 1) { ni = a; continue; }
             if (mask == 2) { ni = b; continue; }
         }
-        /* Pop, skipping nodes entered beyond the closest hit so far. Ties
-         * (entry == hit->t) are still visited: an equal-t hit with a lower
-         * index may live there. */
+        /* Pop, skipping nodes entered beyond the closest hit so far
+         * (widened: RT_BOX_WIDEN). Ties are still visited: an equal-t hit
+         * with a lower index may live there. */
         for (;;) {
             if (sp == 0)
                 goto done;
             sp--;
-            if (stack_t[sp] <= hit->t)
+            if (stack_t[sp] <= hit->t * RT_BOX_WIDEN)
                 break;
         }
         ni = stack_node[sp];
@@ -455,8 +461,8 @@ static inline RT_HD RtWideRay rt_wide_ray(RtVec3 o, RtVec3 d)
  * with the low two replaced by k, or all ones for a miss. An empty slot's
  * inside-out box (rt_accel_build) always misses: its near distances are
  * +inf and its far ones -inf. Keys sort with integer min/max and carry their
- * child along; the key's distance part is at most t, so the pop culls no box
- * that t itself would keep. */
+ * child along; the key's distance part is at most t widened (RT_BOX_WIDEN),
+ * the pop's limit, so the pop culls no box that the test itself would keep. */
 static inline RT_HD uint32_t rt_wide_key(const RtWideRay *w, float nx, float ny, float nz, float fx, float fy,
                                          float fz, float tmax, uint32_t k)
 {
@@ -465,7 +471,7 @@ static inline RT_HD uint32_t rt_wide_key(const RtWideRay *w, float nx, float ny,
     const float az = fmaf(nz, w->iz, w->nz), bz = fmaf(fz, w->iz, w->fz);
     const float t0 = RT_BOX_MAX(RT_BOX_MAX(ax, ay), RT_BOX_MAX(az, 0.0f));
     const float t1 = RT_BOX_MIN(RT_BOX_MIN(bx, by), RT_BOX_MIN(bz, tmax));
-    return t0 <= t1 * 1.0000004f ? (rt_float_bits(t0) & 0x7ffffffcu) | k : RT_WIDE_MISS_KEY;
+    return t0 <= t1 * RT_BOX_WIDEN ? (rt_float_bits(t0) & 0x7ffffffcu) | k : RT_WIDE_MISS_KEY;
 }
 
 static inline RT_HD uint32_t rt_umin(uint32_t a, uint32_t b) { return a < b ? a : b; }
@@ -477,7 +483,7 @@ static inline RT_HD uint32_t rt_umax(uint32_t a, uint32_t b) { return a > b ? a 
  * (key & ~3) <= bits(t) is key <= bits(t) | 3. */
 static inline RT_HD uint32_t rt_wide_pop(const uint64_t *st, int *sp, float t)
 {
-    const uint32_t lim = rt_float_bits(t) | 3u;
+    const uint32_t lim = rt_float_bits(t * RT_BOX_WIDEN) | 3u; /* widened as the box test */
     while (*sp > 0) {
         const uint64_t e = st[--*sp];
         if ((uint32_t)(e >> 32) <= lim)

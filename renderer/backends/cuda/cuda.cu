@@ -138,7 +138,7 @@ static __device__ int rt_trace_ray_ldg(const RtSceneView *s, RtVec3 o, RtVec3 d,
             if (sp == 0)
                 goto done;
             sp--;
-            if (__uint_as_float(stack[sp].y) <= hit->t)
+            if (__uint_as_float(stack[sp].y) <= hit->t * RT_BOX_WIDEN)
                 break;
         }
         ni = stack[sp].x;
