@@ -8,10 +8,12 @@
 # any unwritten pixel fails). RESOLUTION should have a height that 2 and 3 do
 # not divide and a width that 16 and 7 do not divide, so that row blocks and
 # tiles are uneven. ACCELS: "bvh" or "bvh none". MPIRUN may be "none".
-# Exits 77 (skipped) when the scene (../shared beside the checkout) is missing.
+# SCENE may be course:PATH (tests/course.sh); exits 77 (skipped) when such a
+# course scene is missing.
 set -u
-rt=$1 mpirun=$2 scene=$3 res=$4 accels=$5
-[ -f "$scene" ] || { echo "skip: $scene not found"; exit 77; }
+. "$(dirname "$0")/../course.sh"
+rt=$1 mpirun=$2 scene=$(course_path "$3") res=$4 accels=$5
+[ -f "$scene" ] || { echo "skip: $scene not found (the course scenes: set RAYBENCH_COURSE_DIR)"; exit 77; }
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 # mpirun as root (containers, CI) needs both; waiting ranks yield the core

@@ -40,7 +40,8 @@
 # checkout. GPU_CHECK_CSV=FILE
 # appends one row per comparison; GPU_CHECK_BLOCKS overrides the bvh blocks.
 set -u
-RT=$1; DIFF=$2; DIR=$3; MODE=$4; shift 4
+. "$(dirname "$0")/../course.sh"
+RT=$1; DIFF=$2; DIR=$(course_path "$3"); MODE=$4; shift 4
 
 have_gpu() {
     command -v nvidia-smi >/dev/null 2>&1 && nvidia-smi -L 2>/dev/null | grep -q '^GPU '

@@ -8,7 +8,8 @@
 # 2560x1920, with no --block. Any report fails the test.
 # Exit 77 without a GPU or without compute-sanitizer.
 set -u
-RT=$1; DIR=$2
+. "$(dirname "$0")/../course.sh"
+RT=$1; DIR=$(course_path "$2")
 command -v nvidia-smi >/dev/null 2>&1 && nvidia-smi -L 2>/dev/null | grep -q '^GPU ' || { echo "SKIP: no GPU"; exit 77; }
 CS=$(command -v compute-sanitizer || ls /usr/local/cuda/bin/compute-sanitizer 2>/dev/null) || { echo "SKIP: no compute-sanitizer"; exit 77; }
 [ -d "$DIR" ] || { echo "SKIP: no course scenes at $DIR"; exit 77; }

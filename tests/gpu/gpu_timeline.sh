@@ -9,7 +9,8 @@
 # and a file that cannot be written is a one-line error, exit 1, no image.
 # Exit 77 without a GPU or without the course scenes.
 set -u
-RT=$1; DIR=$2
+. "$(dirname "$0")/../course.sh"
+RT=$1; DIR=$(course_path "$2")
 command -v nvidia-smi >/dev/null 2>&1 && nvidia-smi -L 2>/dev/null | grep -q '^GPU ' || { echo "SKIP: no GPU"; exit 77; }
 [ -d "$DIR" ] || { echo "SKIP: no course scenes at $DIR"; exit 77; }
 TMP=$(mktemp -d) || exit 1

@@ -2,8 +2,10 @@
  * real scenes: every primary ray of the scene's camera, and from each hit the
  * shadow ray towards every light (any hit, both queries: RT_ANY_HIT, children
  * sorted, and RT_ANY_HIT_SLOT, children in slot order) and the mirror ray
- * (closest hit), must give bit-identical hits (t, u, v, primitive). Exit 77 when a scene
- * file is missing (../shared not beside the checkout). */
+ * (closest hit), must give bit-identical hits (t, u, v, primitive). A scene
+ * named course:PATH is read from the course scenes' folder (tests/course.sh:
+ * RAYBENCH_COURSE_DIR, else RAYBENCH_COURSE_DEFAULT); exit 77 when one of
+ * those is missing. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -82,14 +84,29 @@ static void check_scene(const char *path)
     rt_scene_free(&s);
 }
 
+/* course:PATH -> the course folder's PATH (as tests/course.sh resolves it) */
+static const char *scene_path(const char *arg, char *buf, size_t size)
+{
+    if (strncmp(arg, "course:", 7) != 0)
+        return arg;
+    const char *dir = getenv("RAYBENCH_COURSE_DIR");
+    if (!dir || !*dir)
+        dir = getenv("RAYBENCH_COURSE_DEFAULT");
+    snprintf(buf, size, "%s/%s", dir && *dir ? dir : "../shared/scenes/course", arg + 7);
+    return buf;
+}
+
 int main(int argc, char **argv)
 {
-    for (int k = 1; k < argc; k++)
-        if (access(argv[k], R_OK) != 0) {
-            printf("SKIP: %s not found\n", argv[k]);
+    char buf[4096];
+    for (int k = 1; k < argc; k++) {
+        const char *path = scene_path(argv[k], buf, sizeof buf);
+        if (access(path, R_OK) != 0) {
+            printf("SKIP: %s not found (the course scenes: set RAYBENCH_COURSE_DIR)\n", path);
             return 77;
         }
+    }
     for (int k = 1; k < argc; k++)
-        check_scene(argv[k]);
+        check_scene(scene_path(argv[k], buf, sizeof buf));
     return check_report("test_wide");
 }
