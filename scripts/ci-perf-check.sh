@@ -7,5 +7,6 @@ set -eu
 build=${1:-build}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
+SCENEGEN=$build/renderer/scenegen scripts/gen-scenes.sh mesh10k > /dev/null
 "$build/harness/harness" run configs/ci.conf -o "$tmp/ci.csv" --overwrite -q
 "$build/harness/harness" compare "$tmp/ci.csv" results/ci-baseline.csv
