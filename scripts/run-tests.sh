@@ -11,8 +11,22 @@ fi
 # Open MPI refuses root without these; --oversubscribe is passed by the tests.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 BUILD=${BUILD:-build}
+# The course scenes (an extra suite, defined only where they are):
+# RAYBENCH_COURSE_DIR, or ../shared/scenes/course beside the checkout.
+course=${RAYBENCH_COURSE_DIR:-../shared/scenes/course}
+if [ -d "$course" ]; then course=$(cd "$course" && pwd); else course=none; fi
 if [ ! -f "$BUILD/build.ninja" ]; then
-    meson setup "$BUILD" || { echo "0 passed, 1 failed"; exit 1; }
+    meson setup "$BUILD" -Dcourse_dir="$course" || { echo "0 passed, 1 failed"; exit 1; }
+else
+    # (a build made before the option existed needs --reconfigure to learn it)
+    meson configure "$BUILD" -Dcourse_dir="$course" > /dev/null 2>&1 ||
+        meson setup --reconfigure "$BUILD" -Dcourse_dir="$course" > /dev/null ||
+        { echo "0 passed, 1 failed"; exit 1; }
+fi
+if [ "$course" = none ]; then
+    echo "run-tests: no course scenes (set RAYBENCH_COURSE_DIR, or put shared/ beside the checkout): the course suite is left out"
+else
+    echo "run-tests: course suite on $course"
 fi
 if ! ninja -C "$BUILD"; then
     echo "build failed"
