@@ -309,12 +309,26 @@ int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
     int seen_scalar[16] = {0};
     int lineno = 0, rc = 0;
     const char *p = text;
+    if (strncmp(p, "\xEF\xBB\xBF", 3) == 0) /* a UTF-8 byte-order mark, as editors on Windows write */
+        p += 3;
     while (*p && rc == 0) {
         const char *nl = strchr(p, '\n');
         size_t n = nl ? (size_t)(nl - p) : strlen(p);
         char *line = hx_strndup(p, n);
         p += n + (nl ? 1 : 0);
         lineno++;
+        if (n && line[n - 1] == '\r') /* CRLF line ends */
+            line[n - 1] = '\0';
+        for (const unsigned char *c = (const unsigned char *)line; *c; c++)
+            if ((*c < 0x20 && *c != '\t') || *c == 0x7f) {
+                /* names from here reach CSV cells, tables and Slurm scripts */
+                rc = set_err(err, errlen, path, lineno, "control character 0x%02x in the line", *c);
+                break;
+            }
+        if (rc) {
+            free(line);
+            break;
+        }
         char *hash = strchr(line, '#');
         if (hash)
             *hash = '\0';

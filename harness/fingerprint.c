@@ -26,17 +26,14 @@ static void copy_trim(char *dst, size_t n, const char *src)
             *p = ' ';
 }
 
-/* First line of a command's stdout, or "" (stderr discarded). */
-static void first_line_of(const char *cmd, char *out, size_t n)
+/* First line of a program's stdout, or "" (stderr discarded). No shell:
+ * the arguments (a folder from --raytrace, say) reach it as they are. */
+static void first_line_of(char *const argv[], char *out, size_t n)
 {
-    out[0] = '\0';
-    FILE *p = popen(cmd, "r");
-    if (!p)
-        return;
     char line[512];
-    if (fgets(line, sizeof line, p))
-        copy_trim(out, n, line);
-    pclose(p);
+    if (hx_run_argv(argv, NULL, line, sizeof line, 1) != 0)
+        line[0] = '\0';
+    copy_trim(out, n, line);
 }
 
 void hx_utc_now(char *buf, size_t n)
@@ -110,8 +107,8 @@ void hx_fingerprint_get(HxFingerprint *fp, const HxTopo *t, int want_gpu,
     strcpy(fp->gpu_driver, "-");
     if (want_gpu) {
         char line[512];
-        first_line_of("nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null",
-                      line, sizeof line);
+        char *smi[] = {"nvidia-smi", "--query-gpu=name,driver_version", "--format=csv,noheader", NULL};
+        first_line_of(smi, line, sizeof line);
         /* copy_trim turned the comma into a space; split on the last space */
         char *sp = strrchr(line, ' ');
         if (sp) {
@@ -120,20 +117,17 @@ void hx_fingerprint_get(HxFingerprint *fp, const HxTopo *t, int want_gpu,
             copy_trim(fp->gpu_driver, sizeof fp->gpu_driver, sp + 1);
         }
     }
-    HxBuf cmd = {0};
-    hx_buf_printf(&cmd, "git -C '%s' rev-parse --short HEAD 2>/dev/null", repo_dir ? repo_dir : ".");
-    first_line_of(cmd.s, fp->git_commit, sizeof fp->git_commit - 8);
-    hx_buf_free(&cmd);
+    char *dir = (char *)(repo_dir ? repo_dir : ".");
+    char *rev[] = {"git", "-C", dir, "rev-parse", "--short", "HEAD", NULL};
+    first_line_of(rev, fp->git_commit, sizeof fp->git_commit - 8);
     if (fp->git_commit[0] == '\0') {
         strcpy(fp->git_commit, "unknown");
     } else {
         /* mark uncommitted changes to tracked files: the number belongs to
          * code that no commit holds */
         char dirty[256];
-        hx_buf_printf(&cmd, "git -C '%s' status --porcelain --untracked-files=no 2>/dev/null",
-                      repo_dir ? repo_dir : ".");
-        first_line_of(cmd.s, dirty, sizeof dirty);
-        hx_buf_free(&cmd);
+        char *st[] = {"git", "-C", dir, "status", "--porcelain", "--untracked-files=no", NULL};
+        first_line_of(st, dirty, sizeof dirty);
         if (dirty[0])
             strcat(fp->git_commit, "-dirty");
     }

@@ -49,6 +49,17 @@ int hx_is_dir(const char *path);
 char *hx_dirname(const char *path);     /* malloc'd */
 char *hx_path_join(const char *a, const char *b);
 int hx_cmp_double(const void *a, const void *b);
+/* Runs argv[0] (found on PATH) with argv, never through a shell, in folder
+ * dir (NULL: here). The first line of its stdout goes to out (may be NULL:
+ * stdout discarded); quiet discards its stderr. Returns its exit status, 127
+ * when it could not be started, 128+N when killed by signal N. */
+int hx_run_argv(char *const argv[], const char *dir, char *out, size_t n, int quiet);
+/* Appends s to b as a gnuplot single-quoted string: gnuplot does no
+ * substitution there (no backquote command, no @macro), ' is doubled, and
+ * control characters (a newline would end the command) become '?'. */
+void hx_gp_quote(HxBuf *b, const char *s);
+/* 1 when s holds a control character (below 0x20, or 0x7f). */
+int hx_has_ctrl(const char *s);
 
 /* ---- config and run matrix (config.c) ---- */
 /* Swept dimensions, in the nesting order of the expansion (outermost first).

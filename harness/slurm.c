@@ -229,9 +229,20 @@ int hx_cmd_slurm(int argc, char **argv)
         fprintf(stderr, "harness slurm: expected one CONFIG argument (see --help)\n");
         return 1;
     }
+    /* the path and the study name go into the script's comments and
+     * commands: a newline there would start a command of its own */
+    if (hx_has_ctrl(argv[optind])) {
+        fprintf(stderr, "harness slurm: the config path holds a control character (a newline?)\n");
+        return 1;
+    }
     HxConfig cfg;
     if (hx_config_open(argv[optind], &cfg))
         return 1;
+    if (hx_has_ctrl(cfg.study)) {
+        fprintf(stderr, "harness slurm: %s: the study name holds a control character\n", argv[optind]);
+        hx_config_free(&cfg);
+        return 1;
+    }
     HxPlan plan;
     hx_expand(&cfg, &plan);
     /* Size from the expanded plan, not the raw lists: threads on a serial

@@ -328,8 +328,20 @@ static void emit_row(Emit *e, const char *const *cells, int n)
         return;
     }
     fputs("|", e->out);
-    for (int i = 0; i < n; i++)
-        fprintf(e->out, " %s |", cells[i]);
+    for (int i = 0; i < n; i++) {
+        /* a cell from someone's CSV: no control character, and a '|' that
+         * does not end the cell */
+        fputc(' ', e->out);
+        for (const unsigned char *p = (const unsigned char *)cells[i]; *p; p++) {
+            if (*p < 0x20 || *p == 0x7f)
+                fputc('?', e->out);
+            else if (*p == '|')
+                fputs("\\|", e->out);
+            else
+                fputc(*p, e->out);
+        }
+        fputs(" |", e->out);
+    }
     fputc('\n', e->out);
 }
 

@@ -10,8 +10,11 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <time.h>
+#include <unistd.h>
 
 void *hx_xmalloc(size_t n)
 {
@@ -238,5 +241,84 @@ int hx_read_file(const char *path, HxBuf *b)
         errno = EIO;
         return -1;
     }
+    return 0;
+}
+
+int hx_run_argv(char *const argv[], const char *dir, char *out, size_t n, int quiet)
+{
+    if (out && n)
+        out[0] = '\0';
+    int fd[2] = {-1, -1};
+    if (out && pipe(fd) != 0)
+        return 127;
+    pid_t pid = fork();
+    if (pid < 0) {
+        if (out) {
+            close(fd[0]);
+            close(fd[1]);
+        }
+        return 127;
+    }
+    if (pid == 0) {
+        int null = open("/dev/null", O_RDWR);
+        if (out) {
+            dup2(fd[1], STDOUT_FILENO);
+            close(fd[0]);
+            close(fd[1]);
+        } else if (null >= 0) {
+            dup2(null, STDOUT_FILENO);
+        }
+        if (quiet && null >= 0)
+            dup2(null, STDERR_FILENO);
+        if (null > STDERR_FILENO)
+            close(null);
+        if (dir && chdir(dir) != 0)
+            _exit(127);
+        execvp(argv[0], argv);
+        _exit(127);
+    }
+    if (out) {
+        close(fd[1]);
+        size_t len = 0;
+        int line_done = 0;
+        char chunk[512];
+        ssize_t r;
+        /* read to the end, so the child never blocks on a full pipe */
+        while ((r = read(fd[0], chunk, sizeof chunk)) > 0 || (r < 0 && errno == EINTR))
+            for (ssize_t k = 0; k < r && !line_done; k++) {
+                if (chunk[k] == '\n')
+                    line_done = 1;
+                else if (len + 1 < n)
+                    out[len++] = chunk[k];
+            }
+        out[len] = '\0';
+        close(fd[0]);
+    }
+    int st;
+    while (waitpid(pid, &st, 0) < 0)
+        if (errno != EINTR)
+            return 127;
+    return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+}
+
+void hx_gp_quote(HxBuf *b, const char *s)
+{
+    hx_buf_put(b, "'");
+    for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
+        if (*p == '\'')
+            hx_buf_put(b, "''");
+        else if (*p < 0x20 || *p == 0x7f)
+            hx_buf_put(b, "?");
+        else
+            hx_buf_putn(b, (const char *)p, 1);
+    }
+    hx_buf_put(b, "'");
+}
+
+int hx_has_ctrl(const char *s)
+{
+    for (const unsigned char *p = (const unsigned char *)s; *p; p++)
+        if (*p < 0x20 || *p == 0x7f)
+            return 1;
     return 0;
 }
