@@ -9,6 +9,7 @@
 #include <fcntl.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -146,26 +147,56 @@ static int write_all(int fd, const char *s, size_t n)
     return 0;
 }
 
+/* Cuts a failed write back off; if even that fails, the caller's error
+ * (already being reported) is all there is to say. */
+static void truncate_to(int fd, off_t len)
+{
+    if (ftruncate(fd, len) != 0)
+        return;
+}
+
 int hx_csv_open_append(const char *path, int truncate_it, char *err, size_t errlen)
 {
-    int fd = open(path, O_RDWR | O_CREAT | (truncate_it ? O_TRUNC : 0), 0644);
+    struct stat st;
+    /* a device or FIFO is no CSV: /dev/full or /dev/zero would be read forever */
+    if (stat(path, &st) == 0 && !S_ISREG(st.st_mode)) {
+        snprintf(err, errlen, "%s: not a regular file", path);
+        return -1;
+    }
+    /* O_CLOEXEC: no run's process keeps the file, or its lock, open */
+    int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd < 0) {
         snprintf(err, errlen, "%s: cannot open for writing: %s", path, strerror(errno));
         return -1;
     }
+    /* One writer per CSV for the whole study, taken before anything is
+     * truncated: two studies appending to one file interleave and lose rows. */
+    if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+        if (errno == EWOULDBLOCK)
+            snprintf(err, errlen, "%s: another harness run is writing it; wait for it to end or "
+                     "write to another file", path);
+        else
+            snprintf(err, errlen, "%s: cannot lock: %s", path, strerror(errno));
+        close(fd);
+        return -1;
+    }
+    if (truncate_it && ftruncate(fd, 0) != 0) {
+        snprintf(err, errlen, "%s: cannot truncate: %s", path, strerror(errno));
+        close(fd);
+        return -1;
+    }
     HxBuf header = {0};
     hx_csv_format_row(&header, NULL);
-    struct stat st;
     fstat(fd, &st);
     if (st.st_size == 0) {
         int rc = write_all(fd, header.s, header.len);
         hx_buf_free(&header);
-        if (rc) {
+        if (rc || fsync(fd) != 0) {
             snprintf(err, errlen, "%s: write failed: %s", path, strerror(errno));
+            truncate_to(fd, 0); /* a torn header is worse than none */
             close(fd);
             return -1;
         }
-        fsync(fd);
         return fd;
     }
     /* An existing file must have our exact header: mixing schemas in one
@@ -203,11 +234,19 @@ int hx_csv_append_row(int fd, const char *const *vals)
 {
     HxBuf row = {0};
     hx_csv_format_row(&row, vals);
-    /* one write() per row + fsync: an interrupted study leaves whole rows */
+    /* one write() per row + fsync: an interrupted study leaves whole rows.
+     * A write or fsync that fails (a full disk) is cut back off, so the file
+     * never ends in part of a row. */
+    off_t before = lseek(fd, 0, SEEK_END);
     int rc = write_all(fd, row.s, row.len);
+    if (rc == 0 && fsync(fd) != 0)
+        rc = -1;
     hx_buf_free(&row);
-    if (rc == 0)
-        fsync(fd);
+    if (rc != 0 && before >= 0) {
+        int e = errno;
+        truncate_to(fd, before);
+        errno = e;
+    }
     return rc;
 }
 
@@ -222,6 +261,16 @@ static void push_field(char ***row, int *n, int *cap, HxBuf *f)
     (*row)[(*n)++] = f->s ? f->s : hx_strdup("");
     f->s = NULL;
     f->len = f->cap = 0;
+}
+
+/* After a parse error in the last row of a file that does not end in a
+ * newline: that row was cut short (a killed study, a full disk). */
+static void torn_hint(const char *text, const char *p, char *err, size_t errlen)
+{
+    size_t len = strlen(text), used = strlen(err);
+    if (len && text[len - 1] != '\n' && !strchr(p, '\n') && used < errlen)
+        snprintf(err + used, errlen - used, "; the last row is torn (cut short): `harness run CONFIG "
+                 "-o FILE --resume` drops it and runs it again");
 }
 
 int hx_csv_parse(const char *text, HxCsv *csv, char *err, size_t errlen)
@@ -241,6 +290,7 @@ int hx_csv_parse(const char *text, HxCsv *csv, char *err, size_t errlen)
                 for (;;) {
                     if (*p == '\0') {
                         snprintf(err, errlen, "line %d: unterminated quoted field", start_line);
+                        torn_hint(text, p, err, errlen);
                         hx_buf_free(&f);
                         for (int i = 0; i < n; i++)
                             free(row[i]);
@@ -288,6 +338,7 @@ int hx_csv_parse(const char *text, HxCsv *csv, char *err, size_t errlen)
         }
         if (n != csv->ncol) {
             snprintf(err, errlen, "line %d: %d fields, header has %d", start_line, n, csv->ncol);
+            torn_hint(text, p, err, errlen);
             for (int i = 0; i < n; i++)
                 free(row[i]);
             free(row);

@@ -535,6 +535,9 @@ static void usage_run(FILE *f)
 
 static int csv_has_rows(const char *path)
 {
+    struct stat st;
+    if (stat(path, &st) != 0 || !S_ISREG(st.st_mode))
+        return 0; /* hx_csv_open_append says what is wrong with it */
     FILE *f = fopen(path, "r");
     if (!f)
         return 0;
@@ -827,11 +830,14 @@ int hx_cmd_run(int argc, char **argv)
         set(vals, "status_detail", detail ? detail : "");
         if (!r->warmup) {
             if (hx_csv_append_row(fd, (const char *const *)vals) != 0) {
-                fprintf(stderr, "harness run: %s: write failed: %s\n", out_path, strerror(errno));
+                /* the study ends here: the rows before this one stay, whole */
+                fprintf(stderr, "harness run: %s: write failed: %s; the study stops, the rows "
+                                "written so far are intact\n", out_path, strerror(errno));
                 rc = 1;
+            } else {
+                for (int s = 0; s < 6; s++) /* the summary counts rows on disk */
+                    nstat[s] += strcmp(status, stat_names[s]) == 0;
             }
-            for (int s = 0; s < 6; s++)
-                nstat[s] += strcmp(status, stat_names[s]) == 0;
         }
         if (!quiet) {
             const char *rm = vals[hx_column_index("render_ms")];

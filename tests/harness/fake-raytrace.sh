@@ -1,6 +1,8 @@
 #!/bin/sh
 # A stand-in for raytrace that the runner tests drive into every outcome,
-# chosen by the scene file's base name: ok*, crash, hang, fail, wrong, silent.
+# chosen by the scene file's base name: ok*, crash, hang, fail, wrong, silent,
+# slow (0.3 s), escape (leaves a process in a session of its own, its pid in
+# $FAKE_ESCAPE_PID, then hangs).
 backend=serial accel=bvh threads=1
 while [ $# -gt 1 ]; do
   case "$1" in
@@ -18,6 +20,8 @@ hash=00000000000000aa
 case "$scene" in
   crash) kill -SEGV $$ ;;
   hang) sleep 31 & wait; exit 0 ;;   # the grandchild must die with the group
+  slow) sleep 0.3 ;;
+  escape) setsid sleep 32 < /dev/null > /dev/null 2>&1 & echo $! > "$FAKE_ESCAPE_PID"; sleep 31 & wait; exit 0 ;;
   fail) echo "raytrace: $1:3: bad thing" >&2; exit 1 ;;
   silent) exit 0 ;;
   wrong) [ "$accel" = none ] && hash=00000000000000bb ;;

@@ -1,0 +1,62 @@
+#!/bin/bash
+# harness run under faults: no lost or torn row, a clear message, exit 1.
+#   - two studies on one CSV: the second is refused (an exclusive lock),
+#     with --resume or --overwrite alike, and the first keeps every row;
+#   - -o /dev/full ends at once with exit 1 (it used to read /dev/full forever);
+#   - a full disk (RLIMIT_FSIZE) mid-study: exit 1, the rows before stay whole,
+#     the summary counts the rows on disk;
+#   - `table` on a CSV with a torn last row says how to repair it.
+# usage: test-faults.sh HARNESS FAKE_RAYTRACE
+set -u
+abs() { (cd "$(dirname "$1")" && echo "$(pwd)/$(basename "$1")"); }
+H=$(abs "$1") FAKE=$(abs "$2")
+T=$(mktemp -d /tmp/hx-faults-XXXXXX)
+trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+cd "$T" || exit 1
+for s in ok slow; do echo "# dummy" > "$s.txt"; done
+conf() { # NAME SCENE REPEATS
+    printf 'study: %s\nscene_dir: .\nscenes: %s\nrepeats: %s\npin: none\nraytrace: %s\n' "$1" "$2" "$3" "$FAKE" > "$1.conf"
+}
+
+# ---- two writers
+conf slow slow 8
+"$H" run slow.conf -o two.csv -q 2> a.err &
+a=$!
+for _ in $(seq 50); do [ "$(wc -l < two.csv 2>/dev/null || echo 0)" -ge 2 ] && break; sleep 0.1; done
+"$H" run slow.conf -o two.csv --resume -q 2> b.err && fail "a second writer with --resume was let in"
+grep -q "another harness run is writing it" b.err || fail "second writer's message: $(cat b.err)"
+"$H" run slow.conf -o two.csv --overwrite -q 2> c.err && fail "a second writer with --overwrite was let in"
+grep -q "another harness run is writing it" c.err || fail "third writer's message: $(cat c.err)"
+wait $a || { cat a.err; fail "the first study failed"; }
+[ "$(($(wc -l < two.csv) - 1))" -eq 8 ] || fail "the first study kept $(($(wc -l < two.csv) - 1)) of 8 rows"
+"$H" table two.csv > /dev/null || fail "the first study's CSV does not read back"
+# the lock goes with the study: a later run may continue the file
+"$H" run slow.conf -o two.csv --resume -q 2> d.err || { cat d.err; fail "--resume after the study ended"; }
+
+# ---- /dev/full
+conf ok ok 3
+timeout 20 "$H" run ok.conf -o /dev/full -q 2> full.err
+rc=$?
+[ $rc -eq 1 ] || fail "-o /dev/full: exit $rc"
+grep -q "/dev/full: not a regular file" full.err || fail "-o /dev/full: $(cat full.err)"
+
+# ---- a full disk mid-study: the header and a few rows fit in 4 KiB, not 40
+conf many ok 40
+(trap '' XFSZ; ulimit -f 8; exec "$H" run many.conf -o fsize.csv -q) 2> fsize.err
+rc=$?
+[ $rc -eq 1 ] || { cat fsize.err; fail "a full disk: exit $rc"; }
+grep -q "write failed" fsize.err || fail "a full disk: $(cat fsize.err)"
+[ "$(tail -c 1 fsize.csv | od -An -c | tr -d ' ')" = '\n' ] || fail "a full disk left a torn row"
+rows=$(($(wc -l < fsize.csv) - 1))
+[ $rows -ge 1 ] && [ $rows -lt 40 ] || fail "a full disk: $rows rows"
+grep -q "fsize.csv: $rows rows" fsize.err || fail "the summary does not count the $rows rows on disk: $(cat fsize.err)"
+"$H" table fsize.csv > /dev/null || fail "the rows before the full disk do not read back"
+
+# ---- a torn last row: table says how to repair it
+conf torn ok 2
+"$H" run torn.conf -o torn.csv -q 2> /dev/null || fail "torn study"
+head -c -40 torn.csv > cut.csv
+"$H" table cut.csv > /dev/null 2> cut.err && fail "table read a torn row"
+grep -q -- "--resume" cut.err || fail "torn row message: $(cat cut.err)"
+echo "faults test passed"
