@@ -18,11 +18,77 @@
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <dirent.h>
 #include <sys/resource.h>
+#ifdef __linux__
+#include <sys/prctl.h>
+#endif
 #include <sys/stat.h>
 #include <sys/types.h>
 #include <sys/wait.h>
 #include <unistd.h>
+
+/* SIGINT or SIGTERM received (the signal number): the current run is ended,
+ * no row is written for it, and the study stops (exit 128 + signal). */
+static volatile sig_atomic_t g_stop;
+
+static void on_stop_signal(int sig)
+{
+    g_stop = sig;
+}
+
+/* No SA_RESTART: poll() and waitpid() return EINTR, and the loop sees g_stop. */
+static void install_stop_handlers(void)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_stop_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+#ifdef __linux__
+    /* Processes a run leaves behind (mpirun's ranks in other process groups,
+     * a daemon in its own session) are re-parented to the harness, which
+     * reaps them before the next run starts (reap_strays). */
+    prctl(PR_SET_CHILD_SUBREAPER, 1);
+#endif
+}
+
+/* Kills and reaps every process of the last run that is still alive: as the
+ * subreaper, they are all children of the harness now. The next run starts
+ * on idle cores. */
+static void reap_strays(void)
+{
+    for (int round = 0; round < 500; round++) {
+        int st;
+        pid_t w;
+        while ((w = waitpid(-1, &st, WNOHANG)) > 0)
+            ;
+        if (w < 0 && errno == ECHILD)
+            return;
+        DIR *d = opendir("/proc");
+        struct dirent *e;
+        while (d && (e = readdir(d)) != NULL) {
+            char path[300], buf[512];
+            if (e->d_name[0] < '1' || e->d_name[0] > '9')
+                continue;
+            snprintf(path, sizeof path, "/proc/%s/stat", e->d_name);
+            FILE *f = fopen(path, "r");
+            if (!f)
+                continue;
+            size_t n = fread(buf, 1, sizeof buf - 1, f);
+            fclose(f);
+            buf[n] = '\0';
+            const char *rp = strrchr(buf, ')'); /* the name may hold spaces */
+            int ppid = 0;
+            if (rp && sscanf(rp + 1, " %*c %d", &ppid) == 1 && ppid == (int)getpid())
+                kill((pid_t)atoi(e->d_name), SIGKILL);
+        }
+        if (d)
+            closedir(d);
+        usleep(10000);
+    }
+}
 
 typedef struct {
     int timed_out;
@@ -118,6 +184,10 @@ static int run_child(char *const *argv, char *const *env_add, const HxTopo *topo
     char chunk[65536];
     while (open_fds > 0) {
         double now = hx_now_ms();
+        if (g_stop) {
+            kill_group(pid, 500, pid, &reaped, &status);
+            break;
+        }
         if (now >= deadline) {
             res->timed_out = 1;
             kill_group(pid, 500, pid, &reaped, &status);
@@ -166,6 +236,10 @@ static int run_child(char *const *argv, char *const *env_add, const HxTopo *topo
     if (!reaped && !res->timed_out) {
         /* pipes closed; the leader should be exiting: wait up to the deadline */
         while (!reaped) {
+            if (g_stop) {
+                kill_group(pid, 500, pid, &reaped, &status);
+                break;
+            }
             pid_t w = waitpid(pid, &status, WNOHANG);
             if (w == pid) {
                 reaped = 1;
@@ -603,7 +677,10 @@ int hx_cmd_run(int argc, char **argv)
     hx_plan_cores(&topo, &cfg, &plan);
     char *raytrace = find_raytrace(&cfg, rt_opt);
     char *image = NULL;
-    char tmpdir[] = "/tmp/harness-XXXXXX";
+    const char *tmp_root = getenv("TMPDIR");
+    HxBuf tmpl = {0};
+    hx_buf_printf(&tmpl, "%s/harness-XXXXXX", tmp_root && *tmp_root ? tmp_root : "/tmp");
+    char *tmpdir = tmpl.s;
     int rc = 0, fd = -1;
     size_t nover = 0, nref = 0;
     for (size_t i = 0; i < plan.n; i++) {
@@ -692,6 +769,7 @@ int hx_cmd_run(int argc, char **argv)
         goto done_ids;
     }
     image = hx_path_join(tmpdir, "image.ppm");
+    install_stop_handlers();
 
     int want_gpu = hx_strlist_find(&cfg.dim[HX_DIM_BACKEND], "cuda") >= 0;
     char *rtdir = hx_dirname(raytrace);
@@ -760,7 +838,18 @@ int hx_cmd_run(int argc, char **argv)
             Command cmd;
             build_command(&cfg, &topo, r, raytrace, image, &cmd);
             ChildResult res;
-            if (run_child(cmd.argv.v, cmd.env.v, &topo, r, cmd.bind, cfg.timeout_s, &res) != 0) {
+            int spawned = run_child(cmd.argv.v, cmd.env.v, &topo, r, cmd.bind, cfg.timeout_s, &res);
+            reap_strays();
+            if (g_stop) { /* interrupted: no row for a run cut short */
+                hx_buf_free(&res.out);
+                hx_buf_free(&res.err);
+                command_free(&cmd);
+                for (int k = 0; k < hx_ncolumns; k++)
+                    free(vals[k]);
+                free(vals);
+                break;
+            }
+            if (spawned != 0) {
                 status = "error";
                 detail = hx_strdup("fork/pipe failed");
             } else {
@@ -856,6 +945,11 @@ int hx_cmd_run(int argc, char **argv)
         if (rc)
             break;
     }
+    if (g_stop) {
+        fprintf(stderr, "harness run: stopped by %s: the run in progress was ended and not "
+                        "recorded; continue with --resume\n", g_stop == SIGINT ? "SIGINT" : "SIGTERM");
+        rc = 128 + g_stop;
+    }
     double total = hx_now_ms() - study_t0;
     fprintf(stderr, "harness: %s: %zu rows (ok %zu, wrong-image %zu, timeout %zu, crash %zu, "
                     "error %zu, refused %zu), %zu skipped (resume)\n", out_path,
@@ -881,6 +975,7 @@ done:
         free(image);
         rmdir(tmpdir);
     }
+    hx_buf_free(&tmpl);
     free(raytrace);
     hx_topo_free(&topo);
     hx_plan_free(&plan);
