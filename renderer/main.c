@@ -217,6 +217,34 @@ static void warn_cb(void *ctx, const char *msg)
     fprintf(stderr, "%s\n", msg);
 }
 
+/* A material that both reflects and transmits doubles the rays at every
+ * bounce: up to 2^max_depth - 1 per pixel. The render is the user's choice
+ * (docs/scene-format.md, "Deep recursion"); the harness's timeout bounds it
+ * in a study. Past about 10^9 rays (minutes to hours) say so up front. */
+static void warn_deep(const RtScene *s, const RtCamera *cam)
+{
+    int branching = 0;
+    for (uint32_t i = 0; i < s->nmaterials && !branching; i++) {
+        const RtMaterial *m = &s->materials[i];
+        branching = (m->ks[0] > 0 || m->ks[1] > 0 || m->ks[2] > 0) && (m->kt[0] > 0 || m->kt[1] > 0 || m->kt[2] > 0);
+    }
+    if (!branching || s->max_depth < 2)
+        return;
+    double per_pixel = ldexp(1.0, s->max_depth) - 1.0;
+    double worst = per_pixel * (double)cam->width * (double)cam->height;
+    if (worst < 1e9)
+        return;
+    char where[4200];
+    if (s->line_depth)
+        snprintf(where, sizeof where, "%s:%d", s->path, s->line_depth);
+    else
+        snprintf(where, sizeof where, "%s", s->path);
+    fprintf(stderr,
+            "%s: warning: max_depth %d with a material that both reflects and transmits: up to %.3g rays per pixel, "
+            "%.3g in all; lower max_depth, or bound the run (harness timeout)\n",
+            where, s->max_depth, per_pixel, worst);
+}
+
 /* The directory of the output must be writable: checked before rendering, so
  * a long render never ends in a write error. */
 static int check_output(const char *path, RtError *err)
@@ -352,6 +380,8 @@ int main(int argc, char **argv)
     RtCamera cam;
     if (rt_scene_camera(&scene, &cam, &err) != 0)
         goto prep_fail;
+    if (is_root)
+        warn_deep(&scene, &cam);
     output = o.output ? o.output : scene.output;
     /* only the root writes the image, so only its directory matters */
     if (is_root && check_output(output, &err) != 0) {

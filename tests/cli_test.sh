@@ -91,6 +91,20 @@ h0=$("$rt" -q -o "$tmp/ior0.ppm" "$tmp/ior0.txt" | sed -n 's/.*image_fnv1a=\([0-
 h1=$("$rt" -q -o "$tmp/ior1.ppm" "$tmp/ior1.txt" | sed -n 's/.*image_fnv1a=\([0-9a-f]*\).*/\1/p')
 [ -n "$h0" ] && [ "$h0" = "$h1" ] || fail "opaque material with ior 0: '$h0', with ior 1: '$h1'"
 
+# --- a FIFO as the scene is refused at once instead of waiting for a writer
+mkfifo "$tmp/fifo.txt"
+timeout 10 "$rt" -q -o "$tmp/f.ppm" "$tmp/fifo.txt" > /dev/null 2> "$tmp/stderr"
+rc=$?
+[ $rc -eq 1 ] && grep -q "fifo.txt: not a regular file" "$tmp/stderr" || fail "FIFO scene: exit $rc, '$(cat "$tmp/stderr")'"
+
+# --- a material that reflects and transmits at max_depth 32: warned up front
+# (the render is the user's choice; a harness timeout bounds it: test-e2e.sh)
+printf 'film_resolution: 1 1\nmax_depth: 32\nmaterial: 0 0 0 0 0 0 .5 .5 .5 10 .5 .5 .5 1.5\nsphere: 0 0 -5 1\n' > "$tmp/deep.txt"
+"$rt" -q -o "$tmp/deep.ppm" "$tmp/deep.txt" > /dev/null 2> "$tmp/stderr" || fail "deep scene (the ray misses) failed"
+grep -q "deep.txt:2: warning: max_depth 32 .* 4.29e+09 rays per pixel" "$tmp/stderr" || fail "no deep-recursion warning: '$(cat "$tmp/stderr")'"
+"$rt" -q -d 5 -o "$tmp/deep.ppm" "$tmp/deep.txt" > /dev/null 2> "$tmp/stderr" || fail "deep scene at -d 5"
+[ ! -s "$tmp/stderr" ] || fail "a warning at max_depth 5: '$(cat "$tmp/stderr")'"
+
 # --- --quiet hides progress, not warnings (README)
 printf 'film_resolution: 8 6\nsphere: 0 0 -5 1\nshininess: 3\n' > "$tmp/warn.txt"
 "$rt" -q -o "$tmp/w.ppm" "$tmp/warn.txt" > /dev/null 2> "$tmp/stderr" || fail "warning scene failed"

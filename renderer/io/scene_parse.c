@@ -7,12 +7,14 @@
  * Every error names file and line and leaves the scene freeable. */
 #include <ctype.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "rt.h"
 
@@ -584,13 +586,20 @@ int rt_scene_parse_buffer(const char *name, const char *buf, size_t len, RtScene
 int rt_scene_load(const char *path, RtScene *scene, RtWarnFn warn, void *warn_ctx, RtError *err)
 {
     memset(scene, 0, sizeof *scene);
-    FILE *fp = fopen(path, "rb");
-    if (!fp)
+    /* O_NONBLOCK: opening a FIFO for reading would wait for a writer forever;
+     * opened this way it is refused below like any other non-regular file. */
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0)
         return rt_fail(err, "%s: cannot open: %s", path, strerror(errno));
     struct stat st;
-    if (fstat(fileno(fp), &st) != 0 || !S_ISREG(st.st_mode)) {
-        fclose(fp);
+    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        close(fd);
         return rt_fail(err, "%s: not a regular file", path);
+    }
+    FILE *fp = fdopen(fd, "rb");
+    if (!fp) {
+        close(fd);
+        return rt_fail(err, "%s: cannot open: %s", path, strerror(errno));
     }
     if ((unsigned long long)st.st_size > RT_MAX_FILE) {
         fclose(fp);

@@ -39,6 +39,19 @@ grep -q '### Scenes x configurations' "$T/table.md" || fail "no cross table"
 grep -q '| demo | serial' "$T/table.md" || fail "no demo rows in the table"
 grep -q ' 3/3 ' "$T/table.md" || fail "expected 3 ok samples per configuration"
 "$H" compare "$T/quick.csv" "$T/quick.csv" > "$T/cmp" || { cat "$T/cmp"; fail "compare with itself failed"; }
+# the guard of a render that would run for hours (docs/scene-format.md, "Deep
+# recursion"): inside 16 nested glass shells that reflect and transmit, every
+# ray doubles at every bounce (2^32 rays a pixel); the study's timeout ends it
+# as TLE
+mkdir "$T/deep"
+{ printf 'film_resolution: 2 2\nmax_depth: 32\nmaterial: 0 0 0 0 0 0 .5 .5 .5 10 .5 .5 .5 1.5\n'
+  for r in $(seq 1 16); do echo "sphere: 0 0 0 $r"; done; } > "$T/deep/deep.txt"
+printf 'study: deep\nscene_dir: %s\nscenes: deep\nrepeats: 2\ntimeout: 2\npin: none\n' "$T/deep" > "$T/deep.conf"
+start=$(date +%s)
+"$H" run "$T/deep.conf" --raytrace "$RT" -o "$T/deep.csv" -q 2> "$T/deep.log"
+took=$(( $(date +%s) - start ))
+[ "$(grep -c ',timeout,' "$T/deep.csv")" -eq 2 ] || { cat "$T/deep.log" "$T/deep.csv"; fail "the deep render was not ended as TLE"; }
+[ $took -le 10 ] || fail "the deep study took $took s with a 2 s timeout"
 command -v gnuplot > /dev/null || { echo "gnuplot missing: plot check skipped"; exit 77; }
 "$H" plot "$T/quick.csv" -o "$T/quick" || fail "plot failed"
 for k in speedup efficiency scenes; do
