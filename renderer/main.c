@@ -4,6 +4,7 @@
 #include <getopt.h>
 #include <limits.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -211,6 +212,15 @@ static void progress_cb(void *ctx, uint64_t done, uint64_t total)
     }
 }
 
+/* SIGINT/SIGTERM: no half-written OUT.tmp.XXXXXX is left beside the image;
+ * then the default action, so the parent sees the signal. */
+static void on_stop_signal(int sig)
+{
+    rt_image_abandon();
+    signal(sig, SIG_DFL);
+    raise(sig);
+}
+
 static void warn_cb(void *ctx, const char *msg)
 {
     (void)ctx;
@@ -344,6 +354,12 @@ int main(int argc, char **argv)
     }
     RtError err;
     err.msg[0] = '\0';
+    /* (a signal ignored at start, as SIGINT in a shell's background job,
+     * stays ignored) */
+    if (signal(SIGINT, on_stop_signal) == SIG_IGN)
+        signal(SIGINT, SIG_IGN);
+    if (signal(SIGTERM, on_stop_signal) == SIG_IGN)
+        signal(SIGTERM, SIG_IGN);
     if (be->init && be->init(&argc, &argv, &err) != 0) {
         fprintf(stderr, "%s: %s\n", prog, err.msg);
         return 1;

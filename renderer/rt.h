@@ -96,6 +96,9 @@ RtImageFormat rt_image_format_for(const char *path);
 /* Writes 8-bit RGB, row-major from the top; the file appears whole or not at
  * all (written under a temporary name, then renamed). */
 int rt_image_write(const char *path, const uint8_t *rgb, int width, int height, RtError *err);
+/* Removes the temporary file of a write in progress, if any: for a SIGINT or
+ * SIGTERM handler (async-signal-safe). */
+void rt_image_abandon(void);
 /* Reads PNG (8/16-bit, any colour type), BMP (24-bit) or PPM (P6) into 8-bit RGB (malloc'd). */
 int rt_image_read(const char *path, uint8_t **rgb, int *width, int *height, RtError *err);
 void rt_image_quantize(const float *rgbf, uint8_t *rgb, size_t npixels);

@@ -105,6 +105,28 @@ grep -q "deep.txt:2: warning: max_depth 32 .* 4.29e+09 rays per pixel" "$tmp/std
 "$rt" -q -d 5 -o "$tmp/deep.ppm" "$tmp/deep.txt" > /dev/null 2> "$tmp/stderr" || fail "deep scene at -d 5"
 [ ! -s "$tmp/stderr" ] || fail "a warning at max_depth 5: '$(cat "$tmp/stderr")'"
 
+# --- SIGTERM while the image is being written: the temporary file goes with
+# the process (a 6000x6000 PPM takes about half a second to write, so the
+# test waits for the temporary file to appear, then signals). SIGINT takes
+# the same handler, but a shell's background job ignores it, so it is not
+# tried here.
+printf 'film_resolution: 6000 6000\n' > "$tmp/big.txt"
+mkdir "$tmp/sig"
+for sig in TERM; do
+    "$rt" -q -o "$tmp/sig/big.ppm" "$tmp/big.txt" > /dev/null 2>&1 &
+    pid=$!
+    seen=0
+    for _ in $(seq 3000); do
+        if ls "$tmp/sig" | grep -q '\.tmp\.'; then seen=1; break; fi
+        kill -0 $pid 2> /dev/null || break
+        sleep 0.005
+    done
+    kill -$sig $pid 2> /dev/null
+    wait $pid
+    [ $seen = 1 ] || fail "SIG$sig: the temporary image file never showed (the write was too quick to catch)"
+    [ -z "$(ls "$tmp/sig")" ] || fail "SIG$sig during the write left: $(ls "$tmp/sig")"
+done
+
 # --- --quiet hides progress, not warnings (README)
 printf 'film_resolution: 8 6\nsphere: 0 0 -5 1\nshininess: 3\n' > "$tmp/warn.txt"
 "$rt" -q -o "$tmp/w.ppm" "$tmp/warn.txt" > /dev/null 2> "$tmp/stderr" || fail "warning scene failed"

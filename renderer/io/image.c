@@ -3,6 +3,7 @@
  * image appears whole or not at all. */
 #include <errno.h>
 #include <setjmp.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -120,6 +121,26 @@ static int write_bmp(FILE *fp, const uint8_t *rgb, int w, int h)
     return 0;
 }
 
+static int write_tmp(int fd, const char *tmp, RtImageFormat fmt, const uint8_t *rgb, int w, int h, const char *path,
+                     RtError *err);
+
+/* The temporary file being written, for rt_image_abandon() in a signal
+ * handler (only async-signal-safe work there: a flag and unlink). */
+static char pending_tmp[4096];
+static volatile sig_atomic_t pending_set;
+
+void rt_image_abandon(void)
+{
+    if (pending_set)
+        unlink(pending_tmp);
+}
+
+static void pending_begin(const char *tmp)
+{
+    snprintf(pending_tmp, sizeof pending_tmp, "%s", tmp);
+    pending_set = strlen(tmp) < sizeof pending_tmp;
+}
+
 int rt_image_write(const char *path, const uint8_t *rgb, int w, int h, RtError *err)
 {
     RtImageFormat fmt = rt_image_format_for(path);
@@ -136,6 +157,18 @@ int rt_image_write(const char *path, const uint8_t *rgb, int w, int h, RtError *
         free(tmp);
         return rt_fail(err, "%s: cannot create: %s", path, strerror(e));
     }
+    pending_begin(tmp);
+    int rc = write_tmp(fd, tmp, fmt, rgb, w, h, path, err);
+    pending_set = 0;
+    free(tmp);
+    return rc;
+}
+
+/* Writes the image into the temporary file fd (tmp), then renames it to
+ * path; on any failure the temporary file is removed. */
+static int write_tmp(int fd, const char *tmp, RtImageFormat fmt, const uint8_t *rgb, int w, int h, const char *path,
+                     RtError *err)
+{
     /* mkstemp creates the file 0600; the image should get the mode any
      * other new file gets (0666 less the umask). */
     mode_t mask = umask(0);
@@ -144,7 +177,6 @@ int rt_image_write(const char *path, const uint8_t *rgb, int w, int h, RtError *
         int e = errno;
         close(fd);
         unlink(tmp);
-        free(tmp);
         return rt_fail(err, "%s: cannot set permissions: %s", path, strerror(e));
     }
     FILE *fp = fdopen(fd, "wb");
@@ -152,7 +184,6 @@ int rt_image_write(const char *path, const uint8_t *rgb, int w, int h, RtError *
         int e = errno;
         close(fd);
         unlink(tmp);
-        free(tmp);
         return rt_fail(err, "%s: cannot open: %s", path, strerror(e));
     }
     char msg[300] = "write error";
@@ -180,12 +211,10 @@ int rt_image_write(const char *path, const uint8_t *rgb, int w, int h, RtError *
         rc = -1, e = errno;
     if (rc != 0) {
         unlink(tmp);
-        free(tmp);
         if (strcmp(msg, "write error") != 0)
             return rt_fail(err, "%s: %s", path, msg);
         return rt_fail(err, "%s: write failed: %s", path, strerror(e));
     }
-    free(tmp);
     return 0;
 }
 
