@@ -490,6 +490,22 @@ int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
     return rc;
 }
 
+/* The number of runs the config expands to (hx_expand), counted without
+ * building the plan: dimensions a backend does not use count once. */
+static double plan_size(const HxConfig *cfg)
+{
+    double total = 0;
+    for (size_t b = 0; b < cfg->dim[HX_DIM_BACKEND].n; b++) {
+        double n = (double)cfg->dim[HX_DIM_SCENE].n * (double)(cfg->repeats + cfg->warmup);
+        for (int d = 0; d < HX_NDIM; d++)
+            if (d != HX_DIM_SCENE && d != HX_DIM_BACKEND && cfg->dim[d].n &&
+                hx_dim_applies(d, cfg->dim[HX_DIM_BACKEND].v[b]))
+                n *= (double)cfg->dim[d].n;
+        total += n;
+    }
+    return total;
+}
+
 int hx_config_load(const char *path, HxConfig *cfg, char *err, size_t errlen)
 {
     memset(cfg, 0, sizeof *cfg);
@@ -501,6 +517,12 @@ int hx_config_load(const char *path, HxConfig *cfg, char *err, size_t errlen)
     }
     int rc = hx_config_parse_string(path, b.s ? b.s : "", cfg, err, errlen);
     hx_buf_free(&b);
+    double runs = rc == 0 ? plan_size(cfg) : 0;
+    if (runs > HX_MAX_RUNS) {
+        snprintf(err, errlen, "%s: the study expands to %.0f runs (warm-ups included), more than the "
+                 "limit of %d: split it into several configs", path, runs, HX_MAX_RUNS);
+        rc = -1;
+    }
     return rc;
 }
 

@@ -81,6 +81,9 @@ enum {
     HX_DIM_PIN,
     HX_NDIM
 };
+/* The most runs one config may expand to (checked before expanding): a
+ * million is weeks of runs, while a typo in a list can make billions. */
+#define HX_MAX_RUNS 1000000
 extern const char *const hx_dim_key[HX_NDIM];  /* config key ("scenes", ...) */
 extern const char *const hx_dim_col[HX_NDIM];  /* CSV column ("scene", ...) */
 

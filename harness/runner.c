@@ -607,6 +607,53 @@ static void usage_run(FILE *f)
           "  -h, --help          this text\n", f);
 }
 
+/* "scene=demo backend=openmp threads=2 ...": every dimension that has a
+ * value, so that no two configurations read alike */
+static void dims_text(HxBuf *b, const HxRun *r)
+{
+    for (int d = 0; d < HX_NDIM; d++)
+        if (strcmp(r->v[d], "-") != 0)
+            hx_buf_printf(b, "%s%s=%s", b->len ? " " : "", hx_dim_col[d], r->v[d]);
+}
+
+/* One progress line per run: its place in the plan, every dimension, the
+ * outcome, and the time left at the mean pace so far (runs skipped by
+ * --resume are left out of the pace). */
+static void progress_line(const HxPlan *plan, size_t i, const HxRun *r, const char *status, const char *render_ms,
+                          const char *detail, double elapsed_ms, size_t attempted)
+{
+    HxBuf b = {0};
+    dims_text(&b, r);
+    double left_s = elapsed_ms / 1e3 / (double)attempted * (double)(plan->n - i - 1);
+    char eta[32];
+    if (left_s >= 3600)
+        snprintf(eta, sizeof eta, "%dh%02dm", (int)(left_s / 3600), (int)(left_s / 60) % 60);
+    else
+        snprintf(eta, sizeof eta, "%dm%02ds", (int)(left_s / 60), (int)left_s % 60);
+    fprintf(stderr, "[%zu/%zu] %s%s r%d: %s%s%s%s%s (left ~%s)\n", i + 1, plan->n, r->warmup ? "warm-up " : "",
+            b.s, r->repeat, status, render_ms && *render_ms ? " render_ms=" : "", render_ms ? render_ms : "",
+            detail ? ": " : "", detail ? detail : "", eta);
+    hx_buf_free(&b);
+}
+
+/* Notes a failed run's configuration (once) for the end-of-study summary. */
+static void note_failure(HxStrList *failures, const HxRun *r, const char *status, const char *detail)
+{
+    if (strcmp(status, "ok") == 0 || strcmp(status, "refused") == 0)
+        return;
+    HxBuf b = {0};
+    dims_text(&b, r);
+    hx_buf_put(&b, ":");
+    for (size_t k = 0; k < failures->n; k++)
+        if (strncmp(failures->v[k], b.s, b.len) == 0) {
+            hx_buf_free(&b);
+            return;
+        }
+    hx_buf_printf(&b, " %s%s%s", status, detail && *detail ? ": " : "", detail ? detail : "");
+    hx_strlist_push(failures, b.s);
+    hx_buf_free(&b);
+}
+
 static int csv_has_rows(const char *path)
 {
     struct stat st;
@@ -729,7 +776,11 @@ int hx_cmd_run(int argc, char **argv)
         goto done;
     }
     /* What is already there: run ids to skip and image references. */
-    HxStrList done_ids = {0}, timed_out = {0};
+    /* timed_out: configurations whose run hit the timeout; deterministic:
+     * those that ended with exit 1 (the renderer's answer to bad input or an
+     * option this build lacks: a repeat would fail the same way); failures:
+     * one line per failing configuration for the summary */
+    HxStrList done_ids = {0}, timed_out = {0}, deterministic = {0}, failures = {0};
     RefTable refs = {0};
     /* Open (and drop a torn last row) before reading what is done: a row cut
      * short must be run again, not counted as done and then deleted. */
@@ -778,7 +829,7 @@ int hx_cmd_run(int argc, char **argv)
     free(rtdir);
 
     double study_t0 = hx_now_ms(), child_ms = 0;
-    size_t executed = 0, skipped = 0, nstat[6] = {0};
+    size_t executed = 0, skipped = 0, attempted = 0, nstat[6] = {0};
     static const char *const stat_names[6] = {"ok", "wrong-image", "timeout", "crash", "error", "refused"};
     for (size_t i = 0; i < plan.n; i++) {
         HxRun *r = &plan.runs[i];
@@ -828,6 +879,10 @@ int hx_cmd_run(int argc, char **argv)
              * TLE for the remaining repeats instead of burning hours */
             status = "timeout";
             detail = hx_strdup("not run: an earlier repeat of this configuration timed out");
+        } else if (!r->warmup && hx_strlist_find(&deterministic, r->config_id) >= 0) {
+            status = "error";
+            detail = hx_strdup("not run: an earlier repeat of this configuration exited with status 1 "
+                               "(bad input or option), as this one would");
         } else if (r->refused) {
             status = "refused";
             HxBuf b = {0};
@@ -900,6 +955,8 @@ int hx_cmd_run(int argc, char **argv)
                         else
                             hx_buf_put(&b, "exit 0 but no record line on stdout");
                         detail = b.s;
+                        if (res.code == 1)
+                            hx_strlist_push(&deterministic, r->config_id);
                     } else {
                         hx_record_to_row(rec, vals);
                         char *key = image_key(r->scene_path, r->v[HX_DIM_RESOLUTION],
@@ -926,18 +983,12 @@ int hx_cmd_run(int argc, char **argv)
             } else {
                 for (int s = 0; s < 6; s++) /* the summary counts rows on disk */
                     nstat[s] += strcmp(status, stat_names[s]) == 0;
+                note_failure(&failures, r, status, detail);
             }
         }
-        if (!quiet) {
-            const char *rm = vals[hx_column_index("render_ms")];
-            fprintf(stderr, "[%zu/%zu] %s%s %s %s%s%s%s r%d: %s%s%s%s%s\n", i + 1, plan.n,
-                    r->warmup ? "warm-up " : "", r->scene_name, r->v[HX_DIM_BACKEND],
-                    r->v[HX_DIM_ACCEL],
-                    r->workers > 1 ? " x" : "", r->workers > 1 ? vals[hx_column_index("workers")] : "",
-                    strcmp(r->v[HX_DIM_BLOCK], "-") ? " block" : "", r->repeat, status,
-                    rm && *rm ? " render_ms=" : "", rm ? rm : "",
-                    detail ? ": " : "", detail ? detail : "");
-        }
+        if (!quiet)
+            progress_line(&plan, i, r, status, vals[hx_column_index("render_ms")], detail,
+                          hx_now_ms() - study_t0, ++attempted);
         free(detail);
         for (int k = 0; k < hx_ncolumns; k++)
             free(vals[k]);
@@ -962,10 +1013,21 @@ int hx_cmd_run(int argc, char **argv)
     if (nstat[1])
         fprintf(stderr, "harness: warning: %zu wrong-image row(s): left out of tables and plots\n",
                 nstat[1]);
+    if (failures.n && rc == 0) {
+        /* refused runs are the config's own choice, not failures */
+        fprintf(stderr, "harness run: %zu configuration(s) had failed runs:\n", failures.n);
+        for (size_t k = 0; k < failures.n && k < 10; k++)
+            fprintf(stderr, "  %s\n", failures.v[k]);
+        if (failures.n > 10)
+            fprintf(stderr, "  ... and %zu more (status column of %s)\n", failures.n - 10, out_path);
+        rc = 1;
+    }
     ref_free(&refs);
 done_ids:
     hx_strlist_free(&done_ids);
     hx_strlist_free(&timed_out);
+    hx_strlist_free(&deterministic);
+    hx_strlist_free(&failures);
     hx_buf_free(&defout);
 done:
     if (fd >= 0)

@@ -59,4 +59,11 @@ conf torn ok 2
 head -c -40 torn.csv > cut.csv
 "$H" table cut.csv > /dev/null 2> cut.err && fail "table read a torn row"
 grep -q -- "--resume" cut.err || fail "torn row message: $(cat cut.err)"
+# ---- a plan of a billion runs is refused up front, with its count
+{ printf 'study: huge\nscene_dir: .\nscenes: ok\nbackend: mpi\nrepeats: 1000\n'
+  printf 'threads:'; seq -s ' ' 1 1000; printf 'ranks:'; seq -s ' ' 1 1000; } > huge.conf
+timeout 10 "$H" run huge.conf --dry-run > /dev/null 2> huge.err
+rc=$?
+[ $rc -eq 1 ] || fail "a billion-run plan: exit $rc"
+grep -q "huge.conf: the study expands to 1000000000 runs" huge.err || fail "plan limit message: $(cat huge.err)"
 echo "faults test passed"

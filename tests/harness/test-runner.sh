@@ -20,9 +20,17 @@ timeout: 1
 raytrace: $FAKE
 CONF
 start=$(date +%s)
-"$H" run "$T/study.conf" -o "$T/out.csv" 2> "$T/log" || { cat "$T/log"; fail "run exited non-zero"; }
+"$H" run "$T/study.conf" -o "$T/out.csv" 2> "$T/log"
+rc=$?
 end=$(date +%s)
 cat "$T/log"
+# progress: every dimension with a value, the outcome and the time left
+grep -q '^\[1/24\] scene=ok backend=serial accel=bvh pin=close r0: ok render_ms=1.250 (left ~0m[0-9][0-9]s)$' "$T/log" ||
+    fail "progress line format"
+# failed runs make the study's exit status 1, with one line per configuration
+[ $rc -eq 1 ] || fail "run with failed runs exited $rc, want 1"
+grep -q 'harness run: 9 configuration(s) had failed runs:' "$T/log" || fail "no failure summary"
+grep -q '^  scene=fail backend=serial accel=bvh pin=close: error: raytrace: .*:3: bad thing' "$T/log" || fail "the summary lacks the error's message"
 rows=$(($(wc -l < "$T/out.csv") - 1))
 [ "$rows" -eq 24 ] || fail "expected 24 rows, got $rows"
 n() { grep -c -- "$1" "$T/out.csv"; }
@@ -30,7 +38,9 @@ n() { grep -c -- "$1" "$T/out.csv"; }
 [ "$(n ',crash,SIGSEGV,')" -eq 4 ] || fail "crash rows"
 [ "$(n ',timeout,killed after 1 s')" -eq 2 ] || fail "timeout rows (killed)"
 [ "$(n ',timeout,not run: an earlier repeat')" -eq 2 ] || fail "timeout rows (skipped)"
-[ "$(n ',error,raytrace: .*:3: bad thing,')" -eq 4 ] || fail "error rows with stderr line"
+[ "$(n ',error,raytrace: .*:3: bad thing,')" -eq 2 ] || fail "error rows with stderr line"
+# exit 1 is the renderer's answer to bad input: not run again for each repeat
+[ "$(n ',error,"not run: an earlier repeat of this configuration exited with status 1')" -eq 2 ] || fail "a deterministic error was run again"
 [ "$(n ',error,exit 0 but no record line')" -eq 4 ] || fail "no-record rows"
 [ "$(n ',wrong-image,image_fnv1a 00000000000000bb != reference')" -eq 2 ] || fail "wrong-image rows"
 grep -q 'newkey=1' "$T/out.csv" || fail "unknown record key not kept in extra"
@@ -41,13 +51,16 @@ pgrep -f 'sleep 31' >/dev/null && fail "a grandchild of a timed-out run survived
 "$H" run "$T/study.conf" -o "$T/out.csv" --resume -q 2> "$T/log2" || fail "resume failed"
 grep -q ' 0 rows' "$T/log2" || { cat "$T/log2"; fail "resume re-ran runs"; }
 head -n 22 "$T/out.csv" > "$T/cut.csv" && cp "$T/cut.csv" "$T/out.csv"
-"$H" run "$T/study.conf" -o "$T/out.csv" --resume -q 2> "$T/log3" || fail "resume 2 failed"
+# (the rows dropped are the 'silent' scene's failing runs: exit 1 again)
+"$H" run "$T/study.conf" -o "$T/out.csv" --resume -q 2> "$T/log3"
+[ $? -eq 1 ] || { cat "$T/log3"; fail "resume 2: the failing runs did not give exit 1"; }
 [ $(($(wc -l < "$T/out.csv") - 1)) -eq 24 ] || fail "resume did not complete the study"
 # a torn last row (power loss mid-write) is dropped and its run redone,
 # whether the cut leaves the field count intact or not
 for cut in 20 400; do
     truncate -s -$cut "$T/out.csv"
-    "$H" run "$T/study.conf" -o "$T/out.csv" --resume -q 2> "$T/log4" || { cat "$T/log4"; fail "resume after a cut of $cut bytes failed"; }
+    "$H" run "$T/study.conf" -o "$T/out.csv" --resume -q 2> "$T/log4"
+    [ $? -le 1 ] || { cat "$T/log4"; fail "resume after a cut of $cut bytes failed"; }
     [ $(($(wc -l < "$T/out.csv") - 1)) -eq 24 ] || fail "resume after a cut of $cut bytes: $(($(wc -l < "$T/out.csv") - 1)) rows, want 24"
     [ "$(cut -d, -f2 "$T/out.csv" | sort | uniq -d | wc -l)" -eq 0 ] || fail "duplicate run ids after a cut of $cut bytes"
 done
