@@ -154,6 +154,7 @@ typedef struct {
     int npackages;
     int numa_nodes;
     int have_hwloc;
+    int restricted;     /* the process may use fewer CPUs than the machine has */
     int *core_os;       /* OS id of the first PU of each core, close order */
     char **core_pus;    /* "0" or "0,36": every PU of the core */
     int *spread_order;  /* core indices round-robin across packages */

@@ -6,10 +6,12 @@
  * sockets; on one package it equals `close`. `none` leaves placement to the
  * OS. One worker per physical core: SMT siblings share execution units, so
  * putting two threads on one core would measure the core, not the scaling. */
+#define _GNU_SOURCE 1 /* sched_getaffinity, CPU_SET */
 #include "hx.h"
 
 #include "config.h"
 
+#include <sched.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -24,6 +26,14 @@ int hx_topo_load(HxTopo *t)
 #if HAVE_HWLOC
     hwloc_topology_t topo;
     if (hwloc_topology_init(&topo) == 0 && hwloc_topology_load(topo) == 0) {
+        /* Only the CPUs this process may use (taskset, a Slurm allocation,
+         * a cgroup): every count and every planned core comes from them. */
+        hwloc_bitmap_t allowed = hwloc_bitmap_alloc();
+        if (allowed && hwloc_get_cpubind(topo, allowed, HWLOC_CPUBIND_PROCESS) == 0 &&
+            !hwloc_bitmap_iszero(allowed) &&
+            !hwloc_bitmap_isincluded(hwloc_topology_get_topology_cpuset(topo), allowed))
+            t->restricted = hwloc_topology_restrict(topo, allowed, 0) == 0;
+        hwloc_bitmap_free(allowed);
         t->topo = topo;
         t->have_hwloc = 1;
         t->ncores = hwloc_get_nbobjs_by_type(topo, HWLOC_OBJ_CORE);
@@ -76,17 +86,27 @@ int hx_topo_load(HxTopo *t)
         return 0;
     }
 #endif
-    /* Without hwloc: count online CPUs, plan but do not bind. */
-    long n = sysconf(_SC_NPROCESSORS_ONLN);
-    t->ncores = t->npus = n > 0 ? (int)n : 1;
+    /* Without hwloc: the CPUs this process may use, planned but not bound. */
+    cpu_set_t set;
+    int ids[CPU_SETSIZE], n = 0;
+    if (sched_getaffinity(0, sizeof set, &set) == 0)
+        for (int c = 0; c < CPU_SETSIZE; c++)
+            if (CPU_ISSET(c, &set))
+                ids[n++] = c;
+    if (n == 0) {
+        long on = sysconf(_SC_NPROCESSORS_ONLN);
+        for (n = 0; n < (on > 0 ? on : 1) && n < CPU_SETSIZE; n++)
+            ids[n] = n;
+    }
+    t->ncores = t->npus = n;
     t->npackages = 1;
     t->core_os = hx_xmalloc((size_t)t->ncores * sizeof(int));
     t->core_pus = hx_xmalloc((size_t)t->ncores * sizeof(char *));
     t->spread_order = hx_xmalloc((size_t)t->ncores * sizeof(int));
     for (int i = 0; i < t->ncores; i++) {
         char b[16];
-        snprintf(b, sizeof b, "%d", i);
-        t->core_os[i] = i;
+        snprintf(b, sizeof b, "%d", ids[i]);
+        t->core_os[i] = ids[i];
         t->core_pus[i] = hx_strdup(b);
         t->spread_order[i] = i;
     }

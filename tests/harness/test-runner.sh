@@ -69,6 +69,12 @@ done
 # dry run lists runs with planned cores, runs nothing
 "$H" run "$T/study.conf" --dry-run > "$T/dry" || fail "dry-run failed"
 grep -q 'cores=0' "$T/dry" || fail "dry-run shows no planned cores"
+# only the CPUs the process may use are planned (taskset, a Slurm allocation)
+if [ "$(nproc --all)" -ge 2 ] && command -v taskset > /dev/null; then
+    taskset -c 1 "$H" run "$T/study.conf" --dry-run > "$T/dry1" || fail "dry-run under taskset failed"
+    grep -q 'cores=0' "$T/dry1" && fail "under taskset -c 1 a run was planned on core 0"
+    grep -q 'cores=1' "$T/dry1" || fail "under taskset -c 1 no run was planned on core 1"
+fi
 # table: TLE in the cross table, wrong-image warning
 "$H" table "$T/out.csv" > "$T/table" 2> "$T/tlog" || fail "table failed"
 grep -q 'TLE' "$T/table" || fail "no TLE in the cross table"
