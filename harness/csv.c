@@ -32,6 +32,9 @@ const char *const hx_columns[] = {
     "prim_tests", "mrays_per_s", "image_fnv1a", "rec_tile", "rec_schedule",
     "rec_mpi_schedule", "render_ms_min", "rec_block", "upload_ms",
     "download_ms", "rec_wall_ms", "rec_gpu",
+    /* provenance: the kernel, the MPI library, the renderer's build, and a
+     * hash of the study's expanded configuration (checked by --resume) */
+    "kernel", "mpi_version", "build_flags", "config_hash",
     /* every other record key, k=v;k=v */
     "extra",
 };

@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <sys/utsname.h>
 #include <unistd.h>
 
 static void copy_trim(char *dst, size_t n, const char *src)
@@ -33,7 +34,56 @@ static void first_line_of(char *const argv[], char *out, size_t n)
     char line[512];
     if (hx_run_argv(argv, NULL, line, sizeof line, 1) != 0)
         line[0] = '\0';
+    line[strcspn(line, "\n")] = '\0';
     copy_trim(out, n, line);
+}
+
+/* The line of prog's output that starts with key, without the key. */
+static void line_after(char *const argv[], const char *key, char *out, size_t n)
+{
+    char text[2048];
+    out[0] = '\0';
+    if (hx_run_argv(argv, NULL, text, sizeof text, 1) != 0)
+        return;
+    for (char *l = text; l && *l; l = strchr(l, '\n') ? strchr(l, '\n') + 1 : NULL)
+        if (strncmp(l, key, strlen(key)) == 0) {
+            l += strlen(key);
+            l[strcspn(l, "\n")] = '\0';
+            copy_trim(out, n, l);
+            return;
+        }
+}
+
+/* The commit of the renderer's checkout, "-dirty" when a tracked file other
+ * than exclude (the study's own CSV, which the study itself changes) differs. */
+static void git_commit_of(const char *repo_dir, const char *exclude, char *out, size_t n)
+{
+    char *dir = (char *)(repo_dir ? repo_dir : ".");
+    char *rev[] = {"git", "-C", dir, "rev-parse", "--short", "HEAD", NULL};
+    first_line_of(rev, out, n - 8);
+    if (out[0] == '\0') {
+        snprintf(out, n, "unknown");
+        return;
+    }
+    /* a pathspec outside the work tree is an error to git: exclude the CSV
+     * only when it lies inside */
+    char top[4096];
+    char *tl[] = {"git", "-C", dir, "rev-parse", "--show-toplevel", NULL};
+    first_line_of(tl, top, sizeof top);
+    char *abs = exclude ? realpath(exclude, NULL) : NULL;
+    size_t tn = strlen(top);
+    int inside = abs && tn && strncmp(abs, top, tn) == 0 && abs[tn] == '/';
+    HxBuf spec = {0};
+    hx_buf_printf(&spec, ":(exclude)%s", inside ? abs : "");
+    char dirty[256];
+    char *st[] = {"git", "-C", dir, "status", "--porcelain", "--untracked-files=no", "--", spec.s, NULL};
+    if (!inside)
+        st[6] = NULL; /* no pathspec: every tracked file */
+    first_line_of(st, dirty, sizeof dirty);
+    if (dirty[0])
+        strcat(out, "-dirty");
+    hx_buf_free(&spec);
+    free(abs);
 }
 
 void hx_utc_now(char *buf, size_t n)
@@ -60,8 +110,8 @@ void hx_fingerprint_hash(HxFingerprint *fp)
     hx_buf_free(&b);
 }
 
-void hx_fingerprint_get(HxFingerprint *fp, const HxTopo *t, int want_gpu,
-                        const char *repo_dir)
+void hx_fingerprint_get(HxFingerprint *fp, const HxTopo *t, int want_gpu, const char *raytrace,
+                        const char *mpirun, const char *exclude)
 {
     memset(fp, 0, sizeof *fp);
     if (gethostname(fp->host, sizeof fp->host - 1) != 0)
@@ -117,19 +167,24 @@ void hx_fingerprint_get(HxFingerprint *fp, const HxTopo *t, int want_gpu,
             copy_trim(fp->gpu_driver, sizeof fp->gpu_driver, sp + 1);
         }
     }
-    char *dir = (char *)(repo_dir ? repo_dir : ".");
-    char *rev[] = {"git", "-C", dir, "rev-parse", "--short", "HEAD", NULL};
-    first_line_of(rev, fp->git_commit, sizeof fp->git_commit - 8);
-    if (fp->git_commit[0] == '\0') {
-        strcpy(fp->git_commit, "unknown");
-    } else {
-        /* mark uncommitted changes to tracked files: the number belongs to
-         * code that no commit holds */
-        char dirty[256];
-        char *st[] = {"git", "-C", dir, "status", "--porcelain", "--untracked-files=no", NULL};
-        first_line_of(st, dirty, sizeof dirty);
-        if (dirty[0])
-            strcat(fp->git_commit, "-dirty");
+    char *repo_dir = hx_dirname(raytrace);
+    git_commit_of(repo_dir, exclude, fp->git_commit, sizeof fp->git_commit);
+    free(repo_dir);
+    struct utsname u;
+    if (uname(&u) == 0)
+        snprintf(fp->kernel, sizeof fp->kernel, "%s %s", u.sysname, u.release);
+    else
+        strcpy(fp->kernel, "unknown");
+    strcpy(fp->mpi_version, "-");
+    if (mpirun) {
+        char *mv[] = {(char *)mpirun, "--version", NULL};
+        first_line_of(mv, fp->mpi_version, sizeof fp->mpi_version);
+        if (!fp->mpi_version[0])
+            strcpy(fp->mpi_version, "unknown");
     }
+    char *rv[] = {(char *)raytrace, "--version", NULL};
+    line_after(rv, "build:", fp->build_flags, sizeof fp->build_flags);
+    if (!fp->build_flags[0])
+        strcpy(fp->build_flags, "unknown");
     hx_fingerprint_hash(fp);
 }

@@ -50,8 +50,8 @@ char *hx_dirname(const char *path);     /* malloc'd */
 char *hx_path_join(const char *a, const char *b);
 int hx_cmp_double(const void *a, const void *b);
 /* Runs argv[0] (found on PATH) with argv, never through a shell, in folder
- * dir (NULL: here). The first line of its stdout goes to out (may be NULL:
- * stdout discarded); quiet discards its stderr. Returns its exit status, 127
+ * dir (NULL: here). Its stdout goes to out, cut at n - 1 bytes (out may be
+ * NULL: stdout discarded); quiet discards its stderr. Returns its exit status, 127
  * when it could not be started, 128+N when killed by signal N. */
 int hx_run_argv(char *const argv[], const char *dir, char *out, size_t n, int quiet);
 /* Appends s to b as a gnuplot single-quoted string: gnuplot does no
@@ -182,10 +182,16 @@ typedef struct {
     char gpu_driver[64];
     char git_commit[64];
     char fingerprint[20];   /* FNV-1a of the fields that affect timings */
+    char kernel[160];       /* uname: system and release */
+    char mpi_version[128];  /* first line of `mpirun --version`, or "-" */
+    char build_flags[256];  /* the renderer's compiler and flags (raytrace -V) */
 } HxFingerprint;
 
-void hx_fingerprint_get(HxFingerprint *fp, const HxTopo *t, int want_gpu,
-                        const char *repo_dir);
+/* What produced the rows: the machine, the renderer's commit (dirty when a
+ * tracked file other than exclude, the study's own CSV, differs), its build
+ * flags, the kernel and, given mpirun, the MPI library. */
+void hx_fingerprint_get(HxFingerprint *fp, const HxTopo *t, int want_gpu, const char *raytrace,
+                        const char *mpirun, const char *exclude);
 void hx_fingerprint_hash(HxFingerprint *fp);
 void hx_utc_now(char *buf, size_t n);
 

@@ -15,6 +15,7 @@
 #include <getopt.h>
 #include <poll.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
@@ -636,6 +637,59 @@ static void progress_line(const HxPlan *plan, size_t i, const HxRun *r, const ch
     hx_buf_free(&b);
 }
 
+/* A hash of what the study is: its name, every planned run, warm-ups,
+ * timeout and the renderer's extra arguments. --resume refuses a CSV whose
+ * rows carry another one: their runs would mix with this study's. */
+static void config_hash(const HxConfig *cfg, const HxPlan *plan, char out[20])
+{
+    HxBuf b = {0};
+    hx_buf_printf(&b, "%s|%d|%d|%.17g", cfg->study, cfg->repeats, cfg->warmup, cfg->timeout_s);
+    for (size_t i = 0; i < cfg->extra_args.n; i++)
+        hx_buf_printf(&b, "|%s", cfg->extra_args.v[i]);
+    for (size_t i = 0; i < plan->n; i++)
+        hx_buf_printf(&b, "|%s", plan->runs[i].run_id);
+    uint64_t h = 1469598103934665603ull;
+    for (const char *p = b.s; *p; p++) {
+        h ^= (unsigned char)*p;
+        h *= 1099511628211ull;
+    }
+    snprintf(out, 20, "%016llx", (unsigned long long)h);
+    hx_buf_free(&b);
+}
+
+/* For --resume: 0 when every row of old comes from this configuration;
+ * else says what differs (in err) and returns -1. */
+static int resume_check(const HxCsv *old, const char *hash, const HxPlan *plan, char *err, size_t errlen)
+{
+    size_t foreign = 0, other_hash = 0;
+    const char *example = NULL, *old_hash = NULL;
+    for (size_t i = 0; i < old->nrows; i++) {
+        const char *h = hx_csv_get(old, i, "config_hash");
+        if (strcmp(h, hash) != 0) {
+            other_hash++;
+            old_hash = h;
+        }
+        const char *id = hx_csv_get(old, i, "run_id");
+        int planned = 0;
+        for (size_t k = 0; k < plan->n && !planned; k++)
+            planned = strcmp(plan->runs[k].run_id, id) == 0;
+        if (!planned) {
+            foreign++;
+            if (!example)
+                example = id;
+        }
+    }
+    if (!other_hash)
+        return 0;
+    if (foreign)
+        snprintf(err, errlen, "%zu row(s) are runs this config does not plan (e.g. '%s'): another study wrote them",
+                 foreign, example);
+    else
+        snprintf(err, errlen, "%zu row(s) come from a configuration with other settings (study name, repeats, "
+                 "warm-ups, timeout or extra_args; config_hash %s, this config %s)", other_hash, old_hash, hash);
+    return -1;
+}
+
 /* Notes a failed run's configuration (once) for the end-of-study summary. */
 static void note_failure(HxStrList *failures, const HxRun *r, const char *status, const char *detail)
 {
@@ -790,11 +844,19 @@ int hx_cmd_run(int argc, char **argv)
         rc = 1;
         goto done_ids;
     }
+    char chash[20];
+    config_hash(&cfg, &plan, chash);
     if (resume) {
         HxCsv old;
         if (hx_csv_read(out_path, &old, err, sizeof err) != 0) {
             /* resuming from a file we cannot read would run everything again */
             fprintf(stderr, "harness run: --resume: %s\n", err);
+            rc = 1;
+            goto done_ids;
+        } else if (resume_check(&old, chash, &plan, err, sizeof err) != 0) {
+            fprintf(stderr, "harness run: --resume: %s: %s; write to another file or use --overwrite\n", out_path,
+                    err);
+            hx_csv_free(&old);
             rc = 1;
             goto done_ids;
         } else {
@@ -823,10 +885,10 @@ int hx_cmd_run(int argc, char **argv)
     install_stop_handlers();
 
     int want_gpu = hx_strlist_find(&cfg.dim[HX_DIM_BACKEND], "cuda") >= 0;
-    char *rtdir = hx_dirname(raytrace);
+    int want_mpi = hx_strlist_find(&cfg.dim[HX_DIM_BACKEND], "mpi") >= 0;
     HxFingerprint fp;
-    hx_fingerprint_get(&fp, &topo, want_gpu, rtdir);
-    free(rtdir);
+    hx_fingerprint_get(&fp, &topo, want_gpu, raytrace,
+                       want_mpi ? cfg.mpirun : NULL, out_path); /* the MPI library, whichever launcher */
 
     double study_t0 = hx_now_ms(), child_ms = 0;
     size_t executed = 0, skipped = 0, attempted = 0, nstat[6] = {0};
@@ -865,6 +927,10 @@ int hx_cmd_run(int argc, char **argv)
         set(vals, "gpu_name", strcmp(r->v[HX_DIM_BACKEND], "cuda") == 0 ? fp.gpu_name : "-");
         set(vals, "gpu_driver", strcmp(r->v[HX_DIM_BACKEND], "cuda") == 0 ? fp.gpu_driver : "-");
         set(vals, "fingerprint", fp.fingerprint);
+        set(vals, "kernel", fp.kernel);
+        set(vals, "mpi_version", want_mpi ? fp.mpi_version : "-");
+        set(vals, "build_flags", fp.build_flags);
+        set(vals, "config_hash", chash);
         for (int d = 0; d < HX_NDIM; d++)
             set(vals, hx_dim_col[d], r->v[d]);
         set(vals, "scene_path", r->scene_path);

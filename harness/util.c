@@ -280,17 +280,13 @@ int hx_run_argv(char *const argv[], const char *dir, char *out, size_t n, int qu
     if (out) {
         close(fd[1]);
         size_t len = 0;
-        int line_done = 0;
         char chunk[512];
         ssize_t r;
         /* read to the end, so the child never blocks on a full pipe */
         while ((r = read(fd[0], chunk, sizeof chunk)) > 0 || (r < 0 && errno == EINTR))
-            for (ssize_t k = 0; k < r && !line_done; k++) {
-                if (chunk[k] == '\n')
-                    line_done = 1;
-                else if (len + 1 < n)
+            for (ssize_t k = 0; k < r; k++)
+                if (len + 1 < n)
                     out[len++] = chunk[k];
-            }
         out[len] = '\0';
         close(fd[0]);
     }

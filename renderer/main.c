@@ -175,7 +175,7 @@ static int parse_options(int argc, char **argv, Options *o)
             const RtBackend *const *b = rt_backend_list();
             for (int i = 0; b[i]; i++)
                 printf(" %s%s", b[i]->name, b[i]->unavailable ? "(not built)" : "");
-            printf("\n");
+            printf("\nbuild: %s\n", RT_BUILD_FLAGS);
             exit(0);
         }
         case ':':

@@ -32,6 +32,8 @@ bad=$(grep -c -E ',(error|crash|timeout|wrong-image|refused),' "$T/quick.csv")
 [ "$(grep -c -E ',ok,,0,' "$T/quick.csv")" -eq "$rows" ] || fail "not every row ok with exit 0"
 grep -q -E ',[0-9a-f]{16},' "$T/quick.csv" || fail "no image hash in the rows"
 grep -q 'harness overhead' "$T/log" || fail "no overhead line"
+grep -q ',gcc [0-9.]* -O[0-3s] -ffp-contract=off -fno-math-errno' "$T/quick.csv" ||
+    grep -q ',clang [0-9.]* -O' "$T/quick.csv" || fail "no build_flags column from raytrace -V"
 "$H" table "$T/quick.csv" > "$T/table.md" || fail "table failed"
 cat "$T/table.md"
 grep -q '### Per configuration' "$T/table.md" || fail "no per-configuration table"

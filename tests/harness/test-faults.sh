@@ -66,4 +66,33 @@ timeout 10 "$H" run huge.conf --dry-run > /dev/null 2> huge.err
 rc=$?
 [ $rc -eq 1 ] || fail "a billion-run plan: exit $rc"
 grep -q "huge.conf: the study expands to 1000000000 runs" huge.err || fail "plan limit message: $(cat huge.err)"
+# ---- --resume only continues the same study
+conf resA ok 2
+"$H" run resA.conf -o res.csv -q 2> /dev/null || fail "study A"
+head -n 2 res.csv > res2.csv && mv res2.csv res.csv   # one run left to do
+printf 'study: resA\nscene_dir: .\nscenes: slow\nrepeats: 2\npin: none\nraytrace: %s\n' "$FAKE" > resB.conf
+"$H" run resB.conf -o res.csv --resume -q 2> resB.err && fail "--resume mixed another study's runs in"
+grep -q "1 row(s) are runs this config does not plan (e.g. 'scene=ok" resB.err || fail "resume message: $(cat resB.err)"
+printf 'study: resA\nscene_dir: .\nscenes: ok\nrepeats: 2\npin: none\ntimeout: 9\nraytrace: %s\n' "$FAKE" > resC.conf
+"$H" run resC.conf -o res.csv --resume -q 2> resC.err && fail "--resume took a study with another timeout"
+grep -q "come from a configuration with other settings" resC.err || fail "resume message: $(cat resC.err)"
+[ "$(($(wc -l < res.csv) - 1))" -eq 1 ] || fail "a refused resume changed the CSV"
+"$H" run resA.conf -o res.csv --resume -q 2> resA.err || { cat resA.err; fail "--resume of the same study"; }
+[ "$(($(wc -l < res.csv) - 1))" -eq 2 ] || fail "--resume did not complete the study"
+
+# ---- provenance: the study's own CSV does not make the commit dirty
+if command -v git > /dev/null; then
+    git init -q repo && mkdir repo/bin repo/results && ln -s "$FAKE" repo/bin/raytrace
+    printf 'study: prov\nscene_dir: %s\nscenes: ok\nrepeats: 1\npin: none\n' "$T" > repo/prov.conf
+    "$H" run repo/prov.conf --raytrace repo/bin/raytrace -o repo/results/prov.csv -q 2> /dev/null || fail "prov study"
+    git -C repo add -A && git -C repo -c user.name=t -c user.email=t@t commit -q -m prov || fail "git commit"
+    "$H" run repo/prov.conf --raytrace repo/bin/raytrace -o repo/results/prov.csv --overwrite -q 2> /dev/null || fail "prov again"
+    c=$(git -C repo rev-parse --short HEAD)
+    grep -q ",$c," repo/results/prov.csv || fail "git_commit is not $c: $(tail -1 repo/results/prov.csv)"
+    echo "# changed" >> repo/prov.conf
+    "$H" run repo/prov.conf --raytrace repo/bin/raytrace -o repo/results/prov.csv --overwrite -q 2> /dev/null || fail "prov dirty"
+    grep -q ",$c-dirty," repo/results/prov.csv || fail "a changed tracked file did not make the commit dirty"
+    uname_r=$(uname -r)
+    grep -q ",Linux $uname_r," repo/results/prov.csv || fail "no kernel column"
+fi
 echo "faults test passed"
