@@ -88,6 +88,49 @@ static void fingerprints(const HxStudy *s, HxStrList *out)
     }
 }
 
+/* The configuration as the renderer ran it: a dimension left unset ("-")
+ * takes the value the record reports (its default), so `accel: bvh` in one
+ * study and no accel line in the other are the same configuration. */
+static char *effective_id(const HxStudy *s, const HxGroup *g)
+{
+    static const char *const rec[][2] = {{"accel", "rec_accel"},     {"tile", "rec_tile"},
+                                         {"schedule", "rec_schedule"}, {"mpi_schedule", "rec_mpi_schedule"},
+                                         {"block", "rec_block"},       {"threads", "rec_threads"},
+                                         {"ranks", "rec_ranks"},       {NULL, NULL}};
+    HxBuf b = {0};
+    const char *backend = hx_csv_get(&s->csv, g->first_row, "backend");
+    for (int d = 0; d < HX_NDIM; d++) {
+        const char *v = hx_csv_get(&s->csv, g->first_row, hx_dim_col[d]);
+        if (strcmp(v, "-") == 0 && hx_dim_applies(d, backend)) {
+            for (int k = 0; rec[k][0]; k++)
+                if (strcmp(rec[k][0], hx_dim_col[d]) == 0 && *hx_csv_get(&s->csv, g->first_row, rec[k][1]))
+                    v = hx_csv_get(&s->csv, g->first_row, rec[k][1]);
+            if (d == HX_DIM_RESOLUTION && *hx_csv_get(&s->csv, g->first_row, "width")) {
+                hx_buf_printf(&b, "%s=%sx%s ", hx_dim_col[d], hx_csv_get(&s->csv, g->first_row, "width"),
+                              hx_csv_get(&s->csv, g->first_row, "height"));
+                continue;
+            }
+        }
+        hx_buf_printf(&b, "%s=%s ", hx_dim_col[d], v);
+    }
+    return b.s;
+}
+
+/* The group of s that is g's configuration, NULL if none. */
+static const HxGroup *match(const HxStudy *s, const HxStudy *gs, const HxGroup *g)
+{
+    char *want = effective_id(gs, g);
+    const HxGroup *found = NULL;
+    for (size_t k = 0; k < s->ng && !found; k++) {
+        char *id = effective_id(s, &s->g[k]);
+        if (strcmp(id, want) == 0)
+            found = &s->g[k];
+        free(id);
+    }
+    free(want);
+    return found;
+}
+
 int hx_cmd_compare(int argc, char **argv)
 {
     static const struct option lo[] = {
@@ -148,13 +191,10 @@ int hx_cmd_compare(int argc, char **argv)
     }
     /* COLUMN/calib: times in units of the machine's speed at that moment */
     const char *unit = strchr(metric, '/') ? "x calib" : "ms";
-    int regressions = 0, compared = 0;
+    int regressions = 0, compared = 0, improvements = 0;
     for (size_t i = 0; i < base.ng; i++) {
         const HxGroup *b = &base.g[i];
-        const HxGroup *n = NULL;
-        for (size_t k = 0; k < nw.ng; k++)
-            if (strcmp(nw.g[k].config_id, b->config_id) == 0)
-                n = &nw.g[k];
+        const HxGroup *n = match(&nw, &base, b);
         const char *name = b->label;
         if (!n) {
             printf("REGRESSION %s %s: missing from NEW\n", b->scene, name);
@@ -203,34 +243,33 @@ int hx_cmd_compare(int argc, char **argv)
                    name, b->median, n->median, min_ms);
             continue;
         }
-        int slow;
+        int slow, fast;
         char how[128];
         if (b->nt >= 4 && n->nt >= 4) {
             double p = hx_mann_whitney_p(n->t, n->nt, b->t, b->nt);
             /* the minimum must move too: noise on a busy machine only ever
              * adds time, so it inflates medians but rarely the fastest run */
             slow = ratio > factor && p < alpha && rmin > factor;
+            fast = ratio < 1.0 / factor && p < alpha && rmin < 1.0 / factor;
             snprintf(how, sizeof how, "Mann-Whitney p=%.4f, min ratio %.2f, n=%zu/%zu", p, rmin,
                      n->nt, b->nt);
         } else {
             slow = ratio > factor && rmin > factor;
+            fast = ratio < 1.0 / factor && rmin < 1.0 / factor;
             snprintf(how, sizeof how, "min ratio %.2f, n=%zu/%zu (too few for a test)", rmin,
                      n->nt, b->nt);
         }
         printf("%s %s %s: median %.3f -> %.3f %s, ratio %.2f (%s)%s\n",
-               slow ? "REGRESSION" : "ok", b->scene, name, b->median, n->median, unit, ratio, how,
-               slow && fp_differs ? " [different machines]" : "");
+               slow ? "REGRESSION" : fast ? "IMPROVEMENT" : "ok", b->scene, name, b->median, n->median, unit,
+               ratio, how, (slow || fast) && fp_differs ? " [different machines]" : "");
         regressions += slow;
+        improvements += fast;
     }
-    for (size_t k = 0; k < nw.ng; k++) {
-        int found = 0;
-        for (size_t i = 0; i < base.ng && !found; i++)
-            found = strcmp(nw.g[k].config_id, base.g[i].config_id) == 0;
-        if (!found)
+    for (size_t k = 0; k < nw.ng; k++)
+        if (!match(&base, &nw, &nw.g[k]))
             printf("new %s %s: not in the baseline (not compared)\n", nw.g[k].scene, nw.g[k].label);
-    }
-    printf("compare: %d configuration(s) compared, %d regression(s) (factor %.2f, alpha %.3g)\n",
-           compared, regressions, factor, alpha);
+    printf("compare: %d configuration(s) compared, %d regression(s), %d improvement(s) (factor %.2f, alpha %.3g)\n",
+           compared, regressions, improvements, factor, alpha);
     hx_strlist_free(&fpn);
     hx_strlist_free(&fpb);
     hx_study_free(&nw);

@@ -1,0 +1,34 @@
+#!/bin/bash
+# harness compare as a user meets it:
+#   - an option left unset and the same option set to the renderer's default
+#     are one configuration (accel unset against accel: bvh);
+#   - a change to half the time is reported as an IMPROVEMENT and passes;
+#     to twice the time, a REGRESSION that fails.
+# usage: test-compare.sh HARNESS FAKE_RAYTRACE
+set -u
+abs() { (cd "$(dirname "$1")" && echo "$(pwd)/$(basename "$1")"); }
+H=$(abs "$1") FAKE=$(abs "$2")
+T=$(mktemp -d /tmp/hx-compare-XXXXXX)
+trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+cd "$T" || exit 1
+echo "# dummy" > ok.txt
+printf 'study: c\nscene_dir: .\nscenes: ok\nrepeats: 5\npin: none\nraytrace: %s\n' "$FAKE" > unset.conf
+printf 'study: c\nscene_dir: .\nscenes: ok\naccel: bvh\nrepeats: 5\npin: none\nraytrace: %s\n' "$FAKE" > set.conf
+"$H" run unset.conf -o unset.csv -q 2> /dev/null || fail "unset study"
+"$H" run set.conf -o set.csv -q 2> /dev/null || fail "set study"
+"$H" compare set.csv unset.csv > c1.out || { cat c1.out; fail "accel: bvh against accel unset flagged"; }
+grep -q "compare: 1 configuration(s) compared, 0 regression(s)" c1.out || { cat c1.out; fail "not compared as one configuration"; }
+# the same rows with render_ms scaled (the fake renders in 1.250 ms)
+scale() { # IN OUT FACTOR
+    awk -F, -v OFS=, -v f="$3" 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "render_ms") c = i; print; next }
+                                { $c = $c * f; print }' "$1" > "$2"
+}
+scale set.csv fast.csv 0.5
+scale set.csv slow.csv 2
+"$H" compare fast.csv unset.csv > c2.out || { cat c2.out; fail "an improvement failed the check"; }
+grep -q "^IMPROVEMENT ok " c2.out || { cat c2.out; fail "the improvement is not reported"; }
+grep -q "0 regression(s), 1 improvement(s)" c2.out || { cat c2.out; fail "improvement count"; }
+"$H" compare slow.csv unset.csv > c3.out && { cat c3.out; fail "a 2x slowdown passed"; }
+grep -q "^REGRESSION ok " c3.out || { cat c3.out; fail "the regression is not reported"; }
+echo "compare test passed"
