@@ -232,6 +232,9 @@ double hx_mad(const double *x, size_t n);
 double hx_min(const double *x, size_t n);
 int hx_outliers(const double *x, size_t n, double k, int *flag);
 double hx_karp_flatt(double speedup, double p);
+/* 95% percentile-bootstrap interval of median(a) (b NULL), or of the
+ * speedup median(b) / median(a) (b the baseline's samples). */
+void hx_bootstrap_ci(const double *a, size_t na, const double *b, size_t nb, double *lo, double *hi);
 typedef struct {
     int ok;          /* enough points for a, b */
     int has_se;      /* enough for standard errors */
@@ -254,7 +257,17 @@ int hx_cmd_slurm(int argc, char **argv);
 typedef struct {
     char *scene;
     char *config_id;     /* unique key: scene + every swept value */
-    char *series_id;     /* config_id without the worker dimension */
+    char *series_id;     /* config_id without the swept worker dimension:
+                          * threads for OpenMP, ranks for MPI */
+    int axis;            /* that dimension's value: the series' x */
+    char *series2_id;    /* hybrid MPI studies (threads and ranks both
+                          * swept): the series over threads at fixed ranks;
+                          * NULL otherwise */
+    int axis2;           /* threads, for series2 */
+    int suspect;         /* a run was oversubscribed or its pinning did not
+                          * hold: left out of fits unless asked */
+    const char *suspect_why;
+    double ci_lo, ci_hi; /* 95% bootstrap interval of the median */
     char *label;         /* short, readable, for tables and plots */
     char *backend;
     char *block;
@@ -287,6 +300,11 @@ int hx_study_open(const char *who, const char *path, const char *metric, HxStudy
 /* Speedup baselines of a group: (a) same series at one worker, (b) the
  * fastest group of the same scene matching KEY=VALUE. NULL if none. */
 const HxGroup *hx_baseline_one_worker(const HxStudy *s, const HxGroup *g);
+/* The series' name: g's label without the swept dimension's value (second:
+ * the hybrid series over threads). malloc'd. */
+char *hx_series_label(const HxGroup *g, int second);
+/* The same for a hybrid group's series2 (one thread, same ranks). */
+const HxGroup *hx_baseline_one_thread(const HxStudy *s, const HxGroup *g);
 const HxGroup *hx_baseline_fastest(const HxStudy *s, const HxGroup *g,
                                    const char *kv);
 

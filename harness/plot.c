@@ -139,8 +139,11 @@ static void plot_scaling(PlotCtx *c, const HxStudy *s, int efficiency)
         free(done);
         return;
     }
-    fprintf(dat, "# workers median_ms speedup efficiency; one block per series (gnuplot index)\n");
+    fprintf(dat, "# workers median_ms speedup efficiency speedup_q1 speedup_q3 efficiency_q1 efficiency_q3;\n"
+                 "# one block per series (gnuplot index); the error bars: the speedup at the run times'\n"
+                 "# quartiles against the one-worker median\n");
     int nseries = 0, maxw = 1;
+    double ylo = INFINITY, yhi = 0;
     HxStrList titles = {0};
     for (size_t i = 0; i < s->ng; i++) {
         if (done[i] || !s->g[i].nt)
@@ -148,43 +151,44 @@ static void plot_scaling(PlotCtx *c, const HxStudy *s, int efficiency)
         const HxGroup *one = hx_baseline_one_worker(s, &s->g[i]);
         if (!one)
             continue;
-        /* points of this series in increasing worker order */
-        int printed = 0;
-        for (int pass = 0; pass < 1; pass++) {
-            int last = 0;
-            for (;;) {
-                const HxGroup *next = NULL;
-                size_t nk = 0;
-                for (size_t k = i; k < s->ng; k++) {
-                    const HxGroup *g = &s->g[k];
-                    if (!g->nt || strcmp(g->series_id, s->g[i].series_id) || g->workers <= last)
-                        continue;
-                    if (!next || g->workers < next->workers) {
-                        next = g;
-                        nk = k;
-                    }
+        /* points of this series in increasing order of its swept dimension */
+        int printed = 0, last = 0;
+        for (;;) {
+            const HxGroup *next = NULL;
+            size_t nk = 0;
+            for (size_t k = i; k < s->ng; k++) {
+                const HxGroup *g = &s->g[k];
+                if (!g->nt || strcmp(g->series_id, s->g[i].series_id) || g->axis <= last)
+                    continue;
+                if (!next || g->axis < next->axis) {
+                    next = g;
+                    nk = k;
                 }
-                if (!next)
-                    break;
-                done[nk] = 1;
-                last = next->workers;
-                if (next->workers > maxw)
-                    maxw = next->workers;
-                if (!printed)
-                    fprintf(dat, "# series %d\n", nseries);
-                double sp = one->median / next->median;
-                fprintf(dat, "%d %.6g %.6g %.6g\n", next->workers, next->median, sp,
-                        sp / next->workers);
-                printed = 1;
             }
+            if (!next)
+                break;
+            done[nk] = 1;
+            last = next->axis;
+            if (next->axis > maxw)
+                maxw = next->axis;
+            if (!printed)
+                fprintf(dat, "# series %d\n", nseries);
+            double sp = one->median / next->median, lo = one->median / next->q3, hi = one->median / next->q1;
+            double w = next->axis;
+            fprintf(dat, "%d %.6g %.6g %.6g %.6g %.6g %.6g %.6g\n", next->axis, next->median, sp, sp / w, lo, hi,
+                    lo / w, hi / w);
+            ylo = fmin(ylo, efficiency ? lo / w : lo);
+            yhi = fmax(yhi, efficiency ? hi / w : hi);
+            printed = 1;
         }
         if (printed) {
             fprintf(dat, "\n\n");
-            char lab[256], t[300];
-            clean_label(lab, sizeof lab, s->g[i].label);
-            hx_label_drop_workers(lab);
-            snprintf(t, sizeof t, "%s %s", s->g[i].scene, lab);
-            hx_strlist_push(&titles, t);
+            char *lab = hx_series_label(&s->g[i], 0);
+            HxBuf t = {0};
+            hx_buf_printf(&t, "%s %s", s->g[i].scene, lab);
+            hx_strlist_push(&titles, t.s);
+            hx_buf_free(&t);
+            free(lab);
             nseries++;
         }
     }
@@ -196,20 +200,22 @@ static void plot_scaling(PlotCtx *c, const HxStudy *s, int efficiency)
         hx_strlist_free(&titles);
         return;
     }
-    double hi = maxw * 1.5;
-    script_head(gp, c, kind, efficiency ? "Parallel efficiency (vs the same configuration at 1 worker)"
-                                        : "Speedup (vs the same configuration at 1 worker)");
-    fprintf(gp, "set xlabel 'workers (threads or ranks)'\n");
-    fprintf(gp, "set logscale x 2\nset xrange [0.8:%g]\n", hi);
+    script_head(gp, c, kind, efficiency ? "Parallel efficiency (vs the same series at 1 worker)"
+                                        : "Speedup (vs the same series at 1 worker)");
+    fprintf(gp, "set xlabel 'workers of the series (threads or ranks)'\n");
+    fprintf(gp, "set logscale x 2\nset xrange [0.8:%g]\n", maxw * 1.5);
+    /* the range holds the data, error bars and the ideal line, not a fixed box */
     if (efficiency) {
-        fprintf(gp, "set ylabel 'efficiency'\nset yrange [0:1.25]\n");
+        fprintf(gp, "set ylabel 'efficiency'\nset yrange [0:%g]\n", fmax(1.1, yhi * 1.1));
     } else {
-        fprintf(gp, "set ylabel 'speedup'\nset logscale y 2\nset yrange [0.4:%g]\n", hi);
+        fprintf(gp, "set ylabel 'speedup'\nset logscale y 2\nset yrange [%g:%g]\n", fmin(0.8, ylo / 1.25),
+                fmax(maxw * 1.25, yhi * 1.25));
     }
     fprintf(gp, "plot ");
     for (int k = 0; k < nseries; k++) {
         gp_file(gp, "%s", c->base, kind, "dat");
-        fprintf(gp, " index %d using 1:%d with linespoints pt 7 title ", k, efficiency ? 4 : 3);
+        fprintf(gp, " index %d using 1:%d:%d:%d with yerrorlines pt 7 title ", k, efficiency ? 4 : 3,
+                efficiency ? 7 : 5, efficiency ? 8 : 6);
         gp_put(gp, "%s, \\\n     ", titles.v[k]);
     }
     fprintf(gp, "%s with lines dashtype 2 lc rgb 'gray40' title 'ideal'\n", efficiency ? "1" : "x");

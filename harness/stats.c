@@ -239,3 +239,40 @@ double hx_mann_whitney_p(const double *x, size_t nx, const double *y, size_t ny)
         z = 0;
     return erfc(z / sqrt(2.0));
 }
+
+/* ---- bootstrap intervals (Efron & Tibshirani 1993, percentile method) ----
+ * A fixed seed: the same CSV always gives the same interval. */
+#define HX_BOOT 2000
+
+static double boot_median(const double *x, size_t n, unsigned long long *s, double *scratch)
+{
+    for (size_t i = 0; i < n; i++) {
+        *s ^= *s >> 12;
+        *s ^= *s << 25;
+        *s ^= *s >> 27;
+        scratch[i] = x[(*s * 2685821657736338717ull >> 11) % n];
+    }
+    qsort(scratch, n, sizeof *scratch, hx_cmp_double);
+    return hx_quantile_sorted(scratch, n, 0.5);
+}
+
+/* 95% interval of median(a) / median(b); b NULL: of median(a) alone. Both
+ * ends NAN with fewer than 3 samples a side: no interval worth printing. */
+void hx_bootstrap_ci(const double *a, size_t na, const double *b, size_t nb, double *lo, double *hi)
+{
+    *lo = *hi = NAN;
+    if (na < 3 || (b && nb < 3))
+        return;
+    unsigned long long s = 0x9e3779b97f4a7c15ull;
+    double *est = hx_xmalloc(HX_BOOT * sizeof *est);
+    double *scratch = hx_xmalloc((na > nb ? na : nb) * sizeof *scratch);
+    for (int k = 0; k < HX_BOOT; k++) {
+        double m = boot_median(a, na, &s, scratch);
+        est[k] = b ? boot_median(b, nb, &s, scratch) / m : m;
+    }
+    qsort(est, HX_BOOT, sizeof *est, hx_cmp_double);
+    *lo = hx_quantile_sorted(est, HX_BOOT, 0.025);
+    *hi = hx_quantile_sorted(est, HX_BOOT, 0.975);
+    free(est);
+    free(scratch);
+}

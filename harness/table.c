@@ -11,17 +11,52 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const char *const worker_dims[] = {"threads", "ranks"};
-
-static char *row_config_id(const HxCsv *csv, size_t r, int skip_workers)
+/* The row's configuration; with skip >= 0, that dimension replaced by "*"
+ * (the series the row belongs to); skip == -2: both worker dimensions. */
+static char *row_config_id(const HxCsv *csv, size_t r, int skip)
 {
     const char *v[HX_NDIM];
     for (int d = 0; d < HX_NDIM; d++) {
         v[d] = hx_csv_get(csv, r, hx_dim_col[d]);
-        if (skip_workers && (d == HX_DIM_THREADS || d == HX_DIM_RANKS))
+        if (d == skip || (skip == -2 && (d == HX_DIM_THREADS || d == HX_DIM_RANKS)))
             v[d] = "*";
     }
     return hx_make_config_id(v);
+}
+
+static int dim_int(const HxCsv *csv, size_t r, int d)
+{
+    long v;
+    return hx_parse_int(hx_csv_get(csv, r, hx_dim_col[d]), 1, 1 << 20, &v) == 0 ? (int)v : 1;
+}
+
+/* A series is one fixed value of every dimension but the one swept: threads
+ * for OpenMP, ranks for MPI (at fixed threads per rank); in a hybrid study
+ * (threads and ranks both swept) also threads at fixed ranks (series2). */
+static void group_series(HxGroup *g, const HxCsv *csv, size_t r, const int *varies)
+{
+    int swept = strcmp(g->backend, "openmp") == 0 ? HX_DIM_THREADS
+              : strcmp(g->backend, "mpi") == 0    ? HX_DIM_RANKS
+                                                  : -2;
+    g->series_id = row_config_id(csv, r, swept);
+    g->axis = swept >= 0 ? dim_int(csv, r, swept) : 1;
+    if (swept == HX_DIM_RANKS && varies[HX_DIM_THREADS] && varies[HX_DIM_RANKS]) {
+        g->series2_id = row_config_id(csv, r, HX_DIM_THREADS);
+        g->axis2 = dim_int(csv, r, HX_DIM_THREADS);
+    }
+}
+
+/* Oversubscribed runs and runs whose pinning did not hold measure the
+ * machine's contention, not the code's scaling. */
+static void note_suspect(HxGroup *g, const HxCsv *csv, size_t r)
+{
+    if (strcmp(hx_csv_get(csv, r, "oversubscribed"), "1") == 0) {
+        g->suspect = 1;
+        g->suspect_why = "oversubscribed";
+    } else if (strcmp(hx_csv_get(csv, r, "status"), "ok") == 0 && strcmp(hx_csv_get(csv, r, "pin_held"), "no") == 0) {
+        g->suspect = 1;
+        g->suspect_why = "pinning did not hold";
+    }
 }
 
 /* Does a dimension take more than one value in the study? Only those go into
@@ -185,7 +220,7 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
         varies[d] = dim_varies(csv, hx_dim_col[d]);
     size_t gcap = 0;
     for (size_t r = 0; r < n; r++) {
-        char *id = row_config_id(csv, r, 0);
+        char *id = row_config_id(csv, r, -1);
         size_t gi;
         for (gi = 0; gi < s->ng; gi++)
             if (strcmp(s->g[gi].config_id, id) == 0)
@@ -199,10 +234,10 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
             memset(g, 0, sizeof *g);
             g->config_id = id;
             id = NULL;
-            g->series_id = row_config_id(csv, r, 1);
             g->scene = hx_strdup(hx_csv_get(csv, r, "scene"));
             g->label = row_label(csv, r, 1, varies);
             g->backend = hx_strdup(hx_csv_get(csv, r, "backend"));
+            group_series(g, csv, r, varies);
             g->block = hx_strdup(hx_csv_get(csv, r, "block"));
             long w = 1;
             if (hx_parse_int(hx_csv_get(csv, r, "workers"), 1, 1 << 20, &w))
@@ -218,6 +253,7 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
         free(id);
         HxGroup *g = &s->g[gi];
         g->nrows++;
+        note_suspect(g, csv, r);
         const char *st = hx_csv_get(csv, r, "status");
         double t;
         if (s->row_status_wrong[r]) {
@@ -235,10 +271,12 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
     }
     for (size_t gi = 0; gi < s->ng; gi++) {
         HxGroup *g = &s->g[gi];
+        g->ci_lo = g->ci_hi = NAN;
         if (!g->nt) {
             g->median = g->min = g->q1 = g->q3 = NAN;
             continue;
         }
+        hx_bootstrap_ci(g->t, g->nt, NULL, 0, &g->ci_lo, &g->ci_hi);
         double *sorted = hx_xmalloc(g->nt * sizeof *sorted);
         memcpy(sorted, g->t, g->nt * sizeof *sorted);
         qsort(sorted, g->nt, sizeof *sorted, hx_cmp_double);
@@ -249,7 +287,6 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
         free(sorted);
         g->noutliers = hx_outliers(g->t, g->nt, 10.0, NULL);
     }
-    (void)worker_dims;
     return 0;
 }
 
@@ -259,6 +296,7 @@ void hx_study_free(HxStudy *s)
         free(s->g[i].scene);
         free(s->g[i].config_id);
         free(s->g[i].series_id);
+        free(s->g[i].series2_id);
         free(s->g[i].label);
         free(s->g[i].backend);
         free(s->g[i].block);
@@ -276,7 +314,17 @@ const HxGroup *hx_baseline_one_worker(const HxStudy *s, const HxGroup *g)
 {
     for (size_t i = 0; i < s->ng; i++) {
         const HxGroup *b = &s->g[i];
-        if (b->nt && b->workers == 1 && strcmp(b->series_id, g->series_id) == 0)
+        if (b->nt && b->axis == 1 && strcmp(b->series_id, g->series_id) == 0)
+            return b;
+    }
+    return NULL;
+}
+
+const HxGroup *hx_baseline_one_thread(const HxStudy *s, const HxGroup *g)
+{
+    for (size_t i = 0; g->series2_id && i < s->ng; i++) {
+        const HxGroup *b = &s->g[i];
+        if (b->nt && b->axis2 == 1 && b->series2_id && strcmp(b->series2_id, g->series2_id) == 0)
             return b;
     }
     return NULL;
@@ -385,31 +433,404 @@ static void fmt_num(char *b, size_t n, const char *f, double v)
 
 static void usage_table(FILE *f)
 {
-    fputs("usage: harness table CSV [--baseline KEY=VALUE] [--format md|csv] [--metric COLUMN]\n"
-          "Per configuration: median, min, IQR, outliers (>10 MAD, flagged not dropped),\n"
-          "speedup/efficiency against (a) the same configuration at one worker and (b) the\n"
-          "fastest configuration of the scene matching KEY=VALUE (default: the CSV's\n"
-          "baseline column, else backend=serial), Karp-Flatt per point, Amdahl fit\n"
-          "T(p) = a + b/p per series, and the scenes x configurations cross table.\n"
+    fputs("usage: harness table CSV [--baseline KEY=VALUE] [--format md|csv|json] [--wide]\n"
+          "                         [--metric COLUMN] [--include-suspect]\n"
+          "Per configuration: median with its 95% bootstrap interval, speedup and\n"
+          "efficiency against (a) the same series at one worker and (b) the fastest\n"
+          "configuration of the scene matching KEY=VALUE (default: the CSV's baseline\n"
+          "column, else backend=serial); an Amdahl fit T(p) = a + b/p per series (a\n"
+          "series sweeps one dimension: threads for OpenMP, ranks for MPI, and in hybrid\n"
+          "studies also threads at fixed ranks); the scenes x configurations cross table.\n"
+          "Oversubscribed runs and runs whose pinning did not hold are marked and left\n"
+          "out of the fits. Schema of --format json: docs/harness.md.\n"
           "  --baseline KEY=VALUE  column=value selecting baseline (b)\n"
-          "  --format md|csv       output format (default md)\n"
+          "  --format md|csv|json  output format (default md)\n"
+          "  --wide                every column (the default table fits 100 columns)\n"
           "  --metric COLUMN       time column (default render_ms)\n"
+          "  --include-suspect     fit oversubscribed and unpinned points too\n"
           "  -h, --help            this text\n", f);
+}
+
+/* What one configuration's row says, computed once for every format. */
+typedef struct {
+    const HxGroup *g, *a, *b;
+    double spa, spa_lo, spa_hi, efa, kf, spb, efb;
+    char notes[160];
+} ConfigStats;
+
+static void config_stats(const HxStudy *s, const HxGroup *g, const char *baseline, ConfigStats *c)
+{
+    memset(c, 0, sizeof *c);
+    c->g = g;
+    c->a = hx_baseline_one_worker(s, g);
+    c->b = hx_baseline_fastest(s, g, baseline);
+    c->spa = c->a && g->nt ? c->a->median / g->median : NAN;
+    c->spa_lo = c->spa_hi = NAN;
+    if (c->a && g->nt && c->a != g)
+        hx_bootstrap_ci(g->t, g->nt, c->a->t, c->a->nt, &c->spa_lo, &c->spa_hi);
+    c->efa = c->spa / g->axis;
+    /* Karp-Flatt only where it means something: a speedup below 1 gives
+     * e > 1, a "serial fraction" that no program has */
+    c->kf = g->axis > 1 && c->spa >= 1 ? hx_karp_flatt(c->spa, g->axis) : NAN;
+    c->spb = c->b && g->nt ? c->b->median / g->median : NAN;
+    c->efb = c->spb / g->workers;
+    HxBuf n = {0};
+    if (g->ntimeout)
+        hx_buf_printf(&n, "TLE %zu", g->ntimeout);
+    if (g->nwrong)
+        hx_buf_printf(&n, "%swrong-image %zu", n.len ? ", " : "", g->nwrong);
+    if (g->nerror)
+        hx_buf_printf(&n, "%s%s %zu", n.len ? ", " : "", g->first_status, g->nerror);
+    if (g->suspect)
+        hx_buf_printf(&n, "%s%s", n.len ? ", " : "", g->suspect_why);
+    if (g->noutliers)
+        hx_buf_printf(&n, "%soutliers %d", n.len ? ", " : "", g->noutliers);
+    if (c->spa < 1 && g->axis > 1)
+        hx_buf_printf(&n, "%sslower than 1 worker", n.len ? ", " : "");
+    snprintf(c->notes, sizeof c->notes, "%s", n.s ? n.s : "");
+    hx_buf_free(&n);
+}
+
+static void fmt_ci(char *b, size_t n, double v, double lo, double hi, int ms)
+{
+    char a[32], l[32], h[32];
+    if (ms) {
+        fmt_ms(a, sizeof a, v);
+        fmt_ms(l, sizeof l, lo);
+        fmt_ms(h, sizeof h, hi);
+    } else {
+        fmt_num(a, sizeof a, "%.2f", v);
+        fmt_num(l, sizeof l, "%.2f", lo);
+        fmt_num(h, sizeof h, "%.2f", hi);
+    }
+    if (isnan(lo))
+        snprintf(b, n, "%s", a);
+    else
+        snprintf(b, n, "%s [%s, %s]", a, l, h);
+}
+
+static void table_configs(Emit *e, const HxStudy *s, const char *baseline, int wide)
+{
+    static const char *const narrow[] = {"scene", "configuration", "n", "median ms [CI]", "speedup (a) [CI]",
+                                         "eff. (a)", "speedup (b)", "notes"};
+    static const char *const all[] = {
+        "scene", "configuration", "workers", "n", "median ms [CI]", "min ms", "IQR ms", "outliers",
+        "T(1) ms", "speedup (a) [CI]", "efficiency (a)", "Karp-Flatt", "base (b) ms", "base (b)",
+        "speedup (b)", "efficiency (b)", "notes"};
+    if (wide)
+        emit_header(e, "Per configuration (CI: 95% bootstrap interval)", all, 17);
+    else
+        emit_header(e, "Per configuration (CI: 95% bootstrap interval; --wide: every column)", narrow, 8);
+    for (size_t i = 0; i < s->ng; i++) {
+        ConfigStats c;
+        config_stats(s, &s->g[i], baseline, &c);
+        const HxGroup *g = c.g;
+        char w[16], n[32], med[112], mn[32], iqr[32], out[16], t1[32], sp[112], ef[32], kf[32], bt[32], sb[32],
+            eb[32];
+        snprintf(w, sizeof w, "%d", g->workers);
+        snprintf(n, sizeof n, "%zu/%zu", g->nok, g->nrows);
+        fmt_ci(med, sizeof med, g->median, g->ci_lo, g->ci_hi, 1);
+        fmt_ms(mn, sizeof mn, g->min);
+        fmt_ms(iqr, sizeof iqr, g->q3 - g->q1);
+        snprintf(out, sizeof out, "%d", g->noutliers);
+        fmt_ms(t1, sizeof t1, c.a ? c.a->median : NAN);
+        fmt_ci(sp, sizeof sp, c.spa, c.spa_lo, c.spa_hi, 0);
+        fmt_num(ef, sizeof ef, "%.3f", c.efa);
+        fmt_num(kf, sizeof kf, "%.3f", c.kf);
+        fmt_ms(bt, sizeof bt, c.b ? c.b->median : NAN);
+        fmt_num(sb, sizeof sb, "%.2f", c.spb);
+        fmt_num(eb, sizeof eb, "%.3f", c.efb);
+        const char *notes = c.notes[0] ? c.notes : "-";
+        if (wide) {
+            const char *cells[17] = {g->scene, g->label, w, n, med, mn, iqr, out, t1, sp, ef, kf,
+                                     bt, c.b ? c.b->label : "-", sb, eb, notes};
+            emit_row(e, cells, 17);
+        } else {
+            const char *cells[8] = {g->scene, g->label, n, med, sp, ef, sb, notes};
+            emit_row(e, cells, 8);
+        }
+    }
+}
+
+/* One Amdahl fit over a series' samples (second: the hybrid series over
+ * threads). Suspect points are left out unless asked; the note says so, and
+ * marks a fit whose serial fraction is outside [0, 1] or less than its
+ * standard error from zero width. */
+typedef struct {
+    HxAmdahl f;
+    size_t np, left_out;
+    int distinct;
+    char note[128];
+} Fit;
+
+static void fit_series(const HxStudy *s, size_t i, int second, int include_suspect, char *done, Fit *out)
+{
+    const HxGroup *gi = &s->g[i];
+    const char *sid = second ? gi->series2_id : gi->series_id;
+    size_t cap = 0;
+    double *p = NULL, *t = NULL;
+    int lastw = -1;
+    memset(out, 0, sizeof *out);
+    for (size_t k = i; k < s->ng; k++) {
+        const HxGroup *g = &s->g[k];
+        const char *gid = second ? g->series2_id : g->series_id;
+        if (!gid || strcmp(gid, sid) != 0 || !g->nt)
+            continue;
+        done[k] = 1;
+        if (g->suspect && !include_suspect) {
+            out->left_out += g->nt;
+            continue;
+        }
+        int axis = second ? g->axis2 : g->axis;
+        out->distinct += axis != lastw;
+        lastw = axis;
+        for (size_t j = 0; j < g->nt; j++) {
+            if (out->np == cap) {
+                cap = cap ? 2 * cap : 32;
+                p = hx_xrealloc(p, cap * sizeof *p);
+                t = hx_xrealloc(t, cap * sizeof *t);
+            }
+            p[out->np] = axis;
+            t[out->np++] = g->t[j];
+        }
+    }
+    if (out->distinct >= 2)
+        out->f = hx_amdahl_fit(p, t, out->np);
+    if (!out->f.ok)
+        out->f.a = out->f.b = out->f.serial_fraction = NAN;
+    free(p);
+    free(t);
+    const HxAmdahl *f = &out->f;
+    HxBuf n = {0};
+    if (f->ok && (f->serial_fraction < 0 || f->serial_fraction > 1))
+        hx_buf_printf(&n, "implausible: serial fraction outside [0, 1]");
+    else if (f->ok && f->has_se && f->se_serial_fraction > fabs(f->serial_fraction))
+        hx_buf_printf(&n, "uncertain: std. error above the value");
+    if (out->left_out)
+        hx_buf_printf(&n, "%s%s%zu suspect sample(s) left out", n.len ? "; " : "",
+                      f->ok ? "" : "no fit: too few points once ", out->left_out);
+    snprintf(out->note, sizeof out->note, "%s", n.s ? n.s : "-");
+    hx_buf_free(&n);
+}
+
+/* The series' name: the label without the swept dimension's value. */
+char *hx_series_label(const HxGroup *g, int second)
+{
+    char *lab = hx_strdup(g->label);
+    const char *tok = second || strcmp(g->backend, "openmp") == 0 ? " T=" : " P=";
+    char *at = strstr(lab, tok);
+    if (at) {
+        char *end = strchr(at + 1, ' ');
+        memmove(at, end ? end : at + strlen(at), strlen(end ? end : at + strlen(at)) + 1);
+    }
+    return lab;
+}
+
+static void table_fits(Emit *e, const HxStudy *s, int include_suspect)
+{
+    static const char *const h[] = {"scene", "series", "sweep", "points", "serial fraction", "std. error",
+                                    "a ms", "b ms", "note"};
+    int any = 0;
+    for (int second = 0; second < 2; second++) {
+        char *done = calloc(s->ng ? s->ng : 1, 1);
+        for (size_t i = 0; i < s->ng; i++) {
+            if (done[i] || !s->g[i].nt || (second && !s->g[i].series2_id))
+                continue;
+            Fit f;
+            fit_series(s, i, second, include_suspect, done, &f);
+            if (!f.f.ok && !f.left_out)
+                continue;
+            if (!any)
+                emit_header(e, "Amdahl fit T(p) = a + b/p per series (least squares over all samples)", h, 9);
+            any = 1;
+            char pts[16], fs[32], se[32], as[32], bs[32];
+            snprintf(pts, sizeof pts, "%zu", f.np);
+            fmt_num(fs, sizeof fs, "%.4f", f.f.serial_fraction);
+            fmt_num(se, sizeof se, "%.4f", f.f.has_se ? f.f.se_serial_fraction : NAN);
+            fmt_ms(as, sizeof as, f.f.a);
+            fmt_ms(bs, sizeof bs, f.f.b);
+            char *lab = hx_series_label(&s->g[i], second);
+            const char *sweep = second || strcmp(s->g[i].backend, "openmp") == 0 ? "threads" : "ranks";
+            const char *cells[9] = {s->g[i].scene, lab, sweep, pts, fs, se, as, bs, f.note};
+            emit_row(e, cells, 9);
+            free(lab);
+        }
+        free(done);
+    }
+}
+
+static void table_cross(Emit *e, const HxStudy *s)
+{
+    size_t nl = s->labels.n;
+    const char **hdr = hx_xmalloc((nl + 1) * sizeof *hdr);
+    hdr[0] = "scene";
+    for (size_t l = 0; l < nl; l++)
+        hdr[l + 1] = s->labels.v[l];
+    emit_header(e, "Scenes x configurations (median ms; TLE = timed out)", hdr, (int)nl + 1);
+    char **cells = hx_xmalloc((nl + 1) * sizeof *cells);
+    for (size_t sc = 0; sc < s->scenes.n; sc++) {
+        cells[0] = s->scenes.v[sc];
+        for (size_t l = 0; l < nl; l++) {
+            cells[l + 1] = hx_xmalloc(32);
+            snprintf(cells[l + 1], 32, "-");
+            for (size_t i = 0; i < s->ng; i++) {
+                const HxGroup *g = &s->g[i];
+                if (strcmp(g->scene, s->scenes.v[sc]) || strcmp(g->label, s->labels.v[l]))
+                    continue;
+                if (g->nt)
+                    fmt_ms(cells[l + 1], 32, g->median);
+                else if (g->ntimeout)
+                    snprintf(cells[l + 1], 32, "TLE");
+                else if (g->nwrong)
+                    snprintf(cells[l + 1], 32, "wrong-image");
+                else if (g->first_status)
+                    snprintf(cells[l + 1], 32, "%s", g->first_status);
+            }
+        }
+        emit_row(e, (const char *const *)cells, (int)nl + 1);
+        for (size_t l = 0; l < nl; l++)
+            free(cells[l + 1]);
+    }
+    free(cells);
+    free(hdr);
+}
+
+/* ---- --format json (schema: docs/harness.md, "JSON output") ---- */
+
+static void json_str(FILE *o, const char *v)
+{
+    fputc('"', o);
+    for (const unsigned char *p = (const unsigned char *)v; p && *p; p++) {
+        if (*p == '"' || *p == '\\')
+            fprintf(o, "\\%c", *p);
+        else if (*p < 0x20)
+            fprintf(o, "\\u%04x", *p);
+        else
+            fputc(*p, o);
+    }
+    fputc('"', o);
+}
+
+static void json_num(FILE *o, double v)
+{
+    if (isnan(v) || isinf(v))
+        fputs("null", o);
+    else
+        fprintf(o, "%.6g", v);
+}
+
+static void json_config(FILE *o, const ConfigStats *c)
+{
+    const HxGroup *g = c->g;
+    fputs("{\"scene\": ", o);
+    json_str(o, g->scene);
+    fputs(", \"configuration\": ", o);
+    json_str(o, g->label);
+    fprintf(o, ", \"workers\": %d, \"axis\": %d, \"n_ok\": %zu, \"n_rows\": %zu, \"median_ms\": ", g->workers,
+            g->axis, g->nok, g->nrows);
+    json_num(o, g->median);
+    fputs(", \"median_ci95_ms\": [", o);
+    json_num(o, g->ci_lo);
+    fputs(", ", o);
+    json_num(o, g->ci_hi);
+    fputs("], \"min_ms\": ", o);
+    json_num(o, g->min);
+    fputs(", \"iqr_ms\": ", o);
+    json_num(o, g->q3 - g->q1);
+    fprintf(o, ", \"outliers\": %d, \"speedup_a\": ", g->noutliers);
+    json_num(o, c->spa);
+    fputs(", \"speedup_a_ci95\": [", o);
+    json_num(o, c->spa_lo);
+    fputs(", ", o);
+    json_num(o, c->spa_hi);
+    fputs("], \"efficiency_a\": ", o);
+    json_num(o, c->efa);
+    fputs(", \"karp_flatt\": ", o);
+    json_num(o, c->kf);
+    fputs(", \"baseline_b\": ", o);
+    if (c->b)
+        json_str(o, c->b->label);
+    else
+        fputs("null", o);
+    fputs(", \"speedup_b\": ", o);
+    json_num(o, c->spb);
+    fputs(", \"efficiency_b\": ", o);
+    json_num(o, c->efb);
+    fprintf(o, ", \"suspect\": %s, \"timeouts\": %zu, \"wrong_image\": %zu, \"errors\": %zu, \"notes\": ",
+            g->suspect ? "true" : "false", g->ntimeout, g->nwrong, g->nerror);
+    json_str(o, c->notes);
+    fputs("}", o);
+}
+
+static void table_json(FILE *o, const HxStudy *s, const char *path, const char *metric, const char *baseline,
+                       int include_suspect)
+{
+    fputs("{\"schema\": \"raybench-table/1\", \"csv\": ", o);
+    json_str(o, path);
+    fputs(", \"study\": ", o);
+    json_str(o, s->csv.nrows ? hx_csv_get(&s->csv, 0, "study") : "");
+    fputs(", \"metric\": ", o);
+    json_str(o, metric);
+    fputs(", \"baseline\": ", o);
+    json_str(o, baseline);
+    fputs(",\n \"configurations\": [", o);
+    for (size_t i = 0; i < s->ng; i++) {
+        ConfigStats c;
+        config_stats(s, &s->g[i], baseline, &c);
+        fputs(i ? ",\n  " : "\n  ", o);
+        json_config(o, &c);
+    }
+    fputs("],\n \"fits\": [", o);
+    int nfit = 0;
+    for (int second = 0; second < 2; second++) {
+        char *done = calloc(s->ng ? s->ng : 1, 1);
+        for (size_t i = 0; i < s->ng; i++) {
+            if (done[i] || !s->g[i].nt || (second && !s->g[i].series2_id))
+                continue;
+            Fit f;
+            fit_series(s, i, second, include_suspect, done, &f);
+            if (!f.f.ok && !f.left_out)
+                continue;
+            char *lab = hx_series_label(&s->g[i], second);
+            fputs(nfit++ ? ",\n  {\"scene\": " : "\n  {\"scene\": ", o);
+            json_str(o, s->g[i].scene);
+            fputs(", \"series\": ", o);
+            json_str(o, lab);
+            fprintf(o, ", \"sweep\": \"%s\", \"points\": %zu, \"serial_fraction\": ",
+                    second || strcmp(s->g[i].backend, "openmp") == 0 ? "threads" : "ranks", f.np);
+            json_num(o, f.f.serial_fraction);
+            fputs(", \"std_error\": ", o);
+            json_num(o, f.f.has_se ? f.f.se_serial_fraction : NAN);
+            fputs(", \"a_ms\": ", o);
+            json_num(o, f.f.a);
+            fputs(", \"b_ms\": ", o);
+            json_num(o, f.f.b);
+            fputs(", \"note\": ", o);
+            json_str(o, f.note);
+            fputs("}", o);
+            free(lab);
+        }
+        free(done);
+    }
+    fputs("]}\n", o);
 }
 
 int hx_cmd_table(int argc, char **argv)
 {
     static const struct option lo[] = {
         {"baseline", required_argument, NULL, 'b'}, {"format", required_argument, NULL, 'f'},
-        {"metric", required_argument, NULL, 'm'}, {"help", no_argument, NULL, 'h'},
+        {"metric", required_argument, NULL, 'm'}, {"wide", no_argument, NULL, 'w'},
+        {"include-suspect", no_argument, NULL, 'i'}, {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0}};
     const char *baseline = NULL, *format = "md", *metric = "render_ms";
-    int c;
+    int c, wide = 0, include_suspect = 0;
     while ((c = getopt_long(argc, argv, "h", lo, NULL)) != -1) {
         switch (c) {
         case 'b': baseline = optarg; break;
         case 'f': format = optarg; break;
         case 'm': metric = optarg; break;
+        case 'w': wide = 1; break;
+        case 'i': include_suspect = 1; break;
         case 'h': usage_table(stdout); return 0;
         default: usage_table(stderr); return 1;
         }
@@ -418,8 +839,8 @@ int hx_cmd_table(int argc, char **argv)
         fprintf(stderr, "harness table: expected one CSV argument (see --help)\n");
         return 1;
     }
-    if (strcmp(format, "md") != 0 && strcmp(format, "csv") != 0) {
-        fprintf(stderr, "harness table: --format: expected md or csv, got '%s'\n", format);
+    if (strcmp(format, "md") != 0 && strcmp(format, "csv") != 0 && strcmp(format, "json") != 0) {
+        fprintf(stderr, "harness table: --format: expected md, csv or json, got '%s'\n", format);
         return 1;
     }
     if (baseline && (!strchr(baseline, '=') || baseline[0] == '=')) {
@@ -437,141 +858,18 @@ int hx_cmd_table(int argc, char **argv)
     if (s.nwrong_rows)
         fprintf(stderr, "harness table: warning: %zu wrong-image row(s) left out (image hash "
                         "differs from the study's reference)\n", s.nwrong_rows);
+    if (strcmp(format, "json") == 0) {
+        table_json(stdout, &s, argv[optind], metric, baseline, include_suspect);
+        hx_study_free(&s);
+        return 0;
+    }
     Emit e = {stdout, strcmp(format, "csv") == 0, 0};
-    const char *study = s.csv.nrows ? hx_csv_get(&s.csv, 0, "study") : "";
     if (!e.csv)
-        printf("## Study %s (%s, metric %s, baseline (b): fastest %s)\n", study, argv[optind],
-               metric, baseline);
-
-    static const char *const h1[] = {
-        "scene", "configuration", "workers", "n", "median ms", "min ms", "IQR ms",
-        "outliers", "T(1) ms", "speedup", "efficiency", "Karp-Flatt", "base (b) ms",
-        "base (b)", "speedup (b)", "efficiency (b)", "status"};
-    emit_header(&e, "Per configuration", h1, 17);
-    for (size_t i = 0; i < s.ng; i++) {
-        const HxGroup *g = &s.g[i];
-        char w[16], n[32], med[32], mn[32], iqr[32], out[16], t1[32], sp[32], ef[32], kf[32],
-            bt[32], sb[32], eb[32], st[96];
-        snprintf(w, sizeof w, "%d", g->workers);
-        snprintf(n, sizeof n, "%zu/%zu", g->nok, g->nrows);
-        fmt_ms(med, sizeof med, g->median);
-        fmt_ms(mn, sizeof mn, g->min);
-        fmt_ms(iqr, sizeof iqr, g->q3 - g->q1);
-        snprintf(out, sizeof out, "%d", g->noutliers);
-        const HxGroup *a = hx_baseline_one_worker(&s, g);
-        const HxGroup *b = hx_baseline_fastest(&s, g, baseline);
-        double spa = a && g->nt ? a->median / g->median : NAN;
-        double spb = b && g->nt ? b->median / g->median : NAN;
-        fmt_ms(t1, sizeof t1, a ? a->median : NAN);
-        fmt_num(sp, sizeof sp, "%.2f", spa);
-        fmt_num(ef, sizeof ef, "%.3f", spa / g->workers);
-        fmt_num(kf, sizeof kf, "%.3f", g->workers > 1 ? hx_karp_flatt(spa, g->workers) : NAN);
-        fmt_ms(bt, sizeof bt, b ? b->median : NAN);
-        fmt_num(sb, sizeof sb, "%.2f", spb);
-        fmt_num(eb, sizeof eb, "%.3f", spb / g->workers);
-        HxBuf sts = {0};
-        if (g->nok)
-            hx_buf_printf(&sts, "ok %zu", g->nok);
-        if (g->ntimeout)
-            hx_buf_printf(&sts, "%sTLE %zu", sts.len ? ", " : "", g->ntimeout);
-        if (g->nwrong)
-            hx_buf_printf(&sts, "%swrong-image %zu", sts.len ? ", " : "", g->nwrong);
-        if (g->nerror)
-            hx_buf_printf(&sts, "%s%s %zu", sts.len ? ", " : "", g->first_status, g->nerror);
-        snprintf(st, sizeof st, "%s", sts.s ? sts.s : "-");
-        hx_buf_free(&sts);
-        const char *cells[17] = {g->scene, g->label, w, n, med, mn, iqr, out, t1, sp, ef, kf,
-                                 bt, b ? b->label : "-", sb, eb, st};
-        emit_row(&e, cells, 17);
-    }
-
-    /* Amdahl fits, one per (scene, series) with two or more worker counts */
-    static const char *const h2[] = {"scene", "series", "points", "a (serial) ms",
-                                     "b (parallel) ms", "serial fraction", "std. error"};
-    int any = 0;
-    char *done = calloc(s.ng ? s.ng : 1, 1);
-    for (size_t i = 0; i < s.ng; i++) {
-        if (done[i] || !s.g[i].nt)
-            continue;
-        size_t np = 0, cap = 0, distinct = 0;
-        double *p = NULL, *t = NULL;
-        int lastw = -1;
-        for (size_t k = i; k < s.ng; k++) {
-            const HxGroup *g = &s.g[k];
-            if (strcmp(g->series_id, s.g[i].series_id) != 0 || !g->nt)
-                continue;
-            done[k] = 1;
-            if (g->workers != lastw)
-                distinct++;
-            lastw = g->workers;
-            for (size_t j = 0; j < g->nt; j++) {
-                if (np == cap) {
-                    cap = cap ? 2 * cap : 32;
-                    p = hx_xrealloc(p, cap * sizeof *p);
-                    t = hx_xrealloc(t, cap * sizeof *t);
-                }
-                p[np] = g->workers;
-                t[np++] = g->t[j];
-            }
-        }
-        if (distinct >= 2) {
-            HxAmdahl f = hx_amdahl_fit(p, t, np);
-            if (f.ok) {
-                if (!any)
-                    emit_header(&e, "Amdahl fit T(p) = a + b/p (least squares over all samples)", h2, 7);
-                any = 1;
-                char pts[16], as[32], bs[32], fs[32], se[32];
-                snprintf(pts, sizeof pts, "%zu", np);
-                fmt_ms(as, sizeof as, f.a);
-                fmt_ms(bs, sizeof bs, f.b);
-                fmt_num(fs, sizeof fs, "%.4f", f.serial_fraction);
-                fmt_num(se, sizeof se, "%.4f", f.has_se ? f.se_serial_fraction : NAN);
-                /* series label: the label without the worker count */
-                char *lab = hx_strdup(s.g[i].label);
-                hx_label_drop_workers(lab);
-                const char *cells[7] = {s.g[i].scene, lab, pts, as, bs, fs, se};
-                emit_row(&e, cells, 7);
-                free(lab);
-            }
-        }
-        free(p);
-        free(t);
-    }
-    free(done);
-
-    /* cross table: scenes x configurations, median ms, TLE for timeouts */
-    size_t nl = s.labels.n;
-    const char **hdr = hx_xmalloc((nl + 1) * sizeof *hdr);
-    hdr[0] = "scene";
-    for (size_t l = 0; l < nl; l++)
-        hdr[l + 1] = s.labels.v[l];
-    emit_header(&e, "Scenes x configurations (median ms; TLE = timed out)", hdr, (int)nl + 1);
-    char **cells = hx_xmalloc((nl + 1) * sizeof *cells);
-    for (size_t sc = 0; sc < s.scenes.n; sc++) {
-        cells[0] = s.scenes.v[sc];
-        for (size_t l = 0; l < nl; l++) {
-            cells[l + 1] = hx_xmalloc(32);
-            snprintf(cells[l + 1], 32, "-");
-            for (size_t i = 0; i < s.ng; i++) {
-                const HxGroup *g = &s.g[i];
-                if (strcmp(g->scene, s.scenes.v[sc]) || strcmp(g->label, s.labels.v[l]))
-                    continue;
-                if (g->nt)
-                    fmt_ms(cells[l + 1], 32, g->median);
-                else if (g->ntimeout)
-                    snprintf(cells[l + 1], 32, "TLE");
-                else if (g->nwrong)
-                    snprintf(cells[l + 1], 32, "wrong-image");
-                else if (g->first_status)
-                    snprintf(cells[l + 1], 32, "%s", g->first_status);
-            }
-        }
-        emit_row(&e, (const char *const *)cells, (int)nl + 1);
-        for (size_t l = 0; l < nl; l++)
-            free(cells[l + 1]);
-    }
-    free(cells);
-    free(hdr);
+        printf("## Study %s (%s, metric %s, baseline (b): fastest %s)\n",
+               s.csv.nrows ? hx_csv_get(&s.csv, 0, "study") : "", argv[optind], metric, baseline);
+    table_configs(&e, &s, baseline, wide);
+    table_fits(&e, &s, include_suspect);
+    table_cross(&e, &s);
     hx_study_free(&s);
     return 0;
 }
