@@ -27,17 +27,20 @@ static const char *const counters[] = {"width", "height", "rays", "primary_rays"
 static void usage_compare(FILE *f)
 {
     fputs("usage: harness compare NEW.csv BASE.csv [--factor F] [--alpha A] [--metric COL]\n"
-          "                       [--min-ms MS]\n"
-          "Flags regressions of NEW against BASE per configuration and exits 1 if any:\n"
+          "                       [--min-ms MS] [--format text|json]\n"
+          "Flags regressions of NEW against BASE per configuration and exits 1 if any\n"
+          "(an option left unset matches the default the renderer reports):\n"
           "  - any change of a work counter (rays, node_visits, prim_tests, ...) or of the\n"
           "    image hash, a configuration missing from NEW, or no ok run in NEW;\n"
           "  - a time regression: median and minimum ratios NEW/BASE both > F and, with\n"
           "    >= 4 samples a side, Mann-Whitney U two-sided p < A.\n"
+          "The same rule the other way round reports an IMPROVEMENT (never a failure).\n"
           "Rows from different machines (fingerprint column) are reported as such.\n"
           "  --factor F    slowdown factor that counts (default 1.5)\n"
           "  --alpha A     significance level (default 0.05)\n"
           "  --metric COL  time column (default render_ms)\n"
           "  --min-ms MS   base medians below MS are too short to judge (default 0.5)\n"
+          "  --format F    text (default) or json (schema: docs/harness.md)\n"
           "  -h, --help    this text\n", f);
 }
 
@@ -131,13 +134,216 @@ static const HxGroup *match(const HxStudy *s, const HxStudy *gs, const HxGroup *
     return found;
 }
 
+typedef struct {
+    double factor, alpha, min_ms;
+    const char *unit;
+    int fp_differs;
+} Rule;
+
+/* One configuration's verdict: ok, REGRESSION, IMPROVEMENT or new. */
+typedef struct {
+    const char *verdict, *scene, *label;
+    char *reason;
+    double base_median, new_median, ratio, p, min_ratio;
+    size_t n_new, n_base;
+} Verdict;
+
+typedef struct {
+    Verdict *v;
+    size_t n, cap;
+    int compared, regressions, improvements;
+} Verdicts;
+
+static Verdict *push_verdict(Verdicts *vs, const HxGroup *g, const char *verdict, const char *reason,
+                             const HxGroup *other)
+{
+    if (vs->n == vs->cap) {
+        vs->cap = vs->cap ? 2 * vs->cap : 16;
+        vs->v = hx_xrealloc(vs->v, vs->cap * sizeof *vs->v);
+    }
+    Verdict *v = &vs->v[vs->n++];
+    memset(v, 0, sizeof *v);
+    v->verdict = verdict;
+    v->scene = g->scene;
+    v->label = g->label;
+    v->reason = hx_strdup(reason);
+    v->base_median = v->new_median = v->ratio = v->p = v->min_ratio = NAN;
+    v->n_base = g->nt;
+    v->n_new = other ? other->nt : 0;
+    vs->regressions += strcmp(verdict, "REGRESSION") == 0;
+    vs->improvements += strcmp(verdict, "IMPROVEMENT") == 0;
+    return v;
+}
+
+static void verdicts_free(Verdicts *vs)
+{
+    for (size_t i = 0; i < vs->n; i++)
+        free(vs->v[i].reason);
+    free(vs->v);
+}
+
+/* Exact counters: any change, or two values in NEW, is a regression. */
+static int counters_changed(const HxStudy *nw, const HxStudy *base, const HxGroup *n, const HxGroup *b,
+                            Verdicts *vs)
+{
+    int bad = 0;
+    for (int ci = 0; counters[ci]; ci++) {
+        HxStrList vb = {0}, vn = {0};
+        group_values(base, b, counters[ci], &vb);
+        group_values(nw, n, counters[ci], &vn);
+        int same = vb.n == vn.n;
+        for (size_t k = 0; k < vn.n && same; k++)
+            same = hx_strlist_find(&vb, vn.v[k]) >= 0;
+        if (!same || vn.n > 1) {
+            char sb[256], sn[256];
+            join(&vb, sb, sizeof sb);
+            join(&vn, sn, sizeof sn);
+            HxBuf r = {0};
+            hx_buf_printf(&r, "counter %s changed: base %s, new %s%s", counters[ci], sb, sn,
+                          vn.n > 1 ? " (not deterministic)" : "");
+            push_verdict(vs, b, "REGRESSION", r.s, n);
+            hx_buf_free(&r);
+            bad = 1;
+        }
+        hx_strlist_free(&vb);
+        hx_strlist_free(&vn);
+    }
+    return bad;
+}
+
+/* The noise-aware time rule for one configuration (docs/harness.md). */
+static void judge_time(const HxGroup *n, const HxGroup *b, const Rule *rule, Verdicts *vs)
+{
+    double ratio = n->median / b->median, rmin = n->min / b->min;
+    HxBuf r = {0};
+    if (strcmp(rule->unit, "ms") == 0 && b->median < rule->min_ms) {
+        hx_buf_printf(&r, "times %.3f -> %.3f ms too short to judge (< %.3g ms)", b->median, n->median, rule->min_ms);
+        push_verdict(vs, b, "ok", r.s, n);
+        hx_buf_free(&r);
+        return;
+    }
+    double p = NAN;
+    int slow, fast;
+    char how[128];
+    if (b->nt >= 4 && n->nt >= 4) {
+        p = hx_mann_whitney_p(n->t, n->nt, b->t, b->nt);
+        /* the minimum must move too: noise on a busy machine only ever adds
+         * time, so it inflates medians but rarely the fastest run */
+        slow = ratio > rule->factor && p < rule->alpha && rmin > rule->factor;
+        fast = ratio < 1.0 / rule->factor && p < rule->alpha && rmin < 1.0 / rule->factor;
+        snprintf(how, sizeof how, "Mann-Whitney p=%.4f, min ratio %.2f, n=%zu/%zu", p, rmin, n->nt, b->nt);
+    } else {
+        slow = ratio > rule->factor && rmin > rule->factor;
+        fast = ratio < 1.0 / rule->factor && rmin < 1.0 / rule->factor;
+        snprintf(how, sizeof how, "min ratio %.2f, n=%zu/%zu (too few for a test)", rmin, n->nt, b->nt);
+    }
+    hx_buf_printf(&r, "median %.3f -> %.3f %s, ratio %.2f (%s)%s", b->median, n->median, rule->unit, ratio, how,
+                  (slow || fast) && rule->fp_differs ? " [different machines]" : "");
+    Verdict *v = push_verdict(vs, b, slow ? "REGRESSION" : fast ? "IMPROVEMENT" : "ok", r.s, n);
+    v->base_median = b->median;
+    v->new_median = n->median;
+    v->ratio = ratio;
+    v->p = p;
+    v->min_ratio = rmin;
+    hx_buf_free(&r);
+}
+
+static void judge(const HxStudy *nw, const HxStudy *base, const HxGroup *b, const Rule *rule, Verdicts *vs)
+{
+    const HxGroup *n = match(nw, base, b);
+    if (!n) {
+        push_verdict(vs, b, "REGRESSION", "missing from NEW", NULL);
+        return;
+    }
+    vs->compared++;
+    if (b->nt && !n->nt) {
+        HxBuf r = {0};
+        hx_buf_printf(&r, "no ok run in NEW (timeout %zu, wrong-image %zu, %s %zu)", n->ntimeout, n->nwrong,
+                      n->first_status ? n->first_status : "other", n->nerror);
+        push_verdict(vs, b, "REGRESSION", r.s, n);
+        hx_buf_free(&r);
+        return;
+    }
+    if (n->nwrong) {
+        HxBuf r = {0};
+        hx_buf_printf(&r, "%zu wrong-image run(s) in NEW", n->nwrong);
+        push_verdict(vs, b, "REGRESSION", r.s, n);
+        hx_buf_free(&r);
+    }
+    if (!b->nt)
+        return;
+    int changed = counters_changed(nw, base, n, b, vs);
+    judge_time(n, b, rule, vs);
+    (void)changed;
+}
+
+static void json_s(const char *v)
+{
+    putchar('"');
+    for (const unsigned char *p = (const unsigned char *)v; *p; p++) {
+        if (*p == '"' || *p == '\\')
+            printf("\\%c", *p);
+        else if (*p < 0x20)
+            printf("\\u%04x", *p);
+        else
+            putchar(*p);
+    }
+    putchar('"');
+}
+
+static void json_n(const char *key, double v)
+{
+    printf(", \"%s\": ", key);
+    if (isnan(v) || isinf(v))
+        printf("null");
+    else
+        printf("%.6g", v);
+}
+
+/* --format json (schema: docs/harness.md, "JSON output") */
+static void print_json(const Verdicts *vs, const Rule *rule, const char *new_csv, const char *base_csv,
+                       const char *metric)
+{
+    printf("{\"schema\": \"raybench-compare/1\", \"new\": ");
+    json_s(new_csv);
+    printf(", \"base\": ");
+    json_s(base_csv);
+    printf(", \"metric\": ");
+    json_s(metric);
+    json_n("factor", rule->factor);
+    json_n("alpha", rule->alpha);
+    printf(", \"machines_differ\": %s, \"compared\": %d, \"regressions\": %d, \"improvements\": %d,\n"
+           " \"verdicts\": [",
+           rule->fp_differs ? "true" : "false", vs->compared, vs->regressions, vs->improvements);
+    for (size_t i = 0; i < vs->n; i++) {
+        const Verdict *v = &vs->v[i];
+        printf(i ? ",\n  {\"verdict\": " : "\n  {\"verdict\": ");
+        json_s(v->verdict);
+        printf(", \"scene\": ");
+        json_s(v->scene);
+        printf(", \"configuration\": ");
+        json_s(v->label);
+        json_n("base_median", v->base_median);
+        json_n("new_median", v->new_median);
+        json_n("ratio", v->ratio);
+        json_n("p", v->p);
+        json_n("min_ratio", v->min_ratio);
+        printf(", \"n_base\": %zu, \"n_new\": %zu, \"reason\": ", v->n_base, v->n_new);
+        json_s(v->reason);
+        putchar('}');
+    }
+    printf("]}\n");
+}
+
 int hx_cmd_compare(int argc, char **argv)
 {
     static const struct option lo[] = {
         {"factor", required_argument, NULL, 'f'}, {"alpha", required_argument, NULL, 'a'},
         {"metric", required_argument, NULL, 'm'}, {"min-ms", required_argument, NULL, 'n'},
+        {"format", required_argument, NULL, 'F'},
         {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
     double factor = 1.5, alpha = 0.05, min_ms = 0.5;
+    int json = 0;
     const char *metric = "render_ms";
     int c;
     while ((c = getopt_long(argc, argv, "h", lo, NULL)) != -1) {
@@ -161,6 +367,13 @@ int hx_cmd_compare(int argc, char **argv)
             }
             break;
         case 'm': metric = optarg; break;
+        case 'F':
+            if (strcmp(optarg, "text") != 0 && strcmp(optarg, "json") != 0) {
+                fprintf(stderr, "harness compare: --format: expected text or json, got '%s'\n", optarg);
+                return 1;
+            }
+            json = strcmp(optarg, "json") == 0;
+            break;
         case 'h': usage_compare(stdout); return 0;
         default: usage_compare(stderr); return 1;
         }
@@ -182,94 +395,30 @@ int hx_cmd_compare(int argc, char **argv)
     int fp_differs = fpn.n != fpb.n;
     for (size_t i = 0; i < fpn.n && !fp_differs; i++)
         fp_differs = hx_strlist_find(&fpb, fpn.v[i]) < 0;
-    if (fp_differs) {
+    if (fp_differs && !json) {
         printf("NOTE machine fingerprints differ: times below compare different machines\n");
         for (size_t i = 0; i < fpb.n; i++)
             printf("  base: %s\n", fpb.v[i]);
         for (size_t i = 0; i < fpn.n; i++)
             printf("  new:  %s\n", fpn.v[i]);
     }
-    /* COLUMN/calib: times in units of the machine's speed at that moment */
-    const char *unit = strchr(metric, '/') ? "x calib" : "ms";
-    int regressions = 0, compared = 0, improvements = 0;
-    for (size_t i = 0; i < base.ng; i++) {
-        const HxGroup *b = &base.g[i];
-        const HxGroup *n = match(&nw, &base, b);
-        const char *name = b->label;
-        if (!n) {
-            printf("REGRESSION %s %s: missing from NEW\n", b->scene, name);
-            regressions++;
-            continue;
-        }
-        compared++;
-        if (b->nt && !n->nt) {
-            printf("REGRESSION %s %s: no ok run in NEW (timeout %zu, wrong-image %zu, %s %zu)\n",
-                   b->scene, name, n->ntimeout, n->nwrong,
-                   n->first_status ? n->first_status : "other", n->nerror);
-            regressions++;
-            continue;
-        }
-        if (n->nwrong) {
-            printf("REGRESSION %s %s: %zu wrong-image run(s) in NEW\n", b->scene, name, n->nwrong);
-            regressions++;
-        }
-        if (!b->nt)
-            continue;
-        /* exact counters */
-        int counter_bad = 0;
-        for (int ci = 0; counters[ci]; ci++) {
-            HxStrList vb = {0}, vn = {0};
-            group_values(&base, b, counters[ci], &vb);
-            group_values(&nw, n, counters[ci], &vn);
-            int same = vb.n == vn.n;
-            for (size_t k = 0; k < vn.n && same; k++)
-                same = hx_strlist_find(&vb, vn.v[k]) >= 0;
-            if (!same || vn.n > 1) {
-                char sb[256], sn[256];
-                join(&vb, sb, sizeof sb);
-                join(&vn, sn, sizeof sn);
-                printf("REGRESSION %s %s: counter %s changed: base %s, new %s%s\n", b->scene,
-                       name, counters[ci], sb, sn, vn.n > 1 ? " (not deterministic)" : "");
-                counter_bad = 1;
-            }
-            hx_strlist_free(&vb);
-            hx_strlist_free(&vn);
-        }
-        regressions += counter_bad;
-        /* noise-aware time rule */
-        double ratio = n->median / b->median, rmin = n->min / b->min;
-        if (!strchr(metric, '/') && b->median < min_ms) {
-            printf("ok %s %s: times %.3f -> %.3f ms too short to judge (< %.3g ms)\n", b->scene,
-                   name, b->median, n->median, min_ms);
-            continue;
-        }
-        int slow, fast;
-        char how[128];
-        if (b->nt >= 4 && n->nt >= 4) {
-            double p = hx_mann_whitney_p(n->t, n->nt, b->t, b->nt);
-            /* the minimum must move too: noise on a busy machine only ever
-             * adds time, so it inflates medians but rarely the fastest run */
-            slow = ratio > factor && p < alpha && rmin > factor;
-            fast = ratio < 1.0 / factor && p < alpha && rmin < 1.0 / factor;
-            snprintf(how, sizeof how, "Mann-Whitney p=%.4f, min ratio %.2f, n=%zu/%zu", p, rmin,
-                     n->nt, b->nt);
-        } else {
-            slow = ratio > factor && rmin > factor;
-            fast = ratio < 1.0 / factor && rmin < 1.0 / factor;
-            snprintf(how, sizeof how, "min ratio %.2f, n=%zu/%zu (too few for a test)", rmin,
-                     n->nt, b->nt);
-        }
-        printf("%s %s %s: median %.3f -> %.3f %s, ratio %.2f (%s)%s\n",
-               slow ? "REGRESSION" : fast ? "IMPROVEMENT" : "ok", b->scene, name, b->median, n->median, unit,
-               ratio, how, (slow || fast) && fp_differs ? " [different machines]" : "");
-        regressions += slow;
-        improvements += fast;
-    }
+    Rule rule = {factor, alpha, min_ms, strchr(metric, '/') ? "x calib" : "ms", fp_differs};
+    Verdicts v = {0};
+    for (size_t i = 0; i < base.ng; i++)
+        judge(&nw, &base, &base.g[i], &rule, &v);
     for (size_t k = 0; k < nw.ng; k++)
         if (!match(&base, &nw, &nw.g[k]))
-            printf("new %s %s: not in the baseline (not compared)\n", nw.g[k].scene, nw.g[k].label);
-    printf("compare: %d configuration(s) compared, %d regression(s), %d improvement(s) (factor %.2f, alpha %.3g)\n",
-           compared, regressions, improvements, factor, alpha);
+            push_verdict(&v, &nw.g[k], "new", "not in the baseline (not compared)", NULL);
+    if (json)
+        print_json(&v, &rule, argv[optind], argv[optind + 1], metric);
+    else
+        for (size_t k = 0; k < v.n; k++)
+            printf("%s %s %s: %s\n", v.v[k].verdict, v.v[k].scene, v.v[k].label, v.v[k].reason);
+    if (!json)
+        printf("compare: %d configuration(s) compared, %d regression(s), %d improvement(s) (factor %.2f, alpha %.3g)\n",
+               v.compared, v.regressions, v.improvements, factor, alpha);
+    int regressions = v.regressions;
+    verdicts_free(&v);
     hx_strlist_free(&fpn);
     hx_strlist_free(&fpb);
     hx_study_free(&nw);

@@ -31,4 +31,9 @@ grep -q "^IMPROVEMENT ok " c2.out || { cat c2.out; fail "the improvement is not 
 grep -q "0 regression(s), 1 improvement(s)" c2.out || { cat c2.out; fail "improvement count"; }
 "$H" compare slow.csv unset.csv > c3.out && { cat c3.out; fail "a 2x slowdown passed"; }
 grep -q "^REGRESSION ok " c3.out || { cat c3.out; fail "the regression is not reported"; }
+"$H" compare --format json slow.csv unset.csv > c4.json && fail "json: a 2x slowdown passed"
+if command -v python3 > /dev/null; then
+    python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); assert d["schema"]=="raybench-compare/1"; assert d["regressions"]==1; v=d["verdicts"][0]; assert v["verdict"]=="REGRESSION" and abs(v["ratio"]-2)<1e-9' c4.json ||
+        fail "compare JSON: $(cat c4.json)"
+fi
 echo "compare test passed"
