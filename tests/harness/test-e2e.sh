@@ -61,4 +61,7 @@ for k in speedup efficiency scenes; do
     [ -s "$T/quick-$k.$ext" ] || fail "quick-$k.$ext missing or empty"
   done
 done
+# error bars from the spread, and a y range from the data, not a fixed box
+grep -q 'yerrorlines' "$T/quick-speedup.gp" || fail "no error bars in the speedup plot"
+grep -q 'set yrange \[0.4:' "$T/quick-speedup.gp" && fail "the speedup plot has the old fixed range"
 echo "e2e test passed"
