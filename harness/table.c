@@ -561,6 +561,8 @@ typedef struct {
     size_t np, left_out;
     int distinct;
     char note[128];
+    const char *scene, *sweep;
+    char *series; /* malloc'd */
 } Fit;
 
 static void fit_series(const HxStudy *s, size_t i, int second, int include_suspect, char *done, Fit *out)
@@ -626,11 +628,13 @@ char *hx_series_label(const HxGroup *g, int second)
     return lab;
 }
 
-static void table_fits(Emit *e, const HxStudy *s, int include_suspect)
+/* Every series' fit, the series over the swept dimension first, then the
+ * hybrid series over threads; *n of them, malloc'd (fits_free). */
+static Fit *collect_fits(const HxStudy *s, int include_suspect, size_t *n)
 {
-    static const char *const h[] = {"scene", "series", "sweep", "points", "serial fraction", "std. error",
-                                    "a ms", "b ms", "note"};
-    int any = 0;
+    Fit *fits = NULL;
+    size_t cap = 0;
+    *n = 0;
     for (int second = 0; second < 2; second++) {
         char *done = calloc(s->ng ? s->ng : 1, 1);
         for (size_t i = 0; i < s->ng; i++) {
@@ -640,23 +644,47 @@ static void table_fits(Emit *e, const HxStudy *s, int include_suspect)
             fit_series(s, i, second, include_suspect, done, &f);
             if (!f.f.ok && !f.left_out)
                 continue;
-            if (!any)
-                emit_header(e, "Amdahl fit T(p) = a + b/p per series (least squares over all samples)", h, 9);
-            any = 1;
-            char pts[16], fs[32], se[32], as[32], bs[32];
-            snprintf(pts, sizeof pts, "%zu", f.np);
-            fmt_num(fs, sizeof fs, "%.4f", f.f.serial_fraction);
-            fmt_num(se, sizeof se, "%.4f", f.f.has_se ? f.f.se_serial_fraction : NAN);
-            fmt_ms(as, sizeof as, f.f.a);
-            fmt_ms(bs, sizeof bs, f.f.b);
-            char *lab = hx_series_label(&s->g[i], second);
-            const char *sweep = second || strcmp(s->g[i].backend, "openmp") == 0 ? "threads" : "ranks";
-            const char *cells[9] = {s->g[i].scene, lab, sweep, pts, fs, se, as, bs, f.note};
-            emit_row(e, cells, 9);
-            free(lab);
+            f.scene = s->g[i].scene;
+            f.series = hx_series_label(&s->g[i], second);
+            f.sweep = second || strcmp(s->g[i].backend, "openmp") == 0 ? "threads" : "ranks";
+            if (*n == cap) {
+                cap = cap ? 2 * cap : 8;
+                fits = hx_xrealloc(fits, cap * sizeof *fits);
+            }
+            fits[(*n)++] = f;
         }
         free(done);
     }
+    return fits;
+}
+
+static void fits_free(Fit *fits, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        free(fits[i].series);
+    free(fits);
+}
+
+static void table_fits(Emit *e, const HxStudy *s, int include_suspect)
+{
+    static const char *const h[] = {"scene", "series", "sweep", "points", "serial fraction", "std. error",
+                                    "a ms", "b ms", "note"};
+    size_t n;
+    Fit *fits = collect_fits(s, include_suspect, &n);
+    if (n)
+        emit_header(e, "Amdahl fit T(p) = a + b/p per series (least squares over all samples)", h, 9);
+    for (size_t i = 0; i < n; i++) {
+        const Fit *f = &fits[i];
+        char pts[16], fs[32], se[32], as[32], bs[32];
+        snprintf(pts, sizeof pts, "%zu", f->np);
+        fmt_num(fs, sizeof fs, "%.4f", f->f.serial_fraction);
+        fmt_num(se, sizeof se, "%.4f", f->f.has_se ? f->f.se_serial_fraction : NAN);
+        fmt_ms(as, sizeof as, f->f.a);
+        fmt_ms(bs, sizeof bs, f->f.b);
+        const char *cells[9] = {f->scene, f->series, f->sweep, pts, fs, se, as, bs, f->note};
+        emit_row(e, cells, 9);
+    }
+    fits_free(fits, n);
 }
 
 static void table_cross(Emit *e, const HxStudy *s)
@@ -781,37 +809,27 @@ static void table_json(FILE *o, const HxStudy *s, const char *path, const char *
         json_config(o, &c);
     }
     fputs("],\n \"fits\": [", o);
-    int nfit = 0;
-    for (int second = 0; second < 2; second++) {
-        char *done = calloc(s->ng ? s->ng : 1, 1);
-        for (size_t i = 0; i < s->ng; i++) {
-            if (done[i] || !s->g[i].nt || (second && !s->g[i].series2_id))
-                continue;
-            Fit f;
-            fit_series(s, i, second, include_suspect, done, &f);
-            if (!f.f.ok && !f.left_out)
-                continue;
-            char *lab = hx_series_label(&s->g[i], second);
-            fputs(nfit++ ? ",\n  {\"scene\": " : "\n  {\"scene\": ", o);
-            json_str(o, s->g[i].scene);
-            fputs(", \"series\": ", o);
-            json_str(o, lab);
-            fprintf(o, ", \"sweep\": \"%s\", \"points\": %zu, \"serial_fraction\": ",
-                    second || strcmp(s->g[i].backend, "openmp") == 0 ? "threads" : "ranks", f.np);
-            json_num(o, f.f.serial_fraction);
-            fputs(", \"std_error\": ", o);
-            json_num(o, f.f.has_se ? f.f.se_serial_fraction : NAN);
-            fputs(", \"a_ms\": ", o);
-            json_num(o, f.f.a);
-            fputs(", \"b_ms\": ", o);
-            json_num(o, f.f.b);
-            fputs(", \"note\": ", o);
-            json_str(o, f.note);
-            fputs("}", o);
-            free(lab);
-        }
-        free(done);
+    size_t n;
+    Fit *fits = collect_fits(s, include_suspect, &n);
+    for (size_t i = 0; i < n; i++) {
+        const Fit *f = &fits[i];
+        fputs(i ? ",\n  {\"scene\": " : "\n  {\"scene\": ", o);
+        json_str(o, f->scene);
+        fputs(", \"series\": ", o);
+        json_str(o, f->series);
+        fprintf(o, ", \"sweep\": \"%s\", \"points\": %zu, \"serial_fraction\": ", f->sweep, f->np);
+        json_num(o, f->f.serial_fraction);
+        fputs(", \"std_error\": ", o);
+        json_num(o, f->f.has_se ? f->f.se_serial_fraction : NAN);
+        fputs(", \"a_ms\": ", o);
+        json_num(o, f->f.a);
+        fputs(", \"b_ms\": ", o);
+        json_num(o, f->f.b);
+        fputs(", \"note\": ", o);
+        json_str(o, f->note);
+        fputs("}", o);
     }
+    fits_free(fits, n);
     fputs("]}\n", o);
 }
 

@@ -6,12 +6,8 @@
 #     to twice the time, a REGRESSION that fails.
 # usage: test-compare.sh HARNESS FAKE_RAYTRACE
 set -u
-abs() { (cd "$(dirname "$1")" && echo "$(pwd)/$(basename "$1")"); }
-H=$(abs "$1") FAKE=$(abs "$2")
-T=$(mktemp -d /tmp/hx-compare-XXXXXX)
-trap 'rm -rf "$T"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
-cd "$T" || exit 1
+. "$(dirname "$0")/common.sh"
+test_setup compare "$1" "$2"
 echo "# dummy" > ok.txt
 printf 'study: c\nscene_dir: .\nscenes: ok\nrepeats: 5\npin: none\nraytrace: %s\n' "$FAKE" > unset.conf
 printf 'study: c\nscene_dir: .\nscenes: ok\naccel: bvh\nrepeats: 5\npin: none\nraytrace: %s\n' "$FAKE" > set.conf

@@ -8,12 +8,8 @@
 #   - `table` on a CSV with a torn last row says how to repair it.
 # usage: test-faults.sh HARNESS FAKE_RAYTRACE
 set -u
-abs() { (cd "$(dirname "$1")" && echo "$(pwd)/$(basename "$1")"); }
-H=$(abs "$1") FAKE=$(abs "$2")
-T=$(mktemp -d /tmp/hx-faults-XXXXXX)
-trap 'rm -rf "$T"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
-cd "$T" || exit 1
+. "$(dirname "$0")/common.sh"
+test_setup faults "$1" "$2"
 for s in ok slow; do echo "# dummy" > "$s.txt"; done
 conf() { # NAME SCENE REPEATS
     printf 'study: %s\nscene_dir: .\nscenes: %s\nrepeats: %s\npin: none\nraytrace: %s\n' "$1" "$2" "$3" "$FAKE" > "$1.conf"

@@ -10,12 +10,8 @@
 #     accepted, and a '|' in a scene name stays inside its Markdown cell.
 # usage: test-security.sh HARNESS FAKE_RAYTRACE
 set -u
-abs() { (cd "$(dirname "$1")" && echo "$(pwd)/$(basename "$1")"); }
-H=$(abs "$1") FAKE=$(abs "$2")
-T=$(mktemp -d /tmp/hx-sec-XXXXXX)
-trap 'rm -rf "$T"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
-cd "$T" || exit 1
+. "$(dirname "$0")/common.sh"
+test_setup security "$1" "$2"
 unset OMP_NUM_THREADS OMP_PLACES OMP_PROC_BIND
 
 # ---- a scene whose name would run commands in gnuplot, unquoted

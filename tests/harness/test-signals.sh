@@ -7,12 +7,8 @@
 #     may) has it killed and reaped before the next run starts.
 # usage: test-signals.sh HARNESS FAKE_RAYTRACE
 set -u
-abs() { (cd "$(dirname "$1")" && echo "$(pwd)/$(basename "$1")"); }
-H=$(abs "$1") FAKE=$(abs "$2")
-T=$(mktemp -d /tmp/hx-signals-XXXXXX)
-trap 'rm -rf "$T"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
-cd "$T" || exit 1
+. "$(dirname "$0")/common.sh"
+test_setup signals "$1" "$2"
 mkdir tmp
 export TMPDIR=$T/tmp
 for s in ok hang escape; do echo "# dummy" > "$s.txt"; done

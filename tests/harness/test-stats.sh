@@ -10,12 +10,8 @@
 #   - the default Markdown table fits 100 columns; --format json parses.
 # usage: test-stats.sh HARNESS FAKE_RAYTRACE
 set -u
-abs() { (cd "$(dirname "$1")" && echo "$(pwd)/$(basename "$1")"); }
-H=$(abs "$1") FAKE=$(abs "$2")
-T=$(mktemp -d /tmp/hx-stats-XXXXXX)
-trap 'rm -rf "$T"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
-cd "$T" || exit 1
+. "$(dirname "$0")/common.sh"
+test_setup stats "$1" "$2"
 echo "# dummy" > ok.txt
 # an mpirun that runs the program once: the fake renderer stands for all ranks
 printf '#!/bin/sh\nwhile [ $# -gt 0 ] && [ ! -x "$1" ]; do case $1 in -np|--map-by|--bind-to|-x) shift 2 ;; *) shift ;; esac; done\nexec "$@"\n' > mpirun
