@@ -277,60 +277,35 @@ static void judge(const HxStudy *nw, const HxStudy *base, const HxGroup *b, cons
     (void)changed;
 }
 
-static void json_s(const char *v)
-{
-    putchar('"');
-    for (const unsigned char *p = (const unsigned char *)v; *p; p++) {
-        if (*p == '"' || *p == '\\')
-            printf("\\%c", *p);
-        else if (*p < 0x20)
-            printf("\\u%04x", *p);
-        else
-            putchar(*p);
-    }
-    putchar('"');
-}
-
-static void json_n(const char *key, double v)
-{
-    printf(", \"%s\": ", key);
-    if (isnan(v) || isinf(v))
-        printf("null");
-    else
-        printf("%.6g", v);
-}
-
 /* --format json (schema: docs/harness.md, "JSON output") */
 static void print_json(const Verdicts *vs, const Rule *rule, const char *new_csv, const char *base_csv,
                        const char *metric)
 {
-    printf("{\"schema\": \"raybench-compare/1\", \"new\": ");
-    json_s(new_csv);
-    printf(", \"base\": ");
-    json_s(base_csv);
-    printf(", \"metric\": ");
-    json_s(metric);
-    json_n("factor", rule->factor);
-    json_n("alpha", rule->alpha);
+    FILE *o = stdout;
+    fputs("{\"schema\": \"raybench-compare/1\"", o);
+    hx_json_kstr(o, "new", new_csv);
+    hx_json_kstr(o, "base", base_csv);
+    hx_json_kstr(o, "metric", metric);
+    hx_json_num(o, "factor", rule->factor);
+    hx_json_num(o, "alpha", rule->alpha);
     printf(", \"machines_differ\": %s, \"compared\": %d, \"regressions\": %d, \"improvements\": %d,\n"
            " \"verdicts\": [",
            rule->fp_differs ? "true" : "false", vs->compared, vs->regressions, vs->improvements);
     for (size_t i = 0; i < vs->n; i++) {
         const Verdict *v = &vs->v[i];
-        printf(i ? ",\n  {\"verdict\": " : "\n  {\"verdict\": ");
-        json_s(v->verdict);
-        printf(", \"scene\": ");
-        json_s(v->scene);
-        printf(", \"configuration\": ");
-        json_s(v->label);
-        json_n("base_median", v->base_median);
-        json_n("new_median", v->new_median);
-        json_n("ratio", v->ratio);
-        json_n("p", v->p);
-        json_n("min_ratio", v->min_ratio);
-        printf(", \"n_base\": %zu, \"n_new\": %zu, \"reason\": ", v->n_base, v->n_new);
-        json_s(v->reason);
-        putchar('}');
+        fputs(i ? ",\n  {\"verdict\": " : "\n  {\"verdict\": ", o);
+        hx_json_str(o, v->verdict);
+        hx_json_kstr(o, "scene", v->scene);
+        hx_json_kstr(o, "configuration", v->label);
+        hx_json_num(o, "base_median", v->base_median);
+        hx_json_num(o, "new_median", v->new_median);
+        hx_json_num(o, "ratio", v->ratio);
+        hx_json_num(o, "p", v->p);
+        hx_json_num(o, "min_ratio", v->min_ratio);
+        hx_json_num(o, "n_base", (double)v->n_base);
+        hx_json_num(o, "n_new", (double)v->n_new);
+        hx_json_kstr(o, "reason", v->reason);
+        fputc('}', o);
     }
     printf("]}\n");
 }

@@ -58,6 +58,12 @@ int hx_run_argv(char *const argv[], const char *dir, char *out, size_t n, int qu
  * substitution there (no backquote command, no @macro), ' is doubled, and
  * control characters (a newline would end the command) become '?'. */
 void hx_gp_quote(HxBuf *b, const char *s);
+/* JSON output: a string with its escapes; `, "key": number` (null for
+ * NaN or infinity), `, "key": [a, b]`, `, "key": "string"`. */
+void hx_json_str(FILE *o, const char *v);
+void hx_json_num(FILE *o, const char *key, double v);
+void hx_json_pair(FILE *o, const char *key, double a, double b);
+void hx_json_kstr(FILE *o, const char *key, const char *v);
 /* 1 when s holds a control character (below 0x20, or 0x7f). */
 int hx_has_ctrl(const char *s);
 

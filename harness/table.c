@@ -725,82 +725,47 @@ static void table_cross(Emit *e, const HxStudy *s)
 
 /* ---- --format json (schema: docs/harness.md, "JSON output") ---- */
 
-static void json_str(FILE *o, const char *v)
-{
-    fputc('"', o);
-    for (const unsigned char *p = (const unsigned char *)v; p && *p; p++) {
-        if (*p == '"' || *p == '\\')
-            fprintf(o, "\\%c", *p);
-        else if (*p < 0x20)
-            fprintf(o, "\\u%04x", *p);
-        else
-            fputc(*p, o);
-    }
-    fputc('"', o);
-}
-
-static void json_num(FILE *o, double v)
-{
-    if (isnan(v) || isinf(v))
-        fputs("null", o);
-    else
-        fprintf(o, "%.6g", v);
-}
-
 static void json_config(FILE *o, const ConfigStats *c)
 {
     const HxGroup *g = c->g;
     fputs("{\"scene\": ", o);
-    json_str(o, g->scene);
-    fputs(", \"configuration\": ", o);
-    json_str(o, g->label);
-    fprintf(o, ", \"workers\": %d, \"axis\": %d, \"n_ok\": %zu, \"n_rows\": %zu, \"median_ms\": ", g->workers,
-            g->axis, g->nok, g->nrows);
-    json_num(o, g->median);
-    fputs(", \"median_ci95_ms\": [", o);
-    json_num(o, g->ci_lo);
-    fputs(", ", o);
-    json_num(o, g->ci_hi);
-    fputs("], \"min_ms\": ", o);
-    json_num(o, g->min);
-    fputs(", \"iqr_ms\": ", o);
-    json_num(o, g->q3 - g->q1);
-    fprintf(o, ", \"outliers\": %d, \"speedup_a\": ", g->noutliers);
-    json_num(o, c->spa);
-    fputs(", \"speedup_a_ci95\": [", o);
-    json_num(o, c->spa_lo);
-    fputs(", ", o);
-    json_num(o, c->spa_hi);
-    fputs("], \"efficiency_a\": ", o);
-    json_num(o, c->efa);
-    fputs(", \"karp_flatt\": ", o);
-    json_num(o, c->kf);
-    fputs(", \"baseline_b\": ", o);
+    hx_json_str(o, g->scene);
+    hx_json_kstr(o, "configuration", g->label);
+    hx_json_num(o, "workers", g->workers);
+    hx_json_num(o, "axis", g->axis);
+    hx_json_num(o, "n_ok", (double)g->nok);
+    hx_json_num(o, "n_rows", (double)g->nrows);
+    hx_json_num(o, "median_ms", g->median);
+    hx_json_pair(o, "median_ci95_ms", g->ci_lo, g->ci_hi);
+    hx_json_num(o, "min_ms", g->min);
+    hx_json_num(o, "iqr_ms", g->q3 - g->q1);
+    hx_json_num(o, "outliers", g->noutliers);
+    hx_json_num(o, "speedup_a", c->spa);
+    hx_json_pair(o, "speedup_a_ci95", c->spa_lo, c->spa_hi);
+    hx_json_num(o, "efficiency_a", c->efa);
+    hx_json_num(o, "karp_flatt", c->kf);
     if (c->b)
-        json_str(o, c->b->label);
+        hx_json_kstr(o, "baseline_b", c->b->label);
     else
-        fputs("null", o);
-    fputs(", \"speedup_b\": ", o);
-    json_num(o, c->spb);
-    fputs(", \"efficiency_b\": ", o);
-    json_num(o, c->efb);
-    fprintf(o, ", \"suspect\": %s, \"timeouts\": %zu, \"wrong_image\": %zu, \"errors\": %zu, \"notes\": ",
-            g->suspect ? "true" : "false", g->ntimeout, g->nwrong, g->nerror);
-    json_str(o, c->notes);
+        fputs(", \"baseline_b\": null", o);
+    hx_json_num(o, "speedup_b", c->spb);
+    hx_json_num(o, "efficiency_b", c->efb);
+    fprintf(o, ", \"suspect\": %s", g->suspect ? "true" : "false");
+    hx_json_num(o, "timeouts", (double)g->ntimeout);
+    hx_json_num(o, "wrong_image", (double)g->nwrong);
+    hx_json_num(o, "errors", (double)g->nerror);
+    hx_json_kstr(o, "notes", c->notes);
     fputs("}", o);
 }
 
 static void table_json(FILE *o, const HxStudy *s, const char *path, const char *metric, const char *baseline,
                        int include_suspect)
 {
-    fputs("{\"schema\": \"raybench-table/1\", \"csv\": ", o);
-    json_str(o, path);
-    fputs(", \"study\": ", o);
-    json_str(o, s->csv.nrows ? hx_csv_get(&s->csv, 0, "study") : "");
-    fputs(", \"metric\": ", o);
-    json_str(o, metric);
-    fputs(", \"baseline\": ", o);
-    json_str(o, baseline);
+    fputs("{\"schema\": \"raybench-table/1\"", o);
+    hx_json_kstr(o, "csv", path);
+    hx_json_kstr(o, "study", s->csv.nrows ? hx_csv_get(&s->csv, 0, "study") : "");
+    hx_json_kstr(o, "metric", metric);
+    hx_json_kstr(o, "baseline", baseline);
     fputs(",\n \"configurations\": [", o);
     for (size_t i = 0; i < s->ng; i++) {
         ConfigStats c;
@@ -814,19 +779,15 @@ static void table_json(FILE *o, const HxStudy *s, const char *path, const char *
     for (size_t i = 0; i < n; i++) {
         const Fit *f = &fits[i];
         fputs(i ? ",\n  {\"scene\": " : "\n  {\"scene\": ", o);
-        json_str(o, f->scene);
-        fputs(", \"series\": ", o);
-        json_str(o, f->series);
-        fprintf(o, ", \"sweep\": \"%s\", \"points\": %zu, \"serial_fraction\": ", f->sweep, f->np);
-        json_num(o, f->f.serial_fraction);
-        fputs(", \"std_error\": ", o);
-        json_num(o, f->f.has_se ? f->f.se_serial_fraction : NAN);
-        fputs(", \"a_ms\": ", o);
-        json_num(o, f->f.a);
-        fputs(", \"b_ms\": ", o);
-        json_num(o, f->f.b);
-        fputs(", \"note\": ", o);
-        json_str(o, f->note);
+        hx_json_str(o, f->scene);
+        hx_json_kstr(o, "series", f->series);
+        hx_json_kstr(o, "sweep", f->sweep);
+        hx_json_num(o, "points", (double)f->np);
+        hx_json_num(o, "serial_fraction", f->f.serial_fraction);
+        hx_json_num(o, "std_error", f->f.has_se ? f->f.se_serial_fraction : NAN);
+        hx_json_num(o, "a_ms", f->f.a);
+        hx_json_num(o, "b_ms", f->f.b);
+        hx_json_kstr(o, "note", f->note);
         fputs("}", o);
     }
     fits_free(fits, n);

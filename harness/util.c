@@ -318,3 +318,46 @@ int hx_has_ctrl(const char *s)
             return 1;
     return 0;
 }
+
+void hx_json_str(FILE *o, const char *v)
+{
+    fputc('"', o);
+    for (const unsigned char *p = (const unsigned char *)(v ? v : ""); *p; p++) {
+        if (*p == '"' || *p == '\\')
+            fprintf(o, "\\%c", *p);
+        else if (*p < 0x20)
+            fprintf(o, "\\u%04x", *p);
+        else
+            fputc(*p, o);
+    }
+    fputc('"', o);
+}
+
+static void json_num(FILE *o, double v)
+{
+    if (isnan(v) || isinf(v))
+        fputs("null", o);
+    else
+        fprintf(o, "%.6g", v);
+}
+
+void hx_json_num(FILE *o, const char *key, double v)
+{
+    fprintf(o, ", \"%s\": ", key);
+    json_num(o, v);
+}
+
+void hx_json_pair(FILE *o, const char *key, double a, double b)
+{
+    fprintf(o, ", \"%s\": [", key);
+    json_num(o, a);
+    fputs(", ", o);
+    json_num(o, b);
+    fputc(']', o);
+}
+
+void hx_json_kstr(FILE *o, const char *key, const char *v)
+{
+    fprintf(o, ", \"%s\": ", key);
+    hx_json_str(o, v);
+}
