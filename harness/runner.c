@@ -723,6 +723,386 @@ static int csv_has_rows(const char *path)
     return lines >= 2;
 }
 
+/* Everything one `harness run` holds while it runs the plan. */
+typedef struct {
+    HxConfig cfg;
+    HxPlan plan;
+    HxTopo topo;
+    char *raytrace, *image, *tmpdir;
+    const char *out_path;
+    int fd, quiet, want_mpi;
+    HxFingerprint fp;
+    char chash[20];
+    /* done_ids: run ids already in the CSV (--resume); timed_out: configurations
+     * whose run hit the timeout; deterministic: those that ended with exit 1
+     * (the renderer's answer to bad input or an option this build lacks: a
+     * repeat would fail the same way); failures: one line per failing
+     * configuration for the summary */
+    HxStrList done_ids, timed_out, deterministic, failures;
+    RefTable refs;
+    double t0, child_ms;
+    size_t executed, skipped, attempted, nstat[6];
+} Study;
+
+static const char *const stat_names[6] = {"ok", "wrong-image", "timeout", "crash", "error", "refused"};
+
+/* The row's cells that come before the run: provenance and the plan. */
+static char **row_head(const Study *st, const HxRun *r)
+{
+    const HxFingerprint *fp = &st->fp;
+    int cuda = strcmp(r->v[HX_DIM_BACKEND], "cuda") == 0;
+    char **vals = calloc((size_t)hx_ncolumns, sizeof *vals);
+    char utc[32];
+    hx_utc_now(utc, sizeof utc);
+    set(vals, "study", st->cfg.study);
+    set(vals, "run_id", r->run_id);
+    setf(vals, "repeat", "%d", r->repeat);
+    set(vals, "utc", utc);
+    set(vals, "git_commit", fp->git_commit);
+    set(vals, "host", fp->host);
+    set(vals, "cpu_model", fp->cpu_model);
+    setf(vals, "phys_cores", "%d", fp->phys_cores);
+    setf(vals, "logical_cpus", "%d", fp->logical_cpus);
+    set(vals, "smt", fp->smt ? "on" : "off");
+    set(vals, "governor", fp->governor);
+    set(vals, "compiler", fp->compiler);
+    set(vals, "gpu_name", cuda ? fp->gpu_name : "-");
+    set(vals, "gpu_driver", cuda ? fp->gpu_driver : "-");
+    set(vals, "fingerprint", fp->fingerprint);
+    set(vals, "kernel", fp->kernel);
+    set(vals, "mpi_version", st->want_mpi ? fp->mpi_version : "-");
+    set(vals, "build_flags", fp->build_flags);
+    set(vals, "config_hash", st->chash);
+    for (int d = 0; d < HX_NDIM; d++)
+        set(vals, hx_dim_col[d], r->v[d]);
+    set(vals, "scene_path", r->scene_path);
+    setf(vals, "workers", "%d", r->workers);
+    set(vals, "oversubscribed", r->oversubscribed ? "1" : "0");
+    set(vals, "baseline", st->cfg.baseline);
+    set(vals, "cores_planned", r->cores_planned);
+    return vals;
+}
+
+static void row_free(char **vals)
+{
+    for (int k = 0; k < hx_ncolumns; k++)
+        free(vals[k]);
+    free(vals);
+}
+
+/* The first line of the child's stderr, or what stands in for it. */
+static char *error_detail(const ChildResult *res)
+{
+    const char *e = res->err.s ? res->err.s : "";
+    while (*e == '\n' || *e == ' ')
+        e++;
+    size_t n = strcspn(e, "\n");
+    HxBuf b = {0};
+    if (n)
+        hx_buf_putn(&b, e, n);
+    else if (res->code != 0)
+        hx_buf_printf(&b, "exit %d, nothing on stderr", res->code);
+    else
+        hx_buf_put(&b, "exit 0 but no record line on stdout");
+    return b.s;
+}
+
+/* The status of a run whose child has ended (vals gets the record). */
+static const char *outcome(Study *st, const HxRun *r, ChildResult *res, char **vals, char **detail)
+{
+    HxBuf b = {0};
+    if (res->timed_out) {
+        hx_strlist_push(&st->timed_out, r->config_id);
+        hx_buf_printf(&b, "killed after %g s (process group)", st->cfg.timeout_s);
+        *detail = b.s;
+        return "timeout";
+    }
+    if (!res->exited) {
+        const char *sn = signal_name(res->code);
+        if (sn)
+            hx_buf_put(&b, sn);
+        else
+            hx_buf_printf(&b, "signal %d", res->code);
+        *detail = b.s;
+        setf(vals, "exit_code", "%d", 128 + res->code);
+        return "crash";
+    }
+    setf(vals, "exit_code", "%d", res->code);
+    /* the record is the last line starting with "record: " */
+    char *rec = NULL;
+    for (char *p = res->out.s; p && (p = strstr(p, "record: ")) != NULL; p++)
+        if (p == res->out.s || p[-1] == '\n')
+            rec = p;
+    if (rec && strchr(rec, '\n'))
+        *strchr(rec, '\n') = '\0';
+    if (res->code != 0 || !rec) {
+        *detail = error_detail(res);
+        if (res->code == 1)
+            hx_strlist_push(&st->deterministic, r->config_id);
+        return "error";
+    }
+    hx_record_to_row(rec, vals);
+    char *key = image_key(r->scene_path, r->v[HX_DIM_RESOLUTION], r->v[HX_DIM_MAX_DEPTH]);
+    const char *status = gate(&st->refs, key, r->v[HX_DIM_BACKEND], vals[hx_column_index("image_fnv1a")],
+                              r->run_id, detail);
+    free(key);
+    return status;
+}
+
+/* Runs r (or records why it is not run). Returns the status, NULL when a
+ * SIGINT or SIGTERM cut it short (no row then). */
+static const char *run_one(Study *st, const HxRun *r, char **vals, char **detail)
+{
+    if (!r->warmup && hx_strlist_find(&st->timed_out, r->config_id) >= 0) {
+        /* a configuration that timed out once will again: record the TLE
+         * for the remaining repeats instead of burning hours */
+        *detail = hx_strdup("not run: an earlier repeat of this configuration timed out");
+        return "timeout";
+    }
+    if (!r->warmup && hx_strlist_find(&st->deterministic, r->config_id) >= 0) {
+        *detail = hx_strdup("not run: an earlier repeat of this configuration exited with status 1 "
+                            "(bad input or option), as this one would");
+        return "error";
+    }
+    if (r->refused) {
+        HxBuf b = {0};
+        hx_buf_printf(&b, "%d workers > %d physical cores (oversubscribe: refuse)", r->workers, st->topo.ncores);
+        *detail = b.s;
+        return "refused";
+    }
+    Command cmd;
+    build_command(&st->cfg, &st->topo, r, st->raytrace, st->image, &cmd);
+    ChildResult res;
+    int spawned = run_child(cmd.argv.v, cmd.env.v, &st->topo, r, cmd.bind, st->cfg.timeout_s, &res);
+    reap_strays();
+    command_free(&cmd);
+    const char *status = NULL;
+    if (g_stop) {
+        status = NULL;
+    } else if (spawned != 0) {
+        *detail = hx_strdup("fork/pipe failed");
+        status = "error";
+    } else {
+        st->executed++;
+        st->child_ms += res.wall_ms;
+        setf(vals, "wall_ms", "%.3f", res.wall_ms);
+        status = outcome(st, r, &res, vals, detail);
+    }
+    hx_buf_free(&res.out);
+    hx_buf_free(&res.err);
+    return status;
+}
+
+/* A warm-up only helps when a repeat of its configuration will run. */
+static int warmup_needed(const Study *st, size_t i)
+{
+    const HxRun *r = &st->plan.runs[i];
+    if (r->refused)
+        return 0;
+    for (size_t k = i + 1; k < st->plan.n; k++)
+        if (!st->plan.runs[k].warmup && strcmp(st->plan.runs[k].config_id, r->config_id) == 0 &&
+            hx_strlist_find(&st->done_ids, st->plan.runs[k].run_id) < 0)
+            return 1;
+    return 0;
+}
+
+/* Runs the plan: one row per recorded run. Returns 0, or 1 when a row could
+ * not be written (the study stops there). */
+static int run_plan(Study *st)
+{
+    for (size_t i = 0; i < st->plan.n; i++) {
+        const HxRun *r = &st->plan.runs[i];
+        if (hx_strlist_find(&st->done_ids, r->run_id) >= 0) {
+            st->skipped++;
+            continue;
+        }
+        if (r->warmup && !warmup_needed(st, i))
+            continue;
+        char **vals = row_head(st, r);
+        char *detail = NULL;
+        const char *status = run_one(st, r, vals, &detail);
+        if (!status) { /* interrupted: no row for a run cut short */
+            free(detail);
+            row_free(vals);
+            return 0;
+        }
+        set(vals, "pin_held", pin_held(r->cores_planned, vals[hx_column_index("cores_actual")]));
+        set(vals, "status", status);
+        set(vals, "status_detail", detail ? detail : "");
+        int rc = 0;
+        if (!r->warmup && hx_csv_append_row(st->fd, (const char *const *)vals) != 0) {
+            /* the study ends here: the rows before this one stay, whole */
+            fprintf(stderr, "harness run: %s: write failed: %s; the study stops, the rows written so far are "
+                            "intact\n", st->out_path, strerror(errno));
+            rc = 1;
+        } else if (!r->warmup) {
+            for (int k = 0; k < 6; k++) /* the summary counts rows on disk */
+                st->nstat[k] += strcmp(status, stat_names[k]) == 0;
+            note_failure(&st->failures, r, status, detail);
+        }
+        if (!st->quiet)
+            progress_line(&st->plan, i, r, status, vals[hx_column_index("render_ms")], detail,
+                          hx_now_ms() - st->t0, ++st->attempted);
+        free(detail);
+        row_free(vals);
+        if (rc)
+            return rc;
+    }
+    return 0;
+}
+
+/* --resume: the run ids already done and the image references they set. */
+static int load_done(Study *st, char *err, size_t errlen)
+{
+    HxCsv old;
+    if (hx_csv_read(st->out_path, &old, err, errlen) != 0) {
+        /* resuming from a file we cannot read would run everything again */
+        fprintf(stderr, "harness run: --resume: %s\n", err);
+        return -1;
+    }
+    if (resume_check(&old, st->chash, &st->plan, err, errlen) != 0) {
+        fprintf(stderr, "harness run: --resume: %s: %s; write to another file or use --overwrite\n",
+                st->out_path, err);
+        hx_csv_free(&old);
+        return -1;
+    }
+    for (size_t i = 0; i < old.nrows; i++) {
+        hx_strlist_push(&st->done_ids, hx_csv_get(&old, i, "run_id"));
+        if (strcmp(hx_csv_get(&old, i, "status"), "ok") != 0)
+            continue;
+        char *key = image_key(hx_csv_get(&old, i, "scene_path"), hx_csv_get(&old, i, "resolution"),
+                              hx_csv_get(&old, i, "max_depth"));
+        char *d = NULL;
+        gate(&st->refs, key, hx_csv_get(&old, i, "backend"), hx_csv_get(&old, i, "image_fnv1a"),
+             hx_csv_get(&old, i, "run_id"), &d);
+        free(d);
+        free(key);
+    }
+    hx_csv_free(&old);
+    return 0;
+}
+
+/* The end of a study: counts, overhead, failures. Returns the exit status. */
+static int summary(const Study *st, int rc)
+{
+    if (g_stop) {
+        fprintf(stderr, "harness run: stopped by %s: the run in progress was ended and not recorded; continue "
+                        "with --resume\n", g_stop == SIGINT ? "SIGINT" : "SIGTERM");
+        rc = 128 + g_stop;
+    }
+    const size_t *n = st->nstat;
+    double total = hx_now_ms() - st->t0;
+    fprintf(stderr, "harness: %s: %zu rows (ok %zu, wrong-image %zu, timeout %zu, crash %zu, error %zu, "
+                    "refused %zu), %zu skipped (resume)\n", st->out_path,
+            n[0] + n[1] + n[2] + n[3] + n[4] + n[5], n[0], n[1], n[2], n[3], n[4], n[5], st->skipped);
+    if (st->executed)
+        fprintf(stderr, "harness: %zu child runs, %.1f ms in children, %.1f ms total: harness overhead %.3f ms "
+                        "per run\n", st->executed, st->child_ms, total,
+                (total - st->child_ms) / (double)st->executed);
+    if (n[1])
+        fprintf(stderr, "harness: warning: %zu wrong-image row(s): left out of tables and plots\n", n[1]);
+    if (st->failures.n && rc == 0) {
+        /* refused runs are the config's own choice, not failures */
+        fprintf(stderr, "harness run: %zu configuration(s) had failed runs:\n", st->failures.n);
+        for (size_t k = 0; k < st->failures.n && k < 10; k++)
+            fprintf(stderr, "  %s\n", st->failures.v[k]);
+        if (st->failures.n > 10)
+            fprintf(stderr, "  ... and %zu more (status column of %s)\n", st->failures.n - 10, st->out_path);
+        rc = 1;
+    }
+    return rc;
+}
+
+static void print_dry_run(const Study *st)
+{
+    printf("study %s: %zu runs (%d warm-up + %d repeats per configuration), %d cores\n", st->cfg.study,
+           st->plan.n, st->cfg.warmup, st->cfg.repeats, st->topo.ncores);
+    for (size_t i = 0; i < st->plan.n; i++) {
+        const HxRun *r = &st->plan.runs[i];
+        Command cmd;
+        build_command(&st->cfg, &st->topo, r, st->raytrace, "IMAGE.ppm", &cmd);
+        printf("[%zu] %s%s  cores=%s%s%s\n    ", i + 1, r->warmup ? "(warm-up) " : "", r->run_id,
+               r->cores_planned, r->oversubscribed ? " oversubscribed" : "", r->refused ? " REFUSED" : "");
+        print_command(stdout, &cmd);
+        command_free(&cmd);
+    }
+}
+
+static void warn_plan(const Study *st)
+{
+    size_t nover = 0;
+    for (size_t i = 0; i < st->plan.n; i++)
+        nover += st->plan.runs[i].oversubscribed && !st->plan.runs[i].warmup;
+    if (nover)
+        fprintf(stderr, "harness: %zu run(s) need more workers than the %d physical cores: %s\n", nover,
+                st->topo.ncores, st->cfg.oversubscribe_allow
+                ? "running them oversubscribed (oversubscribed=1 in the CSV)"
+                : "refused (status refused; set 'oversubscribe: allow' to run them)");
+    if (!st->topo.have_hwloc)
+        fprintf(stderr, "harness: built without hwloc: runs are not pinned\n");
+}
+
+/* Opens (locks) the CSV, reads what --resume skips, makes the temporary
+ * folder and takes the fingerprint. Returns 0 or -1 (message printed). */
+static int study_open(Study *st, int resume, int overwrite)
+{
+    char err[1024];
+    if (!resume && !overwrite && csv_has_rows(st->out_path)) {
+        fprintf(stderr, "harness run: %s already has rows; use --resume to continue it or --overwrite to start "
+                        "again\n", st->out_path);
+        return -1;
+    }
+    /* Open (and drop a torn last row) before reading what is done: a row cut
+     * short must be run again, not counted as done and then deleted. */
+    st->fd = hx_csv_open_append(st->out_path, overwrite, err, sizeof err);
+    if (st->fd < 0) {
+        fprintf(stderr, "harness run: %s\n", err);
+        return -1;
+    }
+    config_hash(&st->cfg, &st->plan, st->chash);
+    if (resume && load_done(st, err, sizeof err) != 0)
+        return -1;
+    const char *tmp_root = getenv("TMPDIR");
+    HxBuf t = {0};
+    hx_buf_printf(&t, "%s/harness-XXXXXX", tmp_root && *tmp_root ? tmp_root : "/tmp");
+    if (!mkdtemp(t.s)) {
+        fprintf(stderr, "harness run: cannot create a temporary directory in %s: %s\n",
+                tmp_root && *tmp_root ? tmp_root : "/tmp", strerror(errno));
+        hx_buf_free(&t);
+        return -1;
+    }
+    st->tmpdir = t.s;
+    st->image = hx_path_join(st->tmpdir, "image.ppm");
+    install_stop_handlers();
+    int want_gpu = hx_strlist_find(&st->cfg.dim[HX_DIM_BACKEND], "cuda") >= 0;
+    st->want_mpi = hx_strlist_find(&st->cfg.dim[HX_DIM_BACKEND], "mpi") >= 0;
+    /* the MPI library is mpirun's, whichever launcher starts the ranks */
+    hx_fingerprint_get(&st->fp, &st->topo, want_gpu, st->raytrace, st->want_mpi ? st->cfg.mpirun : NULL,
+                       st->out_path);
+    return 0;
+}
+
+static void study_close(Study *st)
+{
+    if (st->fd >= 0)
+        close(st->fd);
+    if (st->image) {
+        unlink(st->image);
+        free(st->image);
+        rmdir(st->tmpdir);
+    }
+    free(st->tmpdir);
+    free(st->raytrace);
+    ref_free(&st->refs);
+    hx_strlist_free(&st->done_ids);
+    hx_strlist_free(&st->timed_out);
+    hx_strlist_free(&st->deterministic);
+    hx_strlist_free(&st->failures);
+    hx_topo_free(&st->topo);
+    hx_plan_free(&st->plan);
+    hx_config_free(&st->cfg);
+}
+
 int hx_cmd_run(int argc, char **argv)
 {
     static const struct option lo[] = {
@@ -733,8 +1113,7 @@ int hx_cmd_run(int argc, char **argv)
         {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
     const char *out_path = NULL, *rt_opt = NULL;
     HxLauncher launcher = HX_LAUNCHER_MPIRUN;
-    int launcher_set = 0;
-    int resume = 0, overwrite = 0, dry = 0, quiet = 0, c;
+    int launcher_set = 0, resume = 0, overwrite = 0, dry = 0, quiet = 0, c;
     while ((c = getopt_long(argc, argv, "o:qh", lo, NULL)) != -1) {
         switch (c) {
         case 'o': out_path = optarg; break;
@@ -744,8 +1123,7 @@ int hx_cmd_run(int argc, char **argv)
         case 't': rt_opt = optarg; break;
         case 'l':
             if (hx_launcher_parse(optarg, &launcher)) {
-                fprintf(stderr, "harness run: --launcher: expected mpirun|srun, got '%s'\n",
-                        optarg);
+                fprintf(stderr, "harness run: --launcher: expected mpirun|srun, got '%s'\n", optarg);
                 return 1;
             }
             launcher_set = 1;
@@ -763,350 +1141,41 @@ int hx_cmd_run(int argc, char **argv)
         fprintf(stderr, "harness run: --resume and --overwrite exclude each other\n");
         return 1;
     }
-    HxConfig cfg;
-    if (hx_config_open(argv[optind], &cfg))
+    Study st;
+    memset(&st, 0, sizeof st);
+    st.fd = -1;
+    st.quiet = quiet;
+    if (hx_config_open(argv[optind], &st.cfg))
         return 1;
-    char err[1024];
     /* the command line wins: the same config runs on a workstation with
      * mpirun and in a Slurm job (harness slurm) with srun */
     if (launcher_set)
-        cfg.launcher = launcher;
-    HxPlan plan;
-    hx_expand(&cfg, &plan);
-    HxTopo topo;
-    hx_topo_load(&topo);
-    hx_plan_cores(&topo, &cfg, &plan);
-    char *raytrace = find_raytrace(&cfg, rt_opt);
-    char *image = NULL;
-    const char *tmp_root = getenv("TMPDIR");
-    HxBuf tmpl = {0};
-    hx_buf_printf(&tmpl, "%s/harness-XXXXXX", tmp_root && *tmp_root ? tmp_root : "/tmp");
-    char *tmpdir = tmpl.s;
-    int rc = 0, fd = -1;
-    size_t nover = 0, nref = 0;
-    for (size_t i = 0; i < plan.n; i++) {
-        nover += plan.runs[i].oversubscribed && !plan.runs[i].warmup;
-        nref += plan.runs[i].refused && !plan.runs[i].warmup;
-    }
-    if (nover)
-        fprintf(stderr, "harness: %zu run(s) need more workers than the %d physical cores: %s\n",
-                nover, topo.ncores, cfg.oversubscribe_allow
-                ? "running them oversubscribed (oversubscribed=1 in the CSV)"
-                : "refused (status refused; set 'oversubscribe: allow' to run them)");
-    if (!topo.have_hwloc)
-        fprintf(stderr, "harness: built without hwloc: runs are not pinned\n");
-
-    if (dry) {
-        printf("study %s: %zu runs (%d warm-up + %d repeats per configuration), %d cores\n",
-               cfg.study, plan.n, cfg.warmup, cfg.repeats, topo.ncores);
-        for (size_t i = 0; i < plan.n; i++) {
-            HxRun *r = &plan.runs[i];
-            Command cmd;
-            build_command(&cfg, &topo, r, raytrace, "IMAGE.ppm", &cmd);
-            printf("[%zu] %s%s  cores=%s%s%s\n    ", i + 1, r->warmup ? "(warm-up) " : "",
-                   r->run_id, r->cores_planned, r->oversubscribed ? " oversubscribed" : "",
-                   r->refused ? " REFUSED" : "");
-            print_command(stdout, &cmd);
-            command_free(&cmd);
-        }
-        goto done;
-    }
-    if (access(raytrace, X_OK) != 0) {
-        fprintf(stderr, "harness run: raytrace not executable at '%s' (set --raytrace, "
-                        "'raytrace:' in the config or $RAYTRACE)\n", raytrace);
-        rc = 1;
-        goto done;
-    }
+        st.cfg.launcher = launcher;
+    hx_expand(&st.cfg, &st.plan);
+    hx_topo_load(&st.topo);
+    hx_plan_cores(&st.topo, &st.cfg, &st.plan);
+    st.raytrace = find_raytrace(&st.cfg, rt_opt);
+    warn_plan(&st);
+    int rc = 0;
     HxBuf defout = {0};
-    if (!out_path) {
-        hx_buf_printf(&defout, "%s%s.csv", hx_is_dir("results") ? "results/" : "", cfg.study);
-        out_path = defout.s;
-    }
-    if (!resume && !overwrite && csv_has_rows(out_path)) {
-        fprintf(stderr, "harness run: %s already has rows; use --resume to continue it or "
-                        "--overwrite to start again\n", out_path);
+    if (dry) {
+        print_dry_run(&st);
+    } else if (access(st.raytrace, X_OK) != 0) {
+        fprintf(stderr, "harness run: raytrace not executable at '%s' (set --raytrace, 'raytrace:' in the config "
+                        "or $RAYTRACE)\n", st.raytrace);
         rc = 1;
-        hx_buf_free(&defout);
-        goto done;
-    }
-    /* What is already there: run ids to skip and image references. */
-    /* timed_out: configurations whose run hit the timeout; deterministic:
-     * those that ended with exit 1 (the renderer's answer to bad input or an
-     * option this build lacks: a repeat would fail the same way); failures:
-     * one line per failing configuration for the summary */
-    HxStrList done_ids = {0}, timed_out = {0}, deterministic = {0}, failures = {0};
-    RefTable refs = {0};
-    /* Open (and drop a torn last row) before reading what is done: a row cut
-     * short must be run again, not counted as done and then deleted. */
-    fd = hx_csv_open_append(out_path, overwrite, err, sizeof err);
-    if (fd < 0) {
-        fprintf(stderr, "harness run: %s\n", err);
-        rc = 1;
-        goto done_ids;
-    }
-    char chash[20];
-    config_hash(&cfg, &plan, chash);
-    if (resume) {
-        HxCsv old;
-        if (hx_csv_read(out_path, &old, err, sizeof err) != 0) {
-            /* resuming from a file we cannot read would run everything again */
-            fprintf(stderr, "harness run: --resume: %s\n", err);
+    } else {
+        if (!out_path)
+            hx_buf_printf(&defout, "%s%s.csv", hx_is_dir("results") ? "results/" : "", st.cfg.study);
+        st.out_path = out_path ? out_path : defout.s;
+        if (study_open(&st, resume, overwrite) != 0) {
             rc = 1;
-            goto done_ids;
-        } else if (resume_check(&old, chash, &plan, err, sizeof err) != 0) {
-            fprintf(stderr, "harness run: --resume: %s: %s; write to another file or use --overwrite\n", out_path,
-                    err);
-            hx_csv_free(&old);
-            rc = 1;
-            goto done_ids;
         } else {
-            for (size_t i = 0; i < old.nrows; i++) {
-                hx_strlist_push(&done_ids, hx_csv_get(&old, i, "run_id"));
-                if (strcmp(hx_csv_get(&old, i, "status"), "ok") == 0) {
-                    char *key = image_key(hx_csv_get(&old, i, "scene_path"),
-                                          hx_csv_get(&old, i, "resolution"),
-                                          hx_csv_get(&old, i, "max_depth"));
-                    char *d = NULL;
-                    gate(&refs, key, hx_csv_get(&old, i, "backend"),
-                         hx_csv_get(&old, i, "image_fnv1a"), hx_csv_get(&old, i, "run_id"), &d);
-                    free(d);
-                    free(key);
-                }
-            }
-            hx_csv_free(&old);
+            st.t0 = hx_now_ms();
+            rc = summary(&st, run_plan(&st));
         }
     }
-    if (!mkdtemp(tmpdir)) {
-        fprintf(stderr, "harness run: cannot create a temporary directory: %s\n", strerror(errno));
-        rc = 1;
-        goto done_ids;
-    }
-    image = hx_path_join(tmpdir, "image.ppm");
-    install_stop_handlers();
-
-    int want_gpu = hx_strlist_find(&cfg.dim[HX_DIM_BACKEND], "cuda") >= 0;
-    int want_mpi = hx_strlist_find(&cfg.dim[HX_DIM_BACKEND], "mpi") >= 0;
-    HxFingerprint fp;
-    hx_fingerprint_get(&fp, &topo, want_gpu, raytrace,
-                       want_mpi ? cfg.mpirun : NULL, out_path); /* the MPI library, whichever launcher */
-
-    double study_t0 = hx_now_ms(), child_ms = 0;
-    size_t executed = 0, skipped = 0, attempted = 0, nstat[6] = {0};
-    static const char *const stat_names[6] = {"ok", "wrong-image", "timeout", "crash", "error", "refused"};
-    for (size_t i = 0; i < plan.n; i++) {
-        HxRun *r = &plan.runs[i];
-        if (hx_strlist_find(&done_ids, r->run_id) >= 0) {
-            skipped++;
-            continue;
-        }
-        if (r->warmup) {
-            /* a warm-up only helps when a repeat of its configuration runs */
-            int needed = 0;
-            for (size_t k = i + 1; k < plan.n && !needed; k++)
-                needed = !plan.runs[k].warmup &&
-                         strcmp(plan.runs[k].config_id, r->config_id) == 0 &&
-                         hx_strlist_find(&done_ids, plan.runs[k].run_id) < 0;
-            if (!needed || r->refused)
-                continue;
-        }
-        char **vals = calloc((size_t)hx_ncolumns, sizeof *vals);
-        char utc[32];
-        hx_utc_now(utc, sizeof utc);
-        set(vals, "study", cfg.study);
-        set(vals, "run_id", r->run_id);
-        setf(vals, "repeat", "%d", r->repeat);
-        set(vals, "utc", utc);
-        set(vals, "git_commit", fp.git_commit);
-        set(vals, "host", fp.host);
-        set(vals, "cpu_model", fp.cpu_model);
-        setf(vals, "phys_cores", "%d", fp.phys_cores);
-        setf(vals, "logical_cpus", "%d", fp.logical_cpus);
-        set(vals, "smt", fp.smt ? "on" : "off");
-        set(vals, "governor", fp.governor);
-        set(vals, "compiler", fp.compiler);
-        set(vals, "gpu_name", strcmp(r->v[HX_DIM_BACKEND], "cuda") == 0 ? fp.gpu_name : "-");
-        set(vals, "gpu_driver", strcmp(r->v[HX_DIM_BACKEND], "cuda") == 0 ? fp.gpu_driver : "-");
-        set(vals, "fingerprint", fp.fingerprint);
-        set(vals, "kernel", fp.kernel);
-        set(vals, "mpi_version", want_mpi ? fp.mpi_version : "-");
-        set(vals, "build_flags", fp.build_flags);
-        set(vals, "config_hash", chash);
-        for (int d = 0; d < HX_NDIM; d++)
-            set(vals, hx_dim_col[d], r->v[d]);
-        set(vals, "scene_path", r->scene_path);
-        setf(vals, "workers", "%d", r->workers);
-        set(vals, "oversubscribed", r->oversubscribed ? "1" : "0");
-        set(vals, "baseline", cfg.baseline);
-        set(vals, "cores_planned", r->cores_planned);
-        const char *status = "ok";
-        char *detail = NULL;
-        if (!r->warmup && hx_strlist_find(&timed_out, r->config_id) >= 0) {
-            /* a configuration that timed out once will again: record the
-             * TLE for the remaining repeats instead of burning hours */
-            status = "timeout";
-            detail = hx_strdup("not run: an earlier repeat of this configuration timed out");
-        } else if (!r->warmup && hx_strlist_find(&deterministic, r->config_id) >= 0) {
-            status = "error";
-            detail = hx_strdup("not run: an earlier repeat of this configuration exited with status 1 "
-                               "(bad input or option), as this one would");
-        } else if (r->refused) {
-            status = "refused";
-            HxBuf b = {0};
-            hx_buf_printf(&b, "%d workers > %d physical cores (oversubscribe: refuse)",
-                          r->workers, topo.ncores);
-            detail = b.s;
-        } else {
-            Command cmd;
-            build_command(&cfg, &topo, r, raytrace, image, &cmd);
-            ChildResult res;
-            int spawned = run_child(cmd.argv.v, cmd.env.v, &topo, r, cmd.bind, cfg.timeout_s, &res);
-            reap_strays();
-            if (g_stop) { /* interrupted: no row for a run cut short */
-                hx_buf_free(&res.out);
-                hx_buf_free(&res.err);
-                command_free(&cmd);
-                for (int k = 0; k < hx_ncolumns; k++)
-                    free(vals[k]);
-                free(vals);
-                break;
-            }
-            if (spawned != 0) {
-                status = "error";
-                detail = hx_strdup("fork/pipe failed");
-            } else {
-                executed++;
-                child_ms += res.wall_ms;
-                setf(vals, "wall_ms", "%.3f", res.wall_ms);
-                if (res.timed_out) {
-                    status = "timeout";
-                    hx_strlist_push(&timed_out, r->config_id);
-                    HxBuf b = {0};
-                    hx_buf_printf(&b, "killed after %g s (process group)", cfg.timeout_s);
-                    detail = b.s;
-                } else if (!res.exited) {
-                    status = "crash";
-                    const char *sn = signal_name(res.code);
-                    HxBuf b = {0};
-                    if (sn)
-                        hx_buf_put(&b, sn);
-                    else
-                        hx_buf_printf(&b, "signal %d", res.code);
-                    detail = b.s;
-                    setf(vals, "exit_code", "%d", 128 + res.code);
-                } else {
-                    setf(vals, "exit_code", "%d", res.code);
-                    /* the record is the last line starting with "record: " */
-                    char *rec = NULL;
-                    if (res.out.s) {
-                        for (char *p = res.out.s; (p = strstr(p, "record: ")) != NULL; p++)
-                            if (p == res.out.s || p[-1] == '\n')
-                                rec = p;
-                    }
-                    if (rec) {
-                        char *nl = strchr(rec, '\n');
-                        if (nl)
-                            *nl = '\0';
-                    }
-                    if (res.code != 0 || !rec) {
-                        status = "error";
-                        const char *e = res.err.s ? res.err.s : "";
-                        while (*e == '\n' || *e == ' ')
-                            e++;
-                        size_t n = strcspn(e, "\n");
-                        HxBuf b = {0};
-                        if (n)
-                            hx_buf_putn(&b, e, n);
-                        else if (res.code != 0)
-                            hx_buf_printf(&b, "exit %d, nothing on stderr", res.code);
-                        else
-                            hx_buf_put(&b, "exit 0 but no record line on stdout");
-                        detail = b.s;
-                        if (res.code == 1)
-                            hx_strlist_push(&deterministic, r->config_id);
-                    } else {
-                        hx_record_to_row(rec, vals);
-                        char *key = image_key(r->scene_path, r->v[HX_DIM_RESOLUTION],
-                                              r->v[HX_DIM_MAX_DEPTH]);
-                        status = gate(&refs, key, r->v[HX_DIM_BACKEND],
-                                      vals[hx_column_index("image_fnv1a")], r->run_id, &detail);
-                        free(key);
-                    }
-                }
-                hx_buf_free(&res.out);
-                hx_buf_free(&res.err);
-            }
-            command_free(&cmd);
-        }
-        set(vals, "pin_held", pin_held(r->cores_planned, vals[hx_column_index("cores_actual")]));
-        set(vals, "status", status);
-        set(vals, "status_detail", detail ? detail : "");
-        if (!r->warmup) {
-            if (hx_csv_append_row(fd, (const char *const *)vals) != 0) {
-                /* the study ends here: the rows before this one stay, whole */
-                fprintf(stderr, "harness run: %s: write failed: %s; the study stops, the rows "
-                                "written so far are intact\n", out_path, strerror(errno));
-                rc = 1;
-            } else {
-                for (int s = 0; s < 6; s++) /* the summary counts rows on disk */
-                    nstat[s] += strcmp(status, stat_names[s]) == 0;
-                note_failure(&failures, r, status, detail);
-            }
-        }
-        if (!quiet)
-            progress_line(&plan, i, r, status, vals[hx_column_index("render_ms")], detail,
-                          hx_now_ms() - study_t0, ++attempted);
-        free(detail);
-        for (int k = 0; k < hx_ncolumns; k++)
-            free(vals[k]);
-        free(vals);
-        if (rc)
-            break;
-    }
-    if (g_stop) {
-        fprintf(stderr, "harness run: stopped by %s: the run in progress was ended and not "
-                        "recorded; continue with --resume\n", g_stop == SIGINT ? "SIGINT" : "SIGTERM");
-        rc = 128 + g_stop;
-    }
-    double total = hx_now_ms() - study_t0;
-    fprintf(stderr, "harness: %s: %zu rows (ok %zu, wrong-image %zu, timeout %zu, crash %zu, "
-                    "error %zu, refused %zu), %zu skipped (resume)\n", out_path,
-            nstat[0] + nstat[1] + nstat[2] + nstat[3] + nstat[4] + nstat[5], nstat[0], nstat[1],
-            nstat[2], nstat[3], nstat[4], nstat[5], skipped);
-    if (executed)
-        fprintf(stderr, "harness: %zu child runs, %.1f ms in children, %.1f ms total: "
-                        "harness overhead %.3f ms per run\n",
-                executed, child_ms, total, (total - child_ms) / (double)executed);
-    if (nstat[1])
-        fprintf(stderr, "harness: warning: %zu wrong-image row(s): left out of tables and plots\n",
-                nstat[1]);
-    if (failures.n && rc == 0) {
-        /* refused runs are the config's own choice, not failures */
-        fprintf(stderr, "harness run: %zu configuration(s) had failed runs:\n", failures.n);
-        for (size_t k = 0; k < failures.n && k < 10; k++)
-            fprintf(stderr, "  %s\n", failures.v[k]);
-        if (failures.n > 10)
-            fprintf(stderr, "  ... and %zu more (status column of %s)\n", failures.n - 10, out_path);
-        rc = 1;
-    }
-    ref_free(&refs);
-done_ids:
-    hx_strlist_free(&done_ids);
-    hx_strlist_free(&timed_out);
-    hx_strlist_free(&deterministic);
-    hx_strlist_free(&failures);
+    study_close(&st);
     hx_buf_free(&defout);
-done:
-    if (fd >= 0)
-        close(fd);
-    if (image) {
-        unlink(image);
-        free(image);
-        rmdir(tmpdir);
-    }
-    hx_buf_free(&tmpl);
-    free(raytrace);
-    hx_topo_free(&topo);
-    hx_plan_free(&plan);
-    hx_config_free(&cfg);
     return rc;
 }
