@@ -141,6 +141,10 @@ int hx_study_open(const char *who, const char *path, const char *metric, HxStudy
     return -1;
 }
 
+static void mark_wrong_rows(HxStudy *s);
+static void group_rows(HxStudy *s, const char *metric);
+static void group_stats(HxStudy *s);
+
 int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, size_t errlen)
 {
     memset(s, 0, sizeof *s);
@@ -158,7 +162,18 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
         snprintf(err, errlen, "%s: no column '%s' for --metric (a column, or COLUMN/calib)", path, metric);
         return -1;
     }
-    /* gate, pass 1: reference hash per image (scene, resolution, depth) */
+    mark_wrong_rows(s);
+    group_rows(s, metric);
+    group_stats(s);
+    return 0;
+}
+
+/* The correctness gate again, from the CSV alone: pass 1 finds the reference
+ * hash per image (scene, resolution, depth), pass 2 marks the rows that
+ * differ. */
+static void mark_wrong_rows(HxStudy *s)
+{
+    const HxCsv *csv = &s->csv;
     size_t n = csv->nrows;
     s->row_status_wrong = calloc(n ? n : 1, sizeof(int));
     char **refkey = calloc(n ? n : 1, sizeof(char *));
@@ -214,7 +229,13 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
     free(refkey);
     free(refhash);
     free(refserial);
+}
 
+/* One group per configuration, with its ok samples of the metric. */
+static void group_rows(HxStudy *s, const char *metric)
+{
+    const HxCsv *csv = &s->csv;
+    size_t n = csv->nrows;
     int varies[HX_NDIM];
     for (int d = 0; d < HX_NDIM; d++)
         varies[d] = dim_varies(csv, hx_dim_col[d]);
@@ -269,6 +290,11 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
                 g->first_status = strcmp(st, "ok") == 0 ? "no-time" : st;
         }
     }
+}
+
+/* Median, quartiles, interval and outliers of every group. */
+static void group_stats(HxStudy *s)
+{
     for (size_t gi = 0; gi < s->ng; gi++) {
         HxGroup *g = &s->g[gi];
         g->ci_lo = g->ci_hi = NAN;
@@ -287,7 +313,6 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
         free(sorted);
         g->noutliers = hx_outliers(g->t, g->nt, 10.0, NULL);
     }
-    return 0;
 }
 
 void hx_study_free(HxStudy *s)
