@@ -54,6 +54,16 @@ start=$(date +%s)
 took=$(( $(date +%s) - start ))
 [ "$(grep -c ',timeout,' "$T/deep.csv")" -eq 2 ] || { cat "$T/deep.log" "$T/deep.csv"; fail "the deep render was not ended as TLE"; }
 [ $took -le 10 ] || fail "the deep study took $took s with a 2 s timeout"
+# the same under mpirun: when the harness kills the run, no rank may
+# outlive it (they would overlap the next run)
+if command -v mpirun > /dev/null && ! "$RT" -V | grep -q 'mpi(not built)'; then
+    printf 'study: deepmpi\nscene_dir: %s\nscenes: deep\nbackend: mpi\nranks: 2\nrepeats: 1\ntimeout: 3\npin: none\noversubscribe: allow\n' \
+        "$T/deep" > "$T/deepmpi.conf"
+    "$H" run "$T/deepmpi.conf" --raytrace "$RT" -o "$T/deepmpi.csv" -q 2> "$T/deepmpi.log"
+    grep -q ',timeout,' "$T/deepmpi.csv" || { cat "$T/deepmpi.log" "$T/deepmpi.csv"; fail "the MPI deep render was not ended as TLE"; }
+    left=$(pgrep -f "$T/deep/deep.txt")
+    [ -z "$left" ] || { ps -fp $left; fail "MPI ranks outlived the harness's kill"; }
+fi
 command -v gnuplot > /dev/null || { echo "gnuplot missing: plot check skipped"; exit 77; }
 "$H" plot "$T/quick.csv" -o "$T/quick" || fail "plot failed"
 for k in speedup efficiency scenes; do
