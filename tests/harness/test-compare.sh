@@ -14,6 +14,7 @@ printf 'study: c\nscene_dir: .\nscenes: ok\naccel: bvh\nrepeats: 5\npin: none\nr
 "$H" run unset.conf -o unset.csv -q 2> /dev/null || fail "unset study"
 "$H" run set.conf -o set.csv -q 2> /dev/null || fail "set study"
 "$H" compare set.csv unset.csv > c1.out || { cat c1.out; fail "accel: bvh against accel unset flagged"; }
+grep -q "^NOTE times are not calibrated" c1.out || fail "no note on uncalibrated times"
 grep -q "compare: 1 configuration(s) compared, 0 regression(s)" c1.out || { cat c1.out; fail "not compared as one configuration"; }
 # the same rows with render_ms scaled (the fake renders in 1.250 ms)
 scale() { # IN OUT FACTOR
