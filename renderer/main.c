@@ -308,14 +308,11 @@ static int quiet_rank_exit(int other_rank)
     return 1;
 }
 
-int main(int argc, char **argv)
+/* Parses the options on every rank; under mpirun only rank 0 may say what
+ * is wrong with them, or print --help and --version (stdout and stderr are
+ * silenced meanwhile on the others). */
+static int parse_on_every_rank(int argc, char **argv, Options *o, int other_rank)
 {
-    double t_start = rt_now_ms();
-    Options o;
-    /* Under mpirun every rank parses the same options: let only rank 0 say
-     * what is wrong with them, or print --help and --version (stdout and
-     * stderr are silenced meanwhile on the others). */
-    int other_rank = launcher_rank() != 0;
     int saved_stderr = -1, saved_stdout = -1;
     if (other_rank) {
         fflush(stdout);
@@ -329,7 +326,7 @@ int main(int argc, char **argv)
             fclose(null);
         }
     }
-    int parsed = parse_options(argc, argv, &o);
+    int parsed = parse_options(argc, argv, o);
     if (other_rank) {
         fflush(stdout);
         fflush(stderr);
@@ -338,20 +335,183 @@ int main(int argc, char **argv)
         close(saved_stdout);
         close(saved_stderr);
     }
-    if (parsed != 0)
-        return quiet_rank_exit(other_rank);
-    const RtBackend *be = rt_backend_find(o.backend);
+    return parsed;
+}
+
+/* The backend --backend names, or NULL after saying why not (rank 0). */
+static const RtBackend *pick_backend(const Options *o, int other_rank)
+{
+    const RtBackend *be = rt_backend_find(o->backend);
     if (!be) {
         if (!other_rank)
             fprintf(stderr, "%s: option --backend '%s': unknown backend (serial, openmp, mpi, cuda)\n", prog,
-                    o.backend);
-        return quiet_rank_exit(other_rank);
+                    o->backend);
+        return NULL;
     }
     if (be->unavailable) {
         if (!other_rank)
             fprintf(stderr, "%s: --backend %s: %s\n", prog, be->name, be->unavailable);
-        return quiet_rank_exit(other_rank);
+        return NULL;
     }
+    return be;
+}
+
+/* One render's data, from the scene to the record. */
+typedef struct {
+    const Options *o;
+    const RtBackend *be;
+    const RtCollective *col;
+    int is_root;
+    RtScene scene;
+    RtAccel accel;
+    RtCamera cam;
+    const char *output;
+    float *rgbf;
+    uint8_t *rgb;
+    size_t npix;
+    double t_start, parse_ms, build_ms, calib_ms, write_ms;
+    uint64_t hash;
+    RtRenderOut out;
+} Run;
+
+/* The scene loaded with the overrides applied, the camera checked, the
+ * output checked, the accelerator built and the image buffers allocated. */
+static int prepare(Run *r, RtError *err)
+{
+    const Options *o = r->o;
+    double t0 = rt_now_ms();
+    /* warnings are not progress: --quiet keeps them (README) */
+    RtWarnFn warn = r->is_root ? warn_cb : NULL;
+    if (r->col && r->col->scene_load ? r->col->scene_load(o->scene, o->mpi_scene, &r->scene, warn, NULL, err) != 0
+                                     : rt_scene_load(o->scene, &r->scene, warn, NULL, err) != 0)
+        return -1;
+    r->parse_ms = rt_now_ms() - t0;
+    if (o->width) {
+        r->scene.width = o->width;
+        r->scene.height = o->height;
+        r->scene.line_res = 0;
+    }
+    if (o->max_depth >= 0)
+        r->scene.max_depth = o->max_depth;
+    if (rt_scene_camera(&r->scene, &r->cam, err) != 0)
+        return -1;
+    if (r->is_root)
+        warn_deep(&r->scene, &r->cam);
+    r->output = o->output ? o->output : r->scene.output;
+    /* only the root writes the image, so only its directory matters */
+    if (r->is_root && check_output(r->output, err) != 0) {
+        if (!o->output && r->scene.line_output) { /* the name came from the scene: say where */
+            RtError e2 = *err;
+            rt_fail(err, "%s:%d: output_image: %s", r->scene.path, r->scene.line_output, e2.msg);
+        }
+        return -1;
+    }
+    t0 = rt_now_ms();
+    if (rt_accel_build(&r->scene, o->accel, &r->accel, err) != 0 || rt_bvh_check(&r->accel, err) != 0)
+        return -1;
+    r->build_ms = rt_now_ms() - t0;
+    r->npix = (size_t)r->cam.width * (size_t)r->cam.height;
+    r->rgbf = malloc(r->npix * 3 * sizeof *r->rgbf);
+    r->rgb = malloc(r->npix * 3);
+    if (!r->rgbf || !r->rgb)
+        return rt_fail(err, "out of memory for a %dx%d image (%.1f MiB)", r->cam.width, r->cam.height,
+                       (double)r->npix * 15.0 / (1024.0 * 1024.0));
+    return 0;
+}
+
+/* The render itself, into the poisoned float image; with --verify, a pixel
+ * left unwritten fails it. */
+static int render(Run *r, RtError *err)
+{
+    const Options *o = r->o;
+    /* Poison: NaN in every channel, so an unwritten pixel cannot pass as black. */
+    for (size_t i = 0; i < r->npix * 3; i++)
+        r->rgbf[i] = NAN;
+    RtRenderJob job;
+    memset(&job, 0, sizeof job);
+    job.scene = &r->scene;
+    job.accel = &r->accel;
+    job.view = rt_scene_view(&r->scene, &r->accel, &r->cam);
+    job.threads = o->threads;
+    job.tile_w = o->tile_w;
+    job.tile_h = o->tile_h;
+    job.schedule = o->schedule;
+    job.mpi_schedule = o->mpi_schedule;
+    job.block_x = o->block_x;
+    job.block_y = o->block_y;
+    job.device = o->device;
+    Progress prog_state = {0, -1};
+    if (!o->quiet && isatty(STDERR_FILENO)) {
+        prog_state.enabled = 1;
+        job.progress = progress_cb;
+        job.progress_ctx = &prog_state;
+    }
+    /* Right before the render, on the same core: the machine's speed now. */
+    r->calib_ms = o->calibrate ? rt_calibrate_ms() : 0.0;
+    memset(&r->out, 0, sizeof r->out);
+    r->out.rgb = r->rgbf;
+    r->out.is_root = 1;
+    if (r->be->render(&job, &r->out, err) != 0)
+        return -1;
+    if (r->out.is_root && o->verify)
+        for (size_t i = 0; i < r->npix * 3; i++)
+            if (isnan(r->rgbf[i]))
+                return rt_fail(err, "--verify: pixel (%zu, %zu) was never written by the %s backend",
+                               (i / 3) % (size_t)r->cam.width, (i / 3) / (size_t)r->cam.width, r->be->name);
+    return 0;
+}
+
+/* The 8-bit image, its hash, and the file (whole or not at all). */
+static int write_image(Run *r, RtError *err)
+{
+    rt_image_quantize(r->rgbf, r->rgb, r->npix);
+    r->hash = rt_fnv1a64(r->rgb, r->npix * 3);
+    double t0 = rt_now_ms();
+    if (rt_image_write(r->output, r->rgb, r->cam.width, r->cam.height, err) != 0)
+        return -1;
+    r->write_ms = rt_now_ms() - t0;
+    return 0;
+}
+
+/* The record line (docs/record.md). */
+static void print_record(const Run *r)
+{
+    const Options *o = r->o;
+    const RtRenderOut *out = &r->out;
+    double total_ms = rt_now_ms() - r->t_start;
+    uint64_t rays = rt_counters_rays(&out->counters);
+    int tw = o->tile_w ? o->tile_w : (strcmp(r->be->name, "serial") == 0 ? 32 : 16);
+    int th = o->tile_h ? o->tile_h : tw;
+    char calib_key[48] = "";
+    if (o->calibrate)
+        snprintf(calib_key, sizeof calib_key, " calib_ms=%.3f", r->calib_ms);
+    printf("record: scene=%s width=%d height=%d backend=%s accel=%s threads=%d ranks=%d parse_ms=%.3f "
+           "build_ms=%.3f render_ms=%.3f write_ms=%.3f total_ms=%.3f rays=%llu primary_rays=%llu "
+           "shadow_rays=%llu secondary_rays=%llu node_visits=%llu prim_tests=%llu mrays_per_s=%.3f "
+           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u%s%s\n",
+           r->scene.name, r->cam.width, r->cam.height, r->be->name, rt_accel_name(o->accel), out->threads_used,
+           out->ranks_used, r->parse_ms, r->build_ms, out->render_ms, r->write_ms, total_ms,
+           (unsigned long long)rays, (unsigned long long)out->counters.primary_rays,
+           (unsigned long long)out->counters.shadow_rays, (unsigned long long)out->counters.secondary_rays,
+           (unsigned long long)out->counters.node_visits, (unsigned long long)out->counters.prim_tests,
+           out->render_ms > 0.0 ? (double)rays / (out->render_ms * 1000.0) : 0.0, (unsigned long long)r->hash, tw,
+           th, out->cores[0] ? out->cores : "unknown", r->accel.nprims - r->accel.nsplit, r->accel.nnodes,
+           out->extra, calib_key);
+    fflush(stdout);
+}
+
+/* The data flow: options, backend, scene and accelerator (every rank agrees
+ * on failure first), render, image, record. */
+int main(int argc, char **argv)
+{
+    Options o;
+    int other_rank = launcher_rank() != 0;
+    double t_start = rt_now_ms();
+    if (parse_on_every_rank(argc, argv, &o, other_rank) != 0)
+        return quiet_rank_exit(other_rank);
+    const RtBackend *be = pick_backend(&o, other_rank);
+    if (!be)
+        return quiet_rank_exit(other_rank);
     RtError err;
     err.msg[0] = '\0';
     /* (a signal ignored at start, as SIGINT in a shell's background job,
@@ -364,150 +524,31 @@ int main(int argc, char **argv)
         fprintf(stderr, "%s: %s\n", prog, err.msg);
         return 1;
     }
+    Run r;
+    memset(&r, 0, sizeof r);
+    r.o = &o;
+    r.be = be;
+    r.t_start = t_start;
     /* Several processes (MPI): only the root prints, and every failure
      * before rendering is agreed on by all ranks (col->agree) instead of
      * ending one rank while the others wait for it in a collective call. */
-    const RtCollective *col = be->collective;
-    int is_root = col ? col->is_root() : 1;
-    int failed = 0;
-    int rc = 1;
-    RtScene scene;
-    RtAccel accel;
-    memset(&scene, 0, sizeof scene);
-    memset(&accel, 0, sizeof accel);
-    float *rgbf = NULL;
-    uint8_t *rgb = NULL;
-    const char *output = NULL;
-
-    double t0 = rt_now_ms();
-    /* warnings are not progress: --quiet keeps them (README) */
-    RtWarnFn warn = is_root ? warn_cb : NULL;
-    if (col && col->scene_load ? col->scene_load(o.scene, o.mpi_scene, &scene, warn, NULL, &err) != 0
-                               : rt_scene_load(o.scene, &scene, warn, NULL, &err) != 0)
-        goto prep_fail;
-    double parse_ms = rt_now_ms() - t0;
-    if (o.width) {
-        scene.width = o.width;
-        scene.height = o.height;
-        scene.line_res = 0;
-    }
-    if (o.max_depth >= 0)
-        scene.max_depth = o.max_depth;
-    RtCamera cam;
-    if (rt_scene_camera(&scene, &cam, &err) != 0)
-        goto prep_fail;
-    if (is_root)
-        warn_deep(&scene, &cam);
-    output = o.output ? o.output : scene.output;
-    /* only the root writes the image, so only its directory matters */
-    if (is_root && check_output(output, &err) != 0) {
-        if (!o.output && scene.line_output) { /* the name came from the scene: say where */
-            RtError e2 = err;
-            rt_fail(&err, "%s:%d: output_image: %s", scene.path, scene.line_output, e2.msg);
-        }
-        goto prep_fail;
-    }
-
-    t0 = rt_now_ms();
-    if (rt_accel_build(&scene, o.accel, &accel, &err) != 0 || rt_bvh_check(&accel, &err) != 0)
-        goto prep_fail;
-    double build_ms = rt_now_ms() - t0;
-
-    size_t npix = (size_t)cam.width * (size_t)cam.height;
-    rgbf = malloc(npix * 3 * sizeof *rgbf);
-    rgb = malloc(npix * 3);
-    if (!rgbf || !rgb) {
-        rt_fail(&err, "out of memory for a %dx%d image (%.1f MiB)", cam.width, cam.height,
-                (double)npix * 15.0 / (1024.0 * 1024.0));
-        goto prep_fail;
-    }
-    goto agree;
-prep_fail:
-    failed = 1;
-agree:
-    if (col && col->agree(failed, &err) != 0)
+    r.col = be->collective;
+    r.is_root = r.col ? r.col->is_root() : 1;
+    int failed = prepare(&r, &err) != 0;
+    if (r.col && r.col->agree(failed, &err) != 0)
         failed = 1;
-    if (failed)
-        goto fail;
-    /* Poison: NaN in every channel, so an unwritten pixel cannot pass as black. */
-    for (size_t i = 0; i < npix * 3; i++)
-        rgbf[i] = NAN;
-
-    RtRenderJob job;
-    memset(&job, 0, sizeof job);
-    job.scene = &scene;
-    job.accel = &accel;
-    job.view = rt_scene_view(&scene, &accel, &cam);
-    job.threads = o.threads;
-    job.tile_w = o.tile_w;
-    job.tile_h = o.tile_h;
-    job.schedule = o.schedule;
-    job.mpi_schedule = o.mpi_schedule;
-    job.block_x = o.block_x;
-    job.block_y = o.block_y;
-    job.device = o.device;
-    Progress prog_state = {0, -1};
-    if (!o.quiet && isatty(STDERR_FILENO)) {
-        prog_state.enabled = 1;
-        job.progress = progress_cb;
-        job.progress_ctx = &prog_state;
+    int rc = 0;
+    if (failed || render(&r, &err) != 0 || (r.out.is_root && write_image(&r, &err) != 0)) {
+        if (r.is_root)
+            fprintf(stderr, "%s\n", err.msg);
+        rc = 1;
+    } else if (r.out.is_root) {
+        print_record(&r);
     }
-    /* Right before the render, on the same core: the machine's speed now. */
-    double calib_ms = o.calibrate ? rt_calibrate_ms() : 0.0;
-    RtRenderOut out;
-    memset(&out, 0, sizeof out);
-    out.rgb = rgbf;
-    out.is_root = 1;
-    if (be->render(&job, &out, &err) != 0)
-        goto fail;
-    if (!out.is_root) {
-        rc = 0;
-        goto done;
-    }
-    if (o.verify) {
-        for (size_t i = 0; i < npix * 3; i++)
-            if (isnan(rgbf[i])) {
-                rt_fail(&err, "--verify: pixel (%zu, %zu) was never written by the %s backend", (i / 3) % (size_t)cam.width,
-                        (i / 3) / (size_t)cam.width, be->name);
-                goto fail;
-            }
-    }
-    rt_image_quantize(rgbf, rgb, npix);
-    uint64_t hash = rt_fnv1a64(rgb, npix * 3);
-    t0 = rt_now_ms();
-    if (rt_image_write(output, rgb, cam.width, cam.height, &err) != 0)
-        goto fail;
-    double write_ms = rt_now_ms() - t0;
-    double total_ms = rt_now_ms() - t_start;
-    uint64_t rays = rt_counters_rays(&out.counters);
-    int tw = o.tile_w ? o.tile_w : (strcmp(be->name, "serial") == 0 ? 32 : 16);
-    int th = o.tile_h ? o.tile_h : tw;
-    char calib_key[48] = "";
-    if (o.calibrate)
-        snprintf(calib_key, sizeof calib_key, " calib_ms=%.3f", calib_ms);
-    printf("record: scene=%s width=%d height=%d backend=%s accel=%s threads=%d ranks=%d parse_ms=%.3f "
-           "build_ms=%.3f render_ms=%.3f write_ms=%.3f total_ms=%.3f rays=%llu primary_rays=%llu "
-           "shadow_rays=%llu secondary_rays=%llu node_visits=%llu prim_tests=%llu mrays_per_s=%.3f "
-           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u%s%s\n",
-           scene.name, cam.width, cam.height, be->name, rt_accel_name(o.accel), out.threads_used, out.ranks_used,
-           parse_ms, build_ms, out.render_ms, write_ms, total_ms, (unsigned long long)rays,
-           (unsigned long long)out.counters.primary_rays, (unsigned long long)out.counters.shadow_rays,
-           (unsigned long long)out.counters.secondary_rays, (unsigned long long)out.counters.node_visits,
-           (unsigned long long)out.counters.prim_tests,
-           out.render_ms > 0.0 ? (double)rays / (out.render_ms * 1000.0) : 0.0, (unsigned long long)hash, tw, th,
-           out.cores[0] ? out.cores : "unknown", accel.nprims - accel.nsplit, accel.nnodes, out.extra, calib_key);
-    fflush(stdout);
-    rc = 0;
-    goto done;
-fail:
-    if (is_root)
-        fprintf(stderr, "%s\n", err.msg);
-    rc = 1;
-done:
-    free(rgbf);
-    free(rgb);
-    rt_accel_free(&accel);
-    rt_scene_free(&scene);
+    free(r.rgbf);
+    free(r.rgb);
+    rt_accel_free(&r.accel);
+    rt_scene_free(&r.scene);
     if (be->finalize)
         be->finalize();
     return rc;
