@@ -322,10 +322,13 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
                          g_provided) != 0;
     else if (rt_cpu_pool_init(&pool, threads, err) != 0)
         failed = 1;
-    /* for tests/cpu/mpi_fail.sh: an error on one rank only */
+#if RT_TEST_HOOKS
+    /* only in tests/cpu's raytrace-testhooks (mpi_fail.sh): an error on one
+     * rank only */
     const char *inject = getenv("RT_MPI_TEST_FAIL_RANK");
     if (!failed && inject && atoi(inject) == g_rank)
         failed = rt_fail(err, "injected failure (RT_MPI_TEST_FAIL_RANK=%d)", g_rank) != 0;
+#endif
     /* A rank that cannot render must not leave the others in a collective. */
     if (mpi_agree(failed, err) != 0) {
         rt_cpu_pool_free(&pool);

@@ -1,7 +1,8 @@
 #!/bin/sh
 # mpi_fail.sh RAYTRACE MPIRUN GOOD_SCENE
 # Failures under mpirun -np 3: a bad scene, an unwritable output, and an
-# error on rank 2 only (injected with RT_MPI_TEST_FAIL_RANK) must each end
+# error on rank 2 only (injected with RT_MPI_TEST_FAIL_RANK, which only the
+# test build raytrace-testhooks reads) must each end
 # every rank within a few seconds, with exit status 1, no record, and exactly
 # one line on stderr (from rank 0; mpirun --quiet keeps Open MPI's own
 # "process returned a non-zero exit code" banner out of the count).
