@@ -32,7 +32,7 @@
  * of the node's surface area. (Against trying them in every node of 32 or
  * more with any overlap: the slowest 32-pixel chunk of the dragon takes 405
  * steps instead of 404 in the CPU model, and the build takes a third of the
- * time, docs/gpu.md, "Seventh round".) */
+ * time, the tuning journal, git show 65ca656:git show 65ca656:docs/gpu.md, "Seventh round".) */
 #define RT_BVH_SPATIAL_MIN 128
 #define RT_BVH_SPATIAL_OVERLAP 0.1f
 
@@ -613,7 +613,7 @@ typedef struct Widen {
 } Widen;
 
 /* The slot order. The GPU's shadow rays go through a node's children in slot
- * order, without sorting them (RT_ANY_HIT_SLOT, docs/gpu.md "Eleventh
+ * order, without sorting them (RT_ANY_HIT_SLOT, git show 65ca656:docs/gpu.md "Eleventh
  * round"). When every shadow ray of a scene goes the same way -- its one
  * light is directional -- the children are put in front-to-back order along
  * that way (by their boxes' centres), so that slot order is a front-to-back

@@ -278,7 +278,7 @@ static inline RT_HD int rt_leaf_hits(const RtSceneView *s, uint32_t first, uint3
  * for which the 4-wide traversal stacks a node's entered children in slot
  * order instead of sorting them (rt_wide_visit; the other traversals treat
  * it as RT_ANY_HIT). Same answers either way; which is faster depends on
- * the frame (docs/gpu.md, "Eleventh round"), so the caller chooses. */
+ * the frame (the tuning journal, git show 65ca656:docs/gpu.md, "Eleventh round"), so the caller chooses. */
 #define RT_ANY_HIT 1
 #define RT_ANY_HIT_SLOT 2
 

@@ -1,6 +1,6 @@
 /* warpmodel.c - a CPU model of how the CUDA kernel's warps spend their time
  * on a scene, for deciding what to try on the GPU before building it
- * (docs/gpu.md, "Tenth round").
+ * (the tuning journal, git show 65ca656:docs/gpu.md, "Tenth round").
  *
  *   warpmodel [-b BXxBY] [-r WxH] [-w TEST_WEIGHT] [-c SHADE_COST] SCENE
  *

@@ -174,7 +174,7 @@ extern "C" {
 #include "cuda_check.h"
 
 /* Default block shapes, chosen by the block-size sweeps on the H100
- * (docs/gpu.md, "Fourth round" and "Seventh round"; results/gpu-blocks-round4.csv,
+ * (the tuning journal, git show 65ca656:the tuning journal, git show 65ca656:git show 65ca656:docs/gpu.md, "Fourth round" and "Seventh round"; results/gpu-blocks-round4.csv,
  * results/gpu-round7-blocks.csv): for the tree, 16x8 with the grid schedule
  * is the fastest on the dragon and has the best geometric mean over the
  * report's scenes with the spatial-split tree (8x8 had been, within 1%, with
@@ -183,7 +183,7 @@ extern "C" {
 #define RT_CUDA_DEFAULT_BY 8
 #define RT_CUDA_DEFAULT_NONE_BX 8
 #define RT_CUDA_DEFAULT_NONE_BY 8
-/* Large images, tree (docs/gpu.md, "Tenth round"; results/gpu-round10-large.csv,
+/* Large images, tree (the tuning journal, git show 65ca656:git show 65ca656:docs/gpu.md, "Tenth round"; results/gpu-round10-large.csv,
  * results/gpu-round10-threshold.csv): from 2048x1536 up (46 and more waves
  * of the grid default's resident threads on the H100) the persistent
  * schedule in 4x8 blocks at MINB 3 was faster than the grid default on all
@@ -202,7 +202,7 @@ extern "C" {
 /* Work order (RAYBENCH_CUDA_ORDER): row-major tiles; scattered tiles
  * (persistent schedule); tiles by leaf coverage (grid schedule,
  * rt_cover_order_kernel); tiles from the image's centre outwards (grid
- * schedule, rt_cuda_center_order: its default, by measurement, docs/gpu.md
+ * schedule, rt_cuda_center_order: its default, by measurement, git show 65ca656:docs/gpu.md
  * "Ninth round"); or the oracle order (either schedule, a measurement only:
  * rt_cuda_oracle_order). */
 enum { RT_ORDER_TILES = 0, RT_ORDER_SCATTER = 1, RT_ORDER_ORACLE = 2, RT_ORDER_COVER = 3, RT_ORDER_CENTER = 4 };
@@ -504,10 +504,10 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
      * the grid's work units: orders and timelines), RT_MODE_SLOT (shadow rays
      * in slot order). Each is an instantiation of its own: compiled into
      * the default kernel, the extras' code cost it 16% on the dragon even
-     * when unused (docs/gpu.md, "Fifth round"). */
+     * when unused (the tuning journal, git show 65ca656:git show 65ca656:docs/gpu.md, "Fifth round"). */
     constexpr bool PAIRS = (MODE & RT_MODE_PAIRS) != 0, EXTRAS = (MODE & RT_MODE_EXTRAS) != 0;
     /* The shadow rays' query, a constant of the instantiation: a runtime
-     * choice between the two measured slower than either (docs/gpu.md,
+     * choice between the two measured slower than either (git show 65ca656:docs/gpu.md,
      * "Ninth round"). */
     constexpr int SHADOW = (MODE & RT_MODE_SLOT) ? RT_ANY_HIT_SLOT : RT_ANY_HIT;
     __shared__ unsigned long long block_cnt[RT_NCOUNTERS];
@@ -806,7 +806,7 @@ static const RtCudaEnvVar rt_cuda_env_vars[] = {
     {"RAYBENCH_CUDA_PAIRS", "0 1 auto", 0, 0, NULL},
     {"RAYBENCH_CUDA_ANYHIT", "sorted slot auto", 0, 0, NULL},
     {"RAYBENCH_CUDA_SPEC", "1", 0, 0,
-     "only 1 is left: the wide traversal always postpones leaves (docs/gpu.md, \"Sixth round\")"},
+     "only 1 is left: the wide traversal always postpones leaves (git show 65ca656:docs/gpu.md, \"Sixth round\")"},
     {"RAYBENCH_CUDA_RUNS", NULL, 1, 64, NULL},
     {"RAYBENCH_CUDA_WARMUP_MS", NULL, 0, 10000, NULL},
     {"RAYBENCH_CUDA_MINB", NULL, 1, 4, NULL},
@@ -1028,7 +1028,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     int threads = bx * by;
     const char *sched_env = getenv("RAYBENCH_CUDA_SCHED");
     const int sched_asked = sched_env && *sched_env;
-    /* Default schedule by measurement (docs/gpu.md, "Fourth round"): grid for
+    /* Default schedule by measurement (the tuning journal, git show 65ca656:git show 65ca656:docs/gpu.md, "Fourth round"): grid for
      * the tree, persistent for brute force; large images below. */
     int persistent = sched_asked ? strcmp(sched_env, "grid") != 0 : hv->nnodes == 0;
     int large = 0;
@@ -1110,7 +1110,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
      * RAYBENCH_CUDA_PAIRS 0, 1 or auto (the default): on when the grid
      * schedule's blocks of pairs all fit on the GPU at once -- then the second
      * lane per pixel costs no wave, and it shortens the chains the frame waits
-     * on (docs/gpu.md, "Fifth round"); not when slot order was asked for,
+     * on (the tuning journal, git show 65ca656:git show 65ca656:docs/gpu.md, "Fifth round"); not when slot order was asked for,
      * which the pairs' kernel does not have. */
     minb = rt_cuda_env_int("RAYBENCH_CUDA_MINB", large ? RT_CUDA_LARGE_MINB : RT_CUDA_DEFAULT_MINB);
     /* RAYBENCH_CUDA_ANYHIT as asked: -1 auto, 0 sorted, 1 slot (the choice
@@ -1163,7 +1163,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     /* The shadow rays' query (RAYBENCH_CUDA_ANYHIT: sorted, slot, or auto,
      * the default): slot order with the wide traversal -- fewer instructions
      * per node, faster on 65 of the 77 scene and image sizes measured
-     * (docs/gpu.md, "Eleventh round") -- where the kernel has the choice
+     * (the tuning journal, git show 65ca656:git show 65ca656:docs/gpu.md, "Eleventh round") -- where the kernel has the choice
      * (not pixel pairs, not the extras: asking for slot there is an error).
      * The binary traversals (ldg, shared; brute force) have one any-hit
      * query: they run the sorted kernel, and the record says so. */
