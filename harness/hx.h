@@ -285,6 +285,8 @@ typedef struct {
     int noutliers;
     const char *first_status; /* status of a failed run for the cross table */
     size_t first_row;
+    size_t ok_row;       /* first ok row (the record's values), else first_row */
+    double raw_median;   /* median render_ms of the ok rows, whatever the metric */
 } HxGroup;
 
 typedef struct {

@@ -378,6 +378,11 @@ int hx_cmd_plot(int argc, char **argv)
         return 1;
     if (s.nwrong_rows)
         fprintf(stderr, "harness plot: warning: %zu wrong-image row(s) left out\n", s.nwrong_rows);
+    if (hx_has_ctrl(prefix)) { /* it goes into the .gp scripts */
+        fprintf(stderr, "harness plot: -o: the prefix holds a control character (a newline?)\n");
+        hx_study_free(&s);
+        return 1;
+    }
     char *dir = hx_dirname(prefix);
     const char *slash = strrchr(prefix, '/');
     const char *base = slash ? slash + 1 : prefix;

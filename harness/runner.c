@@ -147,19 +147,35 @@ static int run_child(char *const *argv, char *const *env_add, const HxTopo *topo
                      const HxRun *run, int bind, double timeout_s, ChildResult *res)
 {
     memset(res, 0, sizeof *res);
-    int po[2], pe[2];
-    if (pipe(po) || pipe(pe))
+    int po[2], pe[2] = {-1, -1};
+    if (pipe(po) != 0)
         return -1;
+    if (pipe(pe) != 0) {
+        close(po[0]);
+        close(po[1]);
+        return -1;
+    }
     double t0 = hx_now_ms();
     pid_t pid = fork();
-    if (pid < 0)
+    if (pid < 0) {
+        close(po[0]);
+        close(po[1]);
+        close(pe[0]);
+        close(pe[1]);
         return -1;
+    }
     if (pid == 0) {
-        /* child: own process group, pipes, binding, environment, exec */
+        /* child: own process group, default signals, pipes, binding,
+         * environment, exec */
         setpgid(0, 0);
+        signal(SIGINT, SIG_DFL);
+        signal(SIGTERM, SIG_DFL);
         int devnull = open("/dev/null", O_RDONLY);
-        if (devnull >= 0)
+        if (devnull >= 0) {
             dup2(devnull, 0);
+            if (devnull > 0)
+                close(devnull);
+        }
         dup2(po[1], 1);
         dup2(pe[1], 2);
         close(po[0]);
@@ -910,7 +926,7 @@ static int warmup_needed(const Study *st, size_t i)
  * not be written (the study stops there). */
 static int run_plan(Study *st)
 {
-    for (size_t i = 0; i < st->plan.n; i++) {
+    for (size_t i = 0; i < st->plan.n && !g_stop; i++) {
         const HxRun *r = &st->plan.runs[i];
         if (hx_strlist_find(&st->done_ids, r->run_id) >= 0) {
             st->skipped++;
@@ -1086,11 +1102,21 @@ static void study_close(Study *st)
 {
     if (st->fd >= 0)
         close(st->fd);
-    if (st->image) {
-        unlink(st->image);
-        free(st->image);
+    if (st->tmpdir) {
+        /* everything in it: a killed renderer may have left IMAGE.tmp.XXXXXX */
+        DIR *d = opendir(st->tmpdir);
+        struct dirent *e;
+        while (d && (e = readdir(d)) != NULL)
+            if (strcmp(e->d_name, ".") != 0 && strcmp(e->d_name, "..") != 0) {
+                char *f = hx_path_join(st->tmpdir, e->d_name);
+                unlink(f);
+                free(f);
+            }
+        if (d)
+            closedir(d);
         rmdir(st->tmpdir);
     }
+    free(st->image);
     free(st->tmpdir);
     free(st->raytrace);
     ref_free(&st->refs);

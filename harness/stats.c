@@ -256,7 +256,8 @@ static double boot_median(const double *x, size_t n, unsigned long long *s, doub
     return hx_quantile_sorted(scratch, n, 0.5);
 }
 
-/* 95% interval of median(a) / median(b); b NULL: of median(a) alone. Both
+/* 95% interval of median(b) / median(a) (a speedup with b the baseline);
+ * b NULL: of median(a) alone. Both
  * ends NAN with fewer than 3 samples a side: no interval worth printing. */
 void hx_bootstrap_ci(const double *a, size_t na, const double *b, size_t nb, double *lo, double *hi)
 {

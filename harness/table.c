@@ -155,11 +155,13 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
     for (int i = 0; need[i]; i++)
         if (hx_csv_col(csv, need[i]) < 0) {
             snprintf(err, errlen, "%s: no '%s' column (not a harness CSV?)", path, need[i]);
+            hx_csv_free(&s->csv);
             return -1;
         }
     const char *slash = strchr(metric, '/');
     if (slash ? (strcmp(slash, "/calib") != 0 || hx_csv_col(csv, "extra") < 0) : hx_csv_col(csv, metric) < 0) {
         snprintf(err, errlen, "%s: no column '%s' for --metric (a column, or COLUMN/calib)", path, metric);
+        hx_csv_free(&s->csv);
         return -1;
     }
     mark_wrong_rows(s);
@@ -265,6 +267,7 @@ static void group_rows(HxStudy *s, const char *metric)
                 w = 1;
             g->workers = (int)w;
             g->first_row = r;
+            g->ok_row = (size_t)-1;
             g->t = hx_xmalloc(n * sizeof(double));
             if (hx_strlist_find(&s->scenes, g->scene) < 0)
                 hx_strlist_push(&s->scenes, g->scene);
@@ -282,6 +285,8 @@ static void group_rows(HxStudy *s, const char *metric)
         } else if (strcmp(st, "ok") == 0 && row_metric(csv, r, metric, &t) == 0) {
             g->t[g->nt++] = t;
             g->nok++;
+            if (g->ok_row == (size_t)-1)
+                g->ok_row = r;
         } else if (strcmp(st, "timeout") == 0) {
             g->ntimeout++;
         } else {
@@ -292,12 +297,34 @@ static void group_rows(HxStudy *s, const char *metric)
     }
 }
 
+/* The median render_ms of g's ok rows (for compare's --min-ms, whatever
+ * the metric); NAN when none. */
+static double raw_median(const HxCsv *csv, const HxGroup *g)
+{
+    double *v = hx_xmalloc((g->nrows ? g->nrows : 1) * sizeof *v);
+    size_t n = 0;
+    for (size_t r = g->first_row; r < csv->nrows && n < g->nrows; r++) {
+        char *id = row_config_id(csv, r, -1);
+        double x;
+        if (strcmp(id, g->config_id) == 0 && strcmp(hx_csv_get(csv, r, "status"), "ok") == 0 &&
+            hx_parse_double(hx_csv_get(csv, r, "render_ms"), &x) == 0)
+            v[n++] = x;
+        free(id);
+    }
+    double m = n ? hx_median(v, n) : NAN;
+    free(v);
+    return m;
+}
+
 /* Median, quartiles, interval and outliers of every group. */
 static void group_stats(HxStudy *s)
 {
     for (size_t gi = 0; gi < s->ng; gi++) {
         HxGroup *g = &s->g[gi];
         g->ci_lo = g->ci_hi = NAN;
+        g->raw_median = raw_median(&s->csv, g);
+        if (g->ok_row == (size_t)-1)
+            g->ok_row = g->first_row;
         if (!g->nt) {
             g->median = g->min = g->q1 = g->q3 = NAN;
             continue;

@@ -7,6 +7,7 @@
 #include <errno.h>
 #include <limits.h>
 #include <math.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
@@ -260,6 +261,8 @@ int hx_run_argv(char *const argv[], const char *dir, char *out, size_t n, int qu
         return 127;
     }
     if (pid == 0) {
+        signal(SIGINT, SIG_DFL); /* not the harness's handler until exec */
+        signal(SIGTERM, SIG_DFL);
         int null = open("/dev/null", O_RDWR);
         if (out) {
             dup2(fd[1], STDOUT_FILENO);
@@ -319,16 +322,32 @@ int hx_has_ctrl(const char *s)
     return 0;
 }
 
+/* Length of the valid UTF-8 sequence at p (1-4), or 0 if it is not one. */
+static int utf8_len(const unsigned char *p)
+{
+    int n = p[0] < 0x80 ? 1 : (p[0] & 0xe0) == 0xc0 ? 2 : (p[0] & 0xf0) == 0xe0 ? 3 : (p[0] & 0xf8) == 0xf0 ? 4 : 0;
+    if (n == 2 && p[0] < 0xc2)
+        return 0; /* overlong */
+    for (int k = 1; k < n; k++)
+        if ((p[k] & 0xc0) != 0x80)
+            return 0;
+    return n;
+}
+
 void hx_json_str(FILE *o, const char *v)
 {
     fputc('"', o);
-    for (const unsigned char *p = (const unsigned char *)(v ? v : ""); *p; p++) {
+    for (const unsigned char *p = (const unsigned char *)(v ? v : ""); *p;) {
+        int n = utf8_len(p);
         if (*p == '"' || *p == '\\')
             fprintf(o, "\\%c", *p);
         else if (*p < 0x20)
             fprintf(o, "\\u%04x", *p);
+        else if (n == 0) /* not UTF-8 (a name from a CSV): the replacement character */
+            fputs("\\ufffd", o);
         else
-            fputc(*p, o);
+            fwrite(p, 1, (size_t)n, o);
+        p += n ? n : 1;
     }
     fputc('"', o);
 }

@@ -33,4 +33,10 @@ if command -v python3 > /dev/null; then
     python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); assert d["schema"]=="raybench-compare/1"; assert d["regressions"]==1; v=d["verdicts"][0]; assert v["verdict"]=="REGRESSION" and abs(v["ratio"]-2)<1e-9' c4.json ||
         fail "compare JSON: $(cat c4.json)"
 fi
+# a configuration whose first repeat crashed is still the same configuration
+awk -F, -v OFS=, 'NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; print; next }
+                  NR == 2 { $c["status"] = "crash"; $c["render_ms"] = ""; $c["rec_accel"] = ""; $c["width"] = "" }
+                  { print }' unset.csv > crash1.csv
+"$H" compare crash1.csv set.csv > c5.out || { cat c5.out; fail "a crashed first repeat made the configuration missing"; }
+grep -q "1 configuration(s) compared, 0 regression(s)" c5.out || { cat c5.out; fail "crash1 not compared as one configuration"; }
 echo "compare test passed"

@@ -40,6 +40,8 @@ if command -v gnuplot > /dev/null; then
     mkdir plots
     "$H" plot evil.csv -o plots/evil > plot.out 2>&1 || { cat plot.out; fail "plot failed"; }
     [ -s plots/evil-speedup.png ] && [ -s plots/evil-scenes.png ] || fail "no plots"
+    "$H" plot evil.csv -o "$(printf 'plots/x\nsystem("touch PWNED3")\n#')" > /dev/null 2>&1 &&
+        fail "plot took a prefix with a newline"
     grep -q "touch" plots/evil-speedup.gp || fail "the scene names are not in the speedup plot's titles"
 else
     echo "gnuplot missing: the plot part is not run"
