@@ -6,7 +6,9 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include "core/rt_shade.h"
+/* the data types only: the shading and traversal code (core/rt_shade.h,
+ * core/rt_traverse.h) is included by the backends and tools that run it */
+#include "core/rt_scene.h"
 
 typedef struct RtError {
     char msg[1024];

@@ -9,6 +9,7 @@
 #include <time.h>
 
 #include "rt.h"
+#include "core/rt_shade.h" /* rt_quantize: one rounding for every backend */
 
 int rt_fail(RtError *err, const char *fmt, ...)
 {

@@ -16,6 +16,7 @@
 #include <string.h>
 
 #include "rt.h"
+#include "core/rt_traverse.h" /* RT_BVH_MAX_DEPTH: the traversal stack bounds the build */
 
 #define RT_BVH_LEAF_MAX 4
 #define RT_BVH_BINS 32

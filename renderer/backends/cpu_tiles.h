@@ -18,6 +18,7 @@
 #include <string.h>
 
 #include "rt.h"
+#include "core/rt_shade.h" /* the CPU backends render tiles with the shared shading code */
 #ifdef _OPENMP
 #include <omp.h>
 #endif

@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "rt.h"
+#include "core/rt_shade.h"
 
 static int render_serial(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 {

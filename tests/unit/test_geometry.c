@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "check.h"
+#include "core/rt_traverse.h" /* the traversals and intersections under test */
 #include "rt.h"
 
 static RtPrim sphere_prim(float x, float y, float z, float r)

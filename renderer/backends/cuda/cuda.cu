@@ -169,6 +169,8 @@ static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, f
 
 extern "C" {
 #include "rt.h"
+/* the shading loop, after the dispatcher above: its rt_trace_ray calls bind to it */
+#include "core/rt_shade.h"
 }
 
 #include "cuda_check.h"
