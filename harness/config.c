@@ -320,7 +320,7 @@ int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
         if (n && line[n - 1] == '\r') /* CRLF line ends */
             line[n - 1] = '\0';
         for (const unsigned char *c = (const unsigned char *)line; *c; c++)
-            if ((*c < 0x20 && *c != '\t') || *c == 0x7f) {
+            if (hx_is_ctrl(*c) && *c != '\t') {
                 /* names from here reach CSV cells, tables and Slurm scripts */
                 rc = set_err(err, errlen, path, lineno, "control character 0x%02x in the line", *c);
                 break;

@@ -64,7 +64,12 @@ void hx_json_str(FILE *o, const char *v);
 void hx_json_num(FILE *o, const char *key, double v);
 void hx_json_pair(FILE *o, const char *key, double a, double b);
 void hx_json_kstr(FILE *o, const char *key, const char *v);
-/* 1 when s holds a control character (below 0x20, or 0x7f). */
+/* A control character: below 0x20, or 0x7f. */
+static inline int hx_is_ctrl(unsigned char c)
+{
+    return c < 0x20 || c == 0x7f;
+}
+/* 1 when s holds a control character. */
 int hx_has_ctrl(const char *s);
 
 /* ---- config and run matrix (config.c) ---- */

@@ -31,7 +31,7 @@ static void clean_label(char *dst, size_t n, const char *src)
 {
     snprintf(dst, n, "%s", src);
     for (unsigned char *p = (unsigned char *)dst; *p; p++)
-        if (*p == '\'' || *p == '"' || *p < 0x20 || *p == 0x7f)
+        if (*p == '\'' || *p == '"' || hx_is_ctrl(*p))
             *p = ' ';
 }
 

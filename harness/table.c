@@ -433,7 +433,7 @@ static void emit_row(Emit *e, const char *const *cells, int n)
          * does not end the cell */
         fputc(' ', e->out);
         for (const unsigned char *p = (const unsigned char *)cells[i]; *p; p++) {
-            if (*p < 0x20 || *p == 0x7f)
+            if (hx_is_ctrl(*p))
                 fputc('?', e->out);
             else if (*p == '|')
                 fputs("\\|", e->out);

@@ -306,7 +306,7 @@ void hx_gp_quote(HxBuf *b, const char *s)
     for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
         if (*p == '\'')
             hx_buf_put(b, "''");
-        else if (*p < 0x20 || *p == 0x7f)
+        else if (hx_is_ctrl(*p))
             hx_buf_put(b, "?");
         else
             hx_buf_putn(b, (const char *)p, 1);
@@ -317,7 +317,7 @@ void hx_gp_quote(HxBuf *b, const char *s)
 int hx_has_ctrl(const char *s)
 {
     for (const unsigned char *p = (const unsigned char *)s; *p; p++)
-        if (*p < 0x20 || *p == 0x7f)
+        if (hx_is_ctrl(*p))
             return 1;
     return 0;
 }
