@@ -291,7 +291,9 @@ typedef struct {
     const char *first_status; /* status of a failed run for the cross table */
     size_t first_row;
     size_t ok_row;       /* first ok row (the record's values), else first_row */
-    double raw_median;   /* median render_ms of the ok rows, whatever the metric */
+    double *raw;         /* render_ms of the ok rows, whatever the metric */
+    size_t nraw;
+    double raw_median;   /* their median (compare's --min-ms) */
 } HxGroup;
 
 typedef struct {

@@ -269,6 +269,7 @@ static void group_rows(HxStudy *s, const char *metric)
             g->first_row = r;
             g->ok_row = (size_t)-1;
             g->t = hx_xmalloc(n * sizeof(double));
+            g->raw = hx_xmalloc(n * sizeof(double));
             if (hx_strlist_find(&s->scenes, g->scene) < 0)
                 hx_strlist_push(&s->scenes, g->scene);
             if (hx_strlist_find(&s->labels, g->label) < 0)
@@ -280,6 +281,8 @@ static void group_rows(HxStudy *s, const char *metric)
         note_suspect(g, csv, r);
         const char *st = hx_csv_get(csv, r, "status");
         double t;
+        if (strcmp(st, "ok") == 0 && hx_parse_double(hx_csv_get(csv, r, "render_ms"), &t) == 0)
+            g->raw[g->nraw++] = t;
         if (s->row_status_wrong[r]) {
             g->nwrong++;
         } else if (strcmp(st, "ok") == 0 && row_metric(csv, r, metric, &t) == 0) {
@@ -297,32 +300,13 @@ static void group_rows(HxStudy *s, const char *metric)
     }
 }
 
-/* The median render_ms of g's ok rows (for compare's --min-ms, whatever
- * the metric); NAN when none. */
-static double raw_median(const HxCsv *csv, const HxGroup *g)
-{
-    double *v = hx_xmalloc((g->nrows ? g->nrows : 1) * sizeof *v);
-    size_t n = 0;
-    for (size_t r = g->first_row; r < csv->nrows && n < g->nrows; r++) {
-        char *id = row_config_id(csv, r, -1);
-        double x;
-        if (strcmp(id, g->config_id) == 0 && strcmp(hx_csv_get(csv, r, "status"), "ok") == 0 &&
-            hx_parse_double(hx_csv_get(csv, r, "render_ms"), &x) == 0)
-            v[n++] = x;
-        free(id);
-    }
-    double m = n ? hx_median(v, n) : NAN;
-    free(v);
-    return m;
-}
-
 /* Median, quartiles, interval and outliers of every group. */
 static void group_stats(HxStudy *s)
 {
     for (size_t gi = 0; gi < s->ng; gi++) {
         HxGroup *g = &s->g[gi];
         g->ci_lo = g->ci_hi = NAN;
-        g->raw_median = raw_median(&s->csv, g);
+        g->raw_median = g->nraw ? hx_median(g->raw, g->nraw) : NAN;
         if (g->ok_row == (size_t)-1)
             g->ok_row = g->first_row;
         if (!g->nt) {
@@ -353,6 +337,7 @@ void hx_study_free(HxStudy *s)
         free(s->g[i].backend);
         free(s->g[i].block);
         free(s->g[i].t);
+        free(s->g[i].raw);
     }
     free(s->g);
     free(s->row_status_wrong);
