@@ -101,24 +101,23 @@ static char *effective_id(const HxStudy *s, const HxGroup *g)
                                          {"schedule", "rec_schedule"}, {"mpi_schedule", "rec_mpi_schedule"},
                                          {"block", "rec_block"},       {"threads", "rec_threads"},
                                          {"ranks", "rec_ranks"},       {NULL, NULL}};
-    HxBuf b = {0};
     const size_t row = g->ok_row; /* a row with a record, where there is one */
     const char *backend = hx_csv_get(&s->csv, row, "backend");
+    const char *v[HX_NDIM];
+    char res[64];
     for (int d = 0; d < HX_NDIM; d++) {
-        const char *v = hx_csv_get(&s->csv, row, hx_dim_col[d]);
-        if (strcmp(v, "-") == 0 && hx_dim_applies(d, backend)) {
-            for (int k = 0; rec[k][0]; k++)
-                if (strcmp(rec[k][0], hx_dim_col[d]) == 0 && *hx_csv_get(&s->csv, row, rec[k][1]))
-                    v = hx_csv_get(&s->csv, row, rec[k][1]);
-            if (d == HX_DIM_RESOLUTION && *hx_csv_get(&s->csv, row, "width")) {
-                hx_buf_printf(&b, "%s=%sx%s ", hx_dim_col[d], hx_csv_get(&s->csv, row, "width"),
-                              hx_csv_get(&s->csv, row, "height"));
-                continue;
-            }
+        v[d] = hx_csv_get(&s->csv, row, hx_dim_col[d]);
+        if (strcmp(v[d], "-") != 0 || !hx_dim_applies(d, backend))
+            continue;
+        for (int k = 0; rec[k][0]; k++)
+            if (strcmp(rec[k][0], hx_dim_col[d]) == 0 && *hx_csv_get(&s->csv, row, rec[k][1]))
+                v[d] = hx_csv_get(&s->csv, row, rec[k][1]);
+        if (d == HX_DIM_RESOLUTION && *hx_csv_get(&s->csv, row, "width")) {
+            snprintf(res, sizeof res, "%sx%s", hx_csv_get(&s->csv, row, "width"), hx_csv_get(&s->csv, row, "height"));
+            v[d] = res;
         }
-        hx_buf_printf(&b, "%s=%s ", hx_dim_col[d], v);
     }
-    return b.s;
+    return hx_make_config_id(v);
 }
 
 /* The group of s that is g's configuration, NULL if none. */
