@@ -318,17 +318,12 @@ static void print_json(const Verdicts *vs, const Rule *rule, const char *new_csv
 }
 
 /* 1 when every ok row of the CSV carries calib_ms (raytrace --calibrate). */
-static int has_calib(const char *path)
+static int has_calib(const HxCsv *csv)
 {
-    HxCsv csv;
-    char err[512];
-    if (hx_csv_read(path, &csv, err, sizeof err) != 0)
-        return 0; /* hx_study_open reports it */
-    int ok = csv.nrows > 0;
-    for (size_t r = 0; r < csv.nrows && ok; r++)
-        if (strcmp(hx_csv_get(&csv, r, "status"), "ok") == 0)
-            ok = strstr(hx_csv_get(&csv, r, "extra"), "calib_ms=") != NULL;
-    hx_csv_free(&csv);
+    int ok = csv->nrows > 0;
+    for (size_t r = 0; r < csv->nrows && ok; r++)
+        if (strcmp(hx_csv_get(csv, r, "status"), "ok") == 0)
+            ok = strstr(hx_csv_get(csv, r, "extra"), "calib_ms=") != NULL;
     return ok;
 }
 
@@ -382,19 +377,35 @@ int hx_cmd_compare(int argc, char **argv)
         fprintf(stderr, "harness compare: expected NEW.csv BASE.csv (see --help)\n");
         return 1;
     }
-    int calibrated = 0;
+    /* each CSV read once: the metric depends on what both hold */
+    HxStudy nw, base;
+    memset(&nw, 0, sizeof nw);
+    memset(&base, 0, sizeof base);
+    char err[512];
+    if (hx_csv_read(argv[optind], &nw.csv, err, sizeof err) != 0) {
+        fprintf(stderr, "harness compare: %s\n", err);
+        return 1;
+    }
+    if (hx_csv_read(argv[optind + 1], &base.csv, err, sizeof err) != 0) {
+        fprintf(stderr, "harness compare: %s\n", err);
+        hx_csv_free(&nw.csv);
+        return 1;
+    }
     if (!metric) {
         /* calibrated times where both studies have them (--calibrate) */
-        calibrated = has_calib(argv[optind]) && has_calib(argv[optind + 1]);
+        int calibrated = has_calib(&nw.csv) && has_calib(&base.csv);
         metric = calibrated ? "render_ms/calib" : "render_ms";
         if (!calibrated && !json)
             printf("NOTE times are not calibrated (run the studies with extra_args: --calibrate): on a noisy "
                    "machine expect a false alarm now and then (docs/harness.md, \"False alarms\")\n");
     }
-    HxStudy nw, base;
-    if (hx_study_open("harness compare", argv[optind], metric, &nw))
+    if (hx_study_build(argv[optind], metric, &nw, err, sizeof err) != 0) {
+        fprintf(stderr, "harness compare: %s\n", err);
+        hx_csv_free(&base.csv);
         return 1;
-    if (hx_study_open("harness compare", argv[optind + 1], metric, &base)) {
+    }
+    if (hx_study_build(argv[optind + 1], metric, &base, err, sizeof err) != 0) {
+        fprintf(stderr, "harness compare: %s\n", err);
         hx_study_free(&nw);
         return 1;
     }

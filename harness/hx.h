@@ -306,6 +306,9 @@ typedef struct {
     size_t nwrong_rows;
 } HxStudy;
 
+/* The analysis of s->csv, already read (everything else in s zero); on
+ * failure s->csv is freed. hx_study_load is hx_csv_read and this. */
+int hx_study_build(const char *path, const char *metric, HxStudy *s, char *err, size_t errlen);
 int hx_study_load(const char *path, const char *metric, HxStudy *s,
                   char *err, size_t errlen);
 void hx_study_free(HxStudy *s);

@@ -150,6 +150,11 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
     memset(s, 0, sizeof *s);
     if (hx_csv_read(path, &s->csv, err, errlen))
         return -1;
+    return hx_study_build(path, metric, s, err, errlen);
+}
+
+int hx_study_build(const char *path, const char *metric, HxStudy *s, char *err, size_t errlen)
+{
     const HxCsv *csv = &s->csv;
     static const char *const need[] = {"status", "scene", "backend", "run_id", NULL};
     for (int i = 0; need[i]; i++)
