@@ -74,11 +74,13 @@ static void git_commit_of(const char *repo_dir, const char *exclude, char *out, 
     size_t tn = strlen(top);
     int inside = abs && tn && strncmp(abs, top, tn) == 0 && abs[tn] == '/';
     HxBuf spec = {0};
-    hx_buf_printf(&spec, ":(exclude)%s", inside ? abs : "");
+    char *st[] = {"git", "-C", dir, "status", "--porcelain", "--untracked-files=no", NULL, NULL, NULL};
+    if (inside) { /* else no pathspec: every tracked file */
+        hx_buf_printf(&spec, ":(exclude)%s", abs);
+        st[6] = "--";
+        st[7] = spec.s;
+    }
     char dirty[256];
-    char *st[] = {"git", "-C", dir, "status", "--porcelain", "--untracked-files=no", "--", spec.s, NULL};
-    if (!inside)
-        st[6] = NULL; /* no pathspec: every tracked file */
     first_line_of(st, dirty, sizeof dirty);
     if (dirty[0])
         strcat(out, "-dirty");
