@@ -17,15 +17,15 @@ fi
 commit=$(git rev-parse --short HEAD)
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-# the same arguments as the mesh10k target in tests/meson.build
-"$gen" --triangles 12000 --seed 5 --resolution 160x120 -o "$tmp/mesh10k.txt" 2>/dev/null
+# the same bytes as the mesh10k target in tests/meson.build
+SCENEGEN=$gen scripts/gen-scenes.sh mesh10k > /dev/null
 rows=""
 for spec in demo:scenes/demo.txt:160x120 glass:scenes/glass.txt:160x120 odd:tests/scenes/odd.txt:37x23 \
-            mesh10k:$tmp/mesh10k.txt:160x120; do
+            mesh10k:scenes/generated/mesh10k.txt:160x120; do
     IFS=: read -r name scene res <<< "$spec"
     "$rt" -q --backend serial --accel bvh -r "$res" -o "tests/golden/$name.png" "$scene" > "$tmp/rec"
     hash=$(tr ' ' '\n' < "$tmp/rec" | sed -n 's/^image_fnv1a=//p')
-    shown=$scene; [ "$name" = mesh10k ] && shown="scenegen --triangles 12000 --seed 5 --resolution 160x120"
+    shown=$scene; [ "$name" = mesh10k ] && shown="scenes/generated/mesh10k.txt (scripts/gen-scenes.sh mesh10k)"
     rows="$rows| \`$name.png\` | $shown | $res | \`$hash\` |"$'\n'
     echo "make-golden: tests/golden/$name.png ($res, image_fnv1a=$hash)"
 done
