@@ -103,12 +103,7 @@ void hx_fingerprint_hash(HxFingerprint *fp)
     HxBuf b = {0};
     hx_buf_printf(&b, "%s|%d|%d|%d|%s|%s|%s", fp->cpu_model, fp->phys_cores,
                   fp->logical_cpus, fp->smt, fp->governor, fp->compiler, fp->gpu_name);
-    uint64_t h = 1469598103934665603ull;
-    for (const char *p = b.s; *p; p++) {
-        h ^= (unsigned char)*p;
-        h *= 1099511628211ull;
-    }
-    snprintf(fp->fingerprint, sizeof fp->fingerprint, "%016llx", (unsigned long long)h);
+    hx_fnv1a_hex(b.s, fp->fingerprint);
     hx_buf_free(&b);
 }
 

@@ -64,6 +64,9 @@ void hx_json_str(FILE *o, const char *v);
 void hx_json_num(FILE *o, const char *key, double v);
 void hx_json_pair(FILE *o, const char *key, double a, double b);
 void hx_json_kstr(FILE *o, const char *key, const char *v);
+/* FNV-1a (64 bits) of s as 16 hex digits: the machine fingerprint, the
+ * config hash. */
+void hx_fnv1a_hex(const char *s, char out[20]);
 /* A control character: below 0x20, or 0x7f. */
 static inline int hx_is_ctrl(unsigned char c)
 {

@@ -664,12 +664,7 @@ static void config_hash(const HxConfig *cfg, const HxPlan *plan, char out[20])
         hx_buf_printf(&b, "|%s", cfg->extra_args.v[i]);
     for (size_t i = 0; i < plan->n; i++)
         hx_buf_printf(&b, "|%s", plan->runs[i].run_id);
-    uint64_t h = 1469598103934665603ull;
-    for (const char *p = b.s; *p; p++) {
-        h ^= (unsigned char)*p;
-        h *= 1099511628211ull;
-    }
-    snprintf(out, 20, "%016llx", (unsigned long long)h);
+    hx_fnv1a_hex(b.s, out);
     hx_buf_free(&b);
 }
 

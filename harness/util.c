@@ -9,6 +9,7 @@
 #include <math.h>
 #include <signal.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <fcntl.h>
@@ -379,4 +380,14 @@ void hx_json_kstr(FILE *o, const char *key, const char *v)
 {
     fprintf(o, ", \"%s\": ", key);
     hx_json_str(o, v);
+}
+
+void hx_fnv1a_hex(const char *s, char out[20])
+{
+    uint64_t h = 1469598103934665603ull;
+    for (const unsigned char *p = (const unsigned char *)s; p && *p; p++) {
+        h ^= *p;
+        h *= 1099511628211ull;
+    }
+    snprintf(out, 20, "%016llx", (unsigned long long)h);
 }
