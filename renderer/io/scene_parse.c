@@ -351,39 +351,84 @@ static int cmd_light(Parser *p, const char *cmd, const char *v)
     return add_light(p, &l);
 }
 
-static int parse_line(Parser *p, char *line)
-{
-    /* Comment, then trailing whitespace. */
-    char *hash = strchr(line, '#');
-    if (hash)
-        *hash = '\0';
-    size_t n = strlen(line);
-    while (n && (line[n - 1] == ' ' || line[n - 1] == '\t' || line[n - 1] == '\r'))
-        line[--n] = '\0';
-    char *s = (char *)skip_ws(line);
-    if (*s == '\0')
-        return 0;
-    char *colon = strchr(s, ':');
-    if (!colon)
-        return perr(p, "expected 'command: values', got '%.40s'", s);
-    *colon = '\0';
-    char *cmd = s, *v = colon + 1;
-    size_t cl = strlen(cmd);
-    while (cl && (cmd[cl - 1] == ' ' || cmd[cl - 1] == '\t'))
-        cmd[--cl] = '\0';
-    for (size_t i = 0; i < cl; i++)
-        if (!(islower((unsigned char)cmd[i]) || isdigit((unsigned char)cmd[i]) || cmd[i] == '_' ||
-              isupper((unsigned char)cmd[i])))
-            return perr(p, "malformed command name '%.40s'", cmd);
-    RtScene *sc = p->s;
-    float f[6];
-    int64_t ix[6];
+/* Returned by a command group for a command it does not handle; errors are
+ * -1 (rt_fail), so the value cannot be mistaken for one. */
+#define NOT_MINE 1
 
+static int cmd_triangle(Parser *p, const char *cmd, const char *v)
+{
+    RtScene *sc = p->s;
+    int64_t ix[6];
+    int nt = cmd[0] == 'n';
+    if (get_indices(p, cmd, v, ix, nt ? 6 : 3) != 0)
+        return -1;
+    for (int i = 0; i < 3; i++)
+        if (check_index(p, cmd, ix[i], sc->nvertices, "vertex") != 0)
+            return -1;
+    if (nt)
+        for (int i = 3; i < 6; i++)
+            if (check_index(p, cmd, ix[i], sc->nnormals, "normal") != 0)
+                return -1;
+    if (GROW(p, triangles, "triangles") != 0)
+        return -1;
+    RtTriangle *t = &sc->triangles[sc->ntriangles++];
+    for (int i = 0; i < 3; i++) {
+        t->v[i] = (uint32_t)ix[i];
+        t->n[i] = nt ? (int32_t)ix[3 + i] : -1;
+    }
+    t->material = p->material;
+    return 0;
+}
+
+static int cmd_sphere(Parser *p, const char *v)
+{
+    float f[4];
+    if (get_floats(p, "sphere", v, f, 4) != 0)
+        return -1;
+    if (!(f[3] > 0.0f))
+        return perr(p, "sphere: radius must be positive, got %g", (double)f[3]);
+    if (GROW(p, spheres, "spheres") != 0)
+        return -1;
+    RtSphere *sp = &p->s->spheres[p->s->nspheres++];
+    memcpy(sp->c, f, 3 * sizeof(float));
+    sp->r = f[3];
+    sp->material = p->material;
+    return 0;
+}
+
+/* max_vertices / max_normals: a capacity hint only; reserve up to a sane
+ * bound, never trust it, and ignore a failed reservation. */
+static int cmd_capacity(Parser *p, const char *cmd, const char *v)
+{
+    RtScene *sc = p->s;
+    float f[1];
+    if (get_floats(p, cmd, v, f, 1) != 0)
+        return -1;
+    if (f[0] < 0.0f || f[0] != floorf(f[0]))
+        return perr(p, "%s: expected a non-negative integer, got %g", cmd, (double)f[0]);
+    uint32_t want = f[0] > 1e7f ? 10000000u : (uint32_t)f[0];
+    int is_v = cmd[4] == 'v';
+    uint32_t *cap = is_v ? &sc->cap_vertices : &sc->cap_normals;
+    void **arr = is_v ? (void **)&sc->vertices : (void **)&sc->normals;
+    if (want > *cap) {
+        void *na = realloc(*arr, (size_t)want * sizeof(RtVec3));
+        if (na) {
+            *arr = na;
+            *cap = want;
+        }
+    }
+    return 0;
+}
+
+/* Geometry: the vertex and normal pools, triangles, spheres, pool hints. */
+static int cmd_geometry(Parser *p, const char *cmd, const char *v)
+{
+    RtScene *sc = p->s;
     if (strcmp(cmd, "vertex") == 0 || strcmp(cmd, "normal") == 0) {
-        int is_v = cmd[0] == 'v';
+        float f[3];
         if (get_floats(p, cmd, v, f, 3) != 0)
             return -1;
-        if (is_v) {
+        if (cmd[0] == 'v') {
             if (GROW(p, vertices, "vertices") != 0)
                 return -1;
             sc->vertices[sc->nvertices++] = v3f(f);
@@ -392,109 +437,144 @@ static int parse_line(Parser *p, char *line)
                 return -1;
             sc->normals[sc->nnormals++] = v3f(f);
         }
-    } else if (strcmp(cmd, "triangle") == 0 || strcmp(cmd, "normal_triangle") == 0) {
-        int nt = cmd[0] == 'n';
-        if (get_indices(p, cmd, v, ix, nt ? 6 : 3) != 0)
-            return -1;
-        for (int i = 0; i < 3; i++)
-            if (check_index(p, cmd, ix[i], sc->nvertices, "vertex") != 0)
-                return -1;
-        if (nt)
-            for (int i = 3; i < 6; i++)
-                if (check_index(p, cmd, ix[i], sc->nnormals, "normal") != 0)
-                    return -1;
-        if (GROW(p, triangles, "triangles") != 0)
-            return -1;
-        RtTriangle *t = &sc->triangles[sc->ntriangles++];
-        for (int i = 0; i < 3; i++) {
-            t->v[i] = (uint32_t)ix[i];
-            t->n[i] = nt ? (int32_t)ix[3 + i] : -1;
-        }
-        t->material = p->material;
-    } else if (strcmp(cmd, "sphere") == 0) {
-        if (get_floats(p, cmd, v, f, 4) != 0)
-            return -1;
-        if (!(f[3] > 0.0f))
-            return perr(p, "sphere: radius must be positive, got %g", (double)f[3]);
-        if (GROW(p, spheres, "spheres") != 0)
-            return -1;
-        RtSphere *sp = &sc->spheres[sc->nspheres++];
-        memcpy(sp->c, f, 3 * sizeof(float));
-        sp->r = f[3];
-        sp->material = p->material;
-    } else if (strcmp(cmd, "material") == 0) {
+        return 0;
+    }
+    if (strcmp(cmd, "triangle") == 0 || strcmp(cmd, "normal_triangle") == 0)
+        return cmd_triangle(p, cmd, v);
+    if (strcmp(cmd, "sphere") == 0)
+        return cmd_sphere(p, v);
+    if (strcmp(cmd, "max_vertices") == 0 || strcmp(cmd, "max_normals") == 0)
+        return cmd_capacity(p, cmd, v);
+    return NOT_MINE;
+}
+
+/* Shading: materials, lights and the background colour. */
+static int cmd_shading(Parser *p, const char *cmd, const char *v)
+{
+    RtScene *sc = p->s;
+    float f[3];
+    if (strcmp(cmd, "material") == 0)
         return cmd_material(p, v);
-    } else if (strcmp(cmd, "point_light") == 0 || strcmp(cmd, "directional_light") == 0 ||
-               strcmp(cmd, "spot_light") == 0) {
+    if (strcmp(cmd, "point_light") == 0 || strcmp(cmd, "directional_light") == 0 ||
+        strcmp(cmd, "spot_light") == 0)
         return cmd_light(p, cmd, v);
-    } else if (strcmp(cmd, "ambient_light") == 0) {
+    if (strcmp(cmd, "ambient_light") == 0) {
         if (get_floats(p, cmd, v, f, 3) != 0)
             return -1;
         /* Several ambient lights add up, like every other light. */
         sc->ambient = rt_add(sc->ambient, v3f(f));
-    } else if (strcmp(cmd, "background") == 0) {
+        return 0;
+    }
+    if (strcmp(cmd, "background") == 0) {
         if (get_floats(p, cmd, v, f, 3) != 0)
             return -1;
         sc->background = v3f(f);
-    } else if (strcmp(cmd, "camera_pos") == 0) {
+        return 0;
+    }
+    return NOT_MINE;
+}
+
+static int cmd_max_depth(Parser *p, const char *v)
+{
+    float f[1];
+    if (get_floats(p, "max_depth", v, f, 1) != 0)
+        return -1;
+    if (f[0] != floorf(f[0]))
+        return perr(p, "max_depth: must be an integer, got %g", (double)f[0]);
+    if (f[0] < 0.0f)
+        return perr(p, "max_depth: must not be negative, got %g", (double)f[0]);
+    if (f[0] > RT_MAX_DEPTH)
+        return perr(p, "max_depth: %g exceeds the supported maximum %d", (double)f[0], RT_MAX_DEPTH);
+    p->s->max_depth = (int32_t)f[0];
+    p->s->line_depth = p->line;
+    return 0;
+}
+
+/* Camera and render settings. The line numbers kept here let later checks
+ * (rt_scene_camera) point at the line that set the value. */
+static int cmd_camera(Parser *p, const char *cmd, const char *v)
+{
+    RtScene *sc = p->s;
+    float f[3];
+    if (strcmp(cmd, "camera_pos") == 0 || strcmp(cmd, "camera_fwd") == 0 || strcmp(cmd, "camera_up") == 0) {
         if (get_floats(p, cmd, v, f, 3) != 0)
             return -1;
-        sc->camera_pos = v3f(f);
-    } else if (strcmp(cmd, "camera_fwd") == 0) {
-        if (get_floats(p, cmd, v, f, 3) != 0)
-            return -1;
-        sc->camera_fwd = v3f(f);
-        sc->line_fwd = p->line;
-    } else if (strcmp(cmd, "camera_up") == 0) {
-        if (get_floats(p, cmd, v, f, 3) != 0)
-            return -1;
-        sc->camera_up = v3f(f);
-        sc->line_up = p->line;
-    } else if (strcmp(cmd, "camera_fov_ha") == 0) {
+        if (cmd[7] == 'p') {
+            sc->camera_pos = v3f(f);
+        } else if (cmd[7] == 'f') {
+            sc->camera_fwd = v3f(f);
+            sc->line_fwd = p->line;
+        } else {
+            sc->camera_up = v3f(f);
+            sc->line_up = p->line;
+        }
+        return 0;
+    }
+    if (strcmp(cmd, "camera_fov_ha") == 0) {
         if (get_floats(p, cmd, v, f, 1) != 0)
             return -1;
         if (!(f[0] > 0.0f && f[0] < 90.0f))
             return perr(p, "camera_fov_ha: must be strictly between 0 and 90 degrees, got %g", (double)f[0]);
         sc->fov_ha = f[0];
         sc->line_fov = p->line;
-    } else if (strcmp(cmd, "film_resolution") == 0) {
+        return 0;
+    }
+    if (strcmp(cmd, "film_resolution") == 0)
         return cmd_resolution(p, v);
-    } else if (strcmp(cmd, "output_image") == 0) {
+    if (strcmp(cmd, "output_image") == 0)
         return cmd_output(p, v);
-    } else if (strcmp(cmd, "max_depth") == 0) {
-        if (get_floats(p, cmd, v, f, 1) != 0)
-            return -1;
-        if (f[0] != floorf(f[0]))
-            return perr(p, "max_depth: must be an integer, got %g", (double)f[0]);
-        if (f[0] < 0.0f)
-            return perr(p, "max_depth: must not be negative, got %g", (double)f[0]);
-        if (f[0] > RT_MAX_DEPTH)
-            return perr(p, "max_depth: %g exceeds the supported maximum %d", (double)f[0], RT_MAX_DEPTH);
-        sc->max_depth = (int32_t)f[0];
-        sc->line_depth = p->line;
-    } else if (strcmp(cmd, "max_vertices") == 0 || strcmp(cmd, "max_normals") == 0) {
-        /* A capacity hint only: reserve up to a sane bound, never trust it. */
-        if (get_floats(p, cmd, v, f, 1) != 0)
-            return -1;
-        if (f[0] < 0.0f || f[0] != floorf(f[0]))
-            return perr(p, "%s: expected a non-negative integer, got %g", cmd, (double)f[0]);
-        uint32_t want = f[0] > 1e7f ? 10000000u : (uint32_t)f[0];
-        int is_v = cmd[4] == 'v';
-        uint32_t *cap = is_v ? &sc->cap_vertices : &sc->cap_normals;
-        void **arr = is_v ? (void **)&sc->vertices : (void **)&sc->normals;
-        if (want > *cap) {
-            void *na = realloc(*arr, (size_t)want * sizeof(RtVec3));
-            if (na) {
-                *arr = na;
-                *cap = want;
-            }
-        }
-    } else {
-        if (p->warn) {
-            char msg[512];
-            snprintf(msg, sizeof msg, "%s:%d: warning: unknown command '%.60s' ignored", p->file, p->line, cmd);
-            p->warn(p->warn_ctx, msg);
-        }
+    if (strcmp(cmd, "max_depth") == 0)
+        return cmd_max_depth(p, v);
+    return NOT_MINE;
+}
+
+/* Cuts comment and trailing whitespace off line and splits it at the first
+ * ':' into a command name (checked) and its value text. Returns 1 for a
+ * blank line, 0 for a command, -1 on error. */
+static int split_line(Parser *p, char *line, char **cmd, char **v)
+{
+    char *hash = strchr(line, '#');
+    if (hash)
+        *hash = '\0';
+    size_t n = strlen(line);
+    while (n && (line[n - 1] == ' ' || line[n - 1] == '\t' || line[n - 1] == '\r'))
+        line[--n] = '\0';
+    char *s = (char *)skip_ws(line);
+    if (*s == '\0')
+        return 1;
+    char *colon = strchr(s, ':');
+    if (!colon)
+        return perr(p, "expected 'command: values', got '%.40s'", s);
+    *colon = '\0';
+    *cmd = s;
+    *v = colon + 1;
+    size_t cl = strlen(s);
+    while (cl && (s[cl - 1] == ' ' || s[cl - 1] == '\t'))
+        s[--cl] = '\0';
+    for (size_t i = 0; i < cl; i++)
+        if (!(islower((unsigned char)s[i]) || isdigit((unsigned char)s[i]) || s[i] == '_' ||
+              isupper((unsigned char)s[i])))
+            return perr(p, "malformed command name '%.40s'", s);
+    return 0;
+}
+
+static int parse_line(Parser *p, char *line)
+{
+    char *cmd = NULL, *v = NULL;
+    int rc = split_line(p, line, &cmd, &v);
+    if (rc != 0)
+        return rc < 0 ? rc : 0;
+    rc = cmd_geometry(p, cmd, v);
+    if (rc == NOT_MINE)
+        rc = cmd_shading(p, cmd, v);
+    if (rc == NOT_MINE)
+        rc = cmd_camera(p, cmd, v);
+    if (rc != NOT_MINE)
+        return rc;
+    if (p->warn) {
+        char msg[512];
+        snprintf(msg, sizeof msg, "%s:%d: warning: unknown command '%.60s' ignored", p->file, p->line, cmd);
+        p->warn(p->warn_ctx, msg);
     }
     return 0;
 }
