@@ -28,6 +28,9 @@ typedef struct Options {
     RtMpiSchedule mpi_schedule;
     int block_x, block_y;
     int device;
+    int runs;           /* 0: the backend's default */
+    int warmup_runs;    /* -1: unset */
+    double warmup_ms;   /* -1: unset */
     int quiet;
     int verify;
     int calibrate;
@@ -54,6 +57,10 @@ static void usage(FILE *fp)
             "                           and broadcasts the arrays); default in docs/cpu-backends.md\n"
             "      --block BXxBY        cuda: thread block shape (default chosen by measurement)\n"
             "      --device N           cuda: device index (default 0)\n"
+            "      --runs N             timed renders, render_ms their median (default 1; cuda 21 launches,\n"
+            "                           fewer past 4 s of kernel time)\n"
+            "      --warmup N|Tms       untimed renders first: N of them, or as many as take T ms, at least\n"
+            "                           one (default 0; cuda 50ms)\n"
             "      --verify             poison the image first and fail unless every pixel is written\n"
             "      --calibrate          time a fixed CPU workload before rendering (record key calib_ms)\n"
             "  -q, --quiet              no progress output (warnings and errors still go to stderr)\n"
@@ -63,32 +70,23 @@ static void usage(FILE *fp)
             prog, RT_MAX_DEPTH);
 }
 
-static int parse_int(const char *s, long lo, long hi, int *out)
+/* --warmup: a count, or a time in milliseconds with the suffix ms. */
+static int parse_warmup(const char *s, int *runs, double *ms)
 {
-    char *end;
-    errno = 0;
-    long v = strtol(s, &end, 10);
-    if (errno || end == s || *end != '\0' || v < lo || v > hi)
-        return -1;
-    *out = (int)v;
-    return 0;
-}
-
-static int parse_wxh(const char *s, int maxside, int *w, int *h)
-{
-    char buf[64];
-    if (strlen(s) >= sizeof buf) /* never judge a truncated copy */
-        return -1;
-    snprintf(buf, sizeof buf, "%s", s);
-    char *x = strchr(buf, 'x');
-    if (!x)
-        x = strchr(buf, 'X');
-    if (!x)
-        return -1;
-    *x = '\0';
-    if (parse_int(buf, 1, maxside, w) != 0 || parse_int(x + 1, 1, maxside, h) != 0)
-        return -1;
-    return 0;
+    char buf[32];
+    const size_t n = strlen(s);
+    if (n > 2 && n < sizeof buf && strcmp(s + n - 2, "ms") == 0) {
+        int v;
+        memcpy(buf, s, n - 2);
+        buf[n - 2] = '\0';
+        if (rt_parse_int(buf, 0, 600000, &v) != 0)
+            return -1;
+        *ms = v;
+        *runs = -1;
+        return 0;
+    }
+    *ms = -1.0;
+    return rt_parse_int(s, 0, 1000, runs);
 }
 
 static int opt_error(const char *opt, const char *val, const char *why)
@@ -99,7 +97,8 @@ static int opt_error(const char *opt, const char *val, const char *why)
 
 static int parse_options(int argc, char **argv, Options *o)
 {
-    enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE };
+    enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE,
+           OPT_RUNS, OPT_WARMUP };
     static const struct option longopts[] = {
         {"output", required_argument, NULL, 'o'},     {"backend", required_argument, NULL, 'b'},
         {"accel", required_argument, NULL, 'a'},      {"resolution", required_argument, NULL, 'r'},
@@ -108,6 +107,7 @@ static int parse_options(int argc, char **argv, Options *o)
         {"mpi-schedule", required_argument, NULL, OPT_MPI_SCHEDULE},
         {"mpi-scene", required_argument, NULL, OPT_MPI_SCENE},
         {"block", required_argument, NULL, OPT_BLOCK}, {"device", required_argument, NULL, OPT_DEVICE},
+        {"runs", required_argument, NULL, OPT_RUNS},  {"warmup", required_argument, NULL, OPT_WARMUP},
         {"verify", no_argument, NULL, OPT_VERIFY},    {"calibrate", no_argument, NULL, OPT_CALIBRATE},    {"quiet", no_argument, NULL, 'q'},
         {"help", no_argument, NULL, 'h'},             {"version", no_argument, NULL, 'V'},
         {NULL, 0, NULL, 0}};
@@ -115,6 +115,8 @@ static int parse_options(int argc, char **argv, Options *o)
     o->backend = "serial";
     o->accel = RT_ACCEL_BVH;
     o->max_depth = -1;
+    o->warmup_runs = -1;
+    o->warmup_ms = -1.0;
     int c;
     opterr = 0;
     while ((c = getopt_long(argc, argv, ":o:b:a:r:d:t:qhV", longopts, NULL)) != -1) {
@@ -126,21 +128,21 @@ static int parse_options(int argc, char **argv, Options *o)
                 return opt_error("--accel", optarg, "expected none or bvh");
             break;
         case 'r':
-            if (parse_wxh(optarg, RT_MAX_SIDE, &o->width, &o->height) != 0)
+            if (rt_parse_wxh(optarg, RT_MAX_SIDE, &o->width, &o->height) != 0)
                 return opt_error("--resolution", optarg, "expected WxH with 1 <= W,H <= 32768");
             if ((unsigned long long)o->width * (unsigned long long)o->height > RT_MAX_PIXELS)
                 return opt_error("--resolution", optarg, "more than 2^28 pixels");
             break;
         case 'd':
-            if (parse_int(optarg, 0, RT_MAX_DEPTH, &o->max_depth) != 0)
+            if (rt_parse_int(optarg, 0, RT_MAX_DEPTH, &o->max_depth) != 0)
                 return opt_error("--max-depth", optarg, "expected an integer from 0 to 32");
             break;
         case 't':
-            if (parse_int(optarg, 1, 4096, &o->threads) != 0)
+            if (rt_parse_int(optarg, 1, 4096, &o->threads) != 0)
                 return opt_error("--threads", optarg, "expected an integer from 1 to 4096");
             break;
         case OPT_TILE:
-            if (parse_wxh(optarg, 4096, &o->tile_w, &o->tile_h) != 0)
+            if (rt_parse_wxh(optarg, 4096, &o->tile_w, &o->tile_h) != 0)
                 return opt_error("--tile", optarg, "expected WxH with 1 <= W,H <= 4096");
             break;
         case OPT_SCHEDULE:
@@ -159,12 +161,20 @@ static int parse_options(int argc, char **argv, Options *o)
             o->mpi_scene = optarg;
             break;
         case OPT_BLOCK:
-            if (parse_wxh(optarg, 1024, &o->block_x, &o->block_y) != 0 || o->block_x * o->block_y > 1024)
+            if (rt_parse_wxh(optarg, 1024, &o->block_x, &o->block_y) != 0 || o->block_x * o->block_y > 1024)
                 return opt_error("--block", optarg, "expected BXxBY with at most 1024 threads");
             break;
         case OPT_DEVICE:
-            if (parse_int(optarg, 0, 1023, &o->device) != 0)
+            if (rt_parse_int(optarg, 0, 1023, &o->device) != 0)
                 return opt_error("--device", optarg, "expected a device index");
+            break;
+        case OPT_RUNS:
+            if (rt_parse_int(optarg, 1, 1000, &o->runs) != 0)
+                return opt_error("--runs", optarg, "expected an integer from 1 to 1000");
+            break;
+        case OPT_WARMUP:
+            if (parse_warmup(optarg, &o->warmup_runs, &o->warmup_ms) != 0)
+                return opt_error("--warmup", optarg, "expected a count from 0 to 1000, or a time such as 50ms (at most 600000ms)");
             break;
         case OPT_VERIFY: o->verify = 1; break;
         case OPT_CALIBRATE: o->calibrate = 1; break;
@@ -419,14 +429,75 @@ static int prepare(Run *r, RtError *err)
     return 0;
 }
 
+/* NaN in every channel, so an unwritten pixel cannot pass as black. */
+static void poison(float *rgbf, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        rgbf[i] = NAN;
+}
+
+/* Whether another warm-up render is due after `done` of them, started at t0.
+ * Several processes decide as the root does (a rank rendering once more than
+ * another would wait in a collective forever). */
+static int warmup_due(const Run *r, int done, double t0)
+{
+    const Options *o = r->o;
+    int due = o->warmup_runs >= 0 ? done < o->warmup_runs
+                                  : o->warmup_ms >= 0.0 && (done == 0 || rt_now_ms() - t0 < o->warmup_ms);
+    if (r->col && o->warmup_runs < 0 && o->warmup_ms >= 0.0) {
+        RtError scratch;
+        due = r->col->agree(r->is_root && due, &scratch) != 0;
+    }
+    return due;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    const double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : (x > y ? 1 : 0);
+}
+
+static double median(double *v, int n)
+{
+    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* --warmup and --runs for a backend that renders once per call: the last
+ * run's image and counters, render_ms the median of the runs' (and
+ * render_ms_min the median of theirs). */
+static int render_runs(Run *r, const RtRenderJob *job, RtError *err)
+{
+    const int runs = r->o->runs > 0 ? r->o->runs : 1;
+    int warm = 0, rc = 0;
+    double *ms = malloc(2 * (size_t)runs * sizeof *ms);
+    if (!ms)
+        return rt_fail(err, "out of memory for %d timings", runs);
+    for (const double t0 = rt_now_ms(); rc == 0 && warmup_due(r, warm, t0); warm++)
+        rc = r->be->render(job, &r->out, err);
+    for (int i = 0; i < runs && rc == 0; i++) {
+        poison(r->rgbf, r->npix * 3);
+        if ((rc = r->be->render(job, &r->out, err)) == 0) {
+            ms[i] = r->out.render_ms;
+            ms[runs + i] = r->out.render_ms_min;
+        }
+    }
+    if (rc == 0 && r->out.is_root) {
+        r->out.render_ms = median(ms, runs);
+        r->out.render_ms_best = ms[0];
+        r->out.render_ms_min = median(ms + runs, runs);
+        r->out.runs = runs;
+        r->out.warmups = warm;
+    }
+    free(ms);
+    return rc;
+}
+
 /* The render itself, into the poisoned float image; with --verify, a pixel
  * left unwritten fails it. */
 static int render(Run *r, RtError *err)
 {
     const Options *o = r->o;
-    /* Poison: NaN in every channel, so an unwritten pixel cannot pass as black. */
-    for (size_t i = 0; i < r->npix * 3; i++)
-        r->rgbf[i] = NAN;
     RtRenderJob job;
     memset(&job, 0, sizeof job);
     job.scene = &r->scene;
@@ -440,6 +511,9 @@ static int render(Run *r, RtError *err)
     job.block_x = o->block_x;
     job.block_y = o->block_y;
     job.device = o->device;
+    job.runs = o->runs;
+    job.warmup_runs = o->warmup_runs;
+    job.warmup_ms = o->warmup_ms;
     Progress prog_state = {0, -1};
     if (!o->quiet && isatty(STDERR_FILENO)) {
         prog_state.enabled = 1;
@@ -451,7 +525,8 @@ static int render(Run *r, RtError *err)
     memset(&r->out, 0, sizeof r->out);
     r->out.rgb = r->rgbf;
     r->out.is_root = 1;
-    if (r->be->render(&job, &r->out, err) != 0)
+    poison(r->rgbf, r->npix * 3);
+    if (r->be->times_runs ? r->be->render(&job, &r->out, err) != 0 : render_runs(r, &job, err) != 0)
         return -1;
     if (r->out.is_root && o->verify)
         for (size_t i = 0; i < r->npix * 3; i++)
@@ -482,21 +557,23 @@ static void print_record(const Run *r)
     uint64_t rays = rt_counters_rays(&out->counters);
     int tw = o->tile_w ? o->tile_w : (strcmp(r->be->name, "serial") == 0 ? 32 : 16);
     int th = o->tile_h ? o->tile_h : tw;
-    char calib_key[48] = "";
+    char calib_key[48] = "", min_key[48] = "";
+    if (r->col) /* several processes: the fastest rank's time shows the imbalance */
+        snprintf(min_key, sizeof min_key, " render_ms_min=%.3f", out->render_ms_min);
     if (o->calibrate)
         snprintf(calib_key, sizeof calib_key, " calib_ms=%.3f", r->calib_ms);
     printf("record: scene=%s width=%d height=%d backend=%s accel=%s threads=%d ranks=%d parse_ms=%.3f "
            "build_ms=%.3f render_ms=%.3f write_ms=%.3f total_ms=%.3f rays=%llu primary_rays=%llu "
            "shadow_rays=%llu secondary_rays=%llu node_visits=%llu prim_tests=%llu mrays_per_s=%.3f "
-           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u%s%s\n",
+           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u runs=%d warmups=%d render_ms_best=%.3f%s%s%s\n",
            r->scene.name, r->cam.width, r->cam.height, r->be->name, rt_accel_name(o->accel), out->threads_used,
            out->ranks_used, r->parse_ms, r->build_ms, out->render_ms, r->write_ms, total_ms,
            (unsigned long long)rays, (unsigned long long)out->counters.primary_rays,
            (unsigned long long)out->counters.shadow_rays, (unsigned long long)out->counters.secondary_rays,
            (unsigned long long)out->counters.node_visits, (unsigned long long)out->counters.prim_tests,
            out->render_ms > 0.0 ? (double)rays / (out->render_ms * 1000.0) : 0.0, (unsigned long long)r->hash, tw,
-           th, out->cores[0] ? out->cores : "unknown", r->accel.nprims - r->accel.nsplit, r->accel.nnodes,
-           out->extra, calib_key);
+           th, out->cores[0] ? out->cores : "unknown", r->accel.nprims - r->accel.nsplit, r->accel.nnodes, out->runs,
+           out->warmups, out->render_ms_best, min_key, out->extra, calib_key);
     fflush(stdout);
 }
 

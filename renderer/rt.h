@@ -123,6 +123,14 @@ typedef struct RtRenderJob {
     RtMpiSchedule mpi_schedule;
     int block_x, block_y; /* CUDA block shape; 0: default */
     int device;           /* CUDA device */
+    /* Timing (--runs, --warmup; the backend's default where unset): runs
+     * timed renders, render_ms their median, after warm-up renders that are
+     * not timed: warmup_runs of them, or as many as take warmup_ms (at least
+     * one). Backends without RtBackend.times_runs render once per call and
+     * main.c repeats the call. */
+    int runs;             /* 0: the backend's default */
+    int warmup_runs;      /* -1: unset */
+    double warmup_ms;     /* -1: unset */
     RtProgressFn progress; /* may be NULL */
     void *progress_ctx;
 } RtRenderJob;
@@ -132,6 +140,8 @@ typedef struct RtRenderOut {
     RtCounters counters;  /* summed over all workers */
     double render_ms;     /* pixel work only (max over ranks for MPI; kernel time for CUDA) */
     double render_ms_min; /* min over ranks; = render_ms elsewhere */
+    double render_ms_best; /* the fastest of the timed runs */
+    int runs, warmups;    /* timed and warm-up renders */
     int threads_used;
     int ranks_used;
     int is_root;          /* 0 on MPI ranks other than 0: they print and write nothing */
@@ -150,6 +160,9 @@ typedef struct RtBackend {
     void (*finalize)(void);
     /* optional: hooks of backends that run as several processes (MPI) */
     const struct RtCollective *collective;
+    /* 1: render() does the job's warm-up and timed runs itself (CUDA: the
+     * scene stays on the device); 0: one render per call */
+    int times_runs;
 } RtBackend;
 
 /* What main.c needs from a backend that runs as several processes, so that
@@ -192,6 +205,10 @@ static inline void rt_tile_rect(int w, int h, int tw, int th, int index, int *x0
     *x1 = *x0 + tw < w ? *x0 + tw : w;
     *y1 = *y0 + th < h ? *y0 + th : h;
 }
+/* The command-line numbers of raytrace and the tools: a whole decimal
+ * integer in lo..hi, and WxH with 1 <= W,H <= maxside. 0, or -1 (out untouched). */
+int rt_parse_int(const char *s, long lo, long hi, int *out);
+int rt_parse_wxh(const char *s, int maxside, int *w, int *h);
 /* Appends the CPU the calling thread runs on to a sorted, unique list. */
 void rt_cores_note(char *list, size_t size, int cpu);
 int rt_current_cpu(void);

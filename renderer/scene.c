@@ -1,5 +1,6 @@
 /* scene.c - camera set-up, the shading view, and small shared helpers. */
 #define _GNU_SOURCE
+#include <errno.h>
 #include <math.h>
 #include <sched.h>
 #include <stdarg.h>
@@ -181,4 +182,32 @@ double rt_calibrate_ms(void)
     volatile float sink = acc;
     (void)sink;
     return rt_now_ms() - t0;
+}
+
+int rt_parse_int(const char *s, long lo, long hi, int *out)
+{
+    char *end;
+    errno = 0;
+    const long v = strtol(s, &end, 10);
+    if (errno || end == s || *end != '\0' || v < lo || v > hi)
+        return -1;
+    *out = (int)v;
+    return 0;
+}
+
+int rt_parse_wxh(const char *s, int maxside, int *w, int *h)
+{
+    char buf[64];
+    if (strlen(s) >= sizeof buf) /* never judge a truncated copy */
+        return -1;
+    snprintf(buf, sizeof buf, "%s", s);
+    char *x = strchr(buf, 'x');
+    if (!x)
+        x = strchr(buf, 'X');
+    if (!x)
+        return -1;
+    *x = '\0';
+    if (rt_parse_int(buf, 1, maxside, w) != 0 || rt_parse_int(x + 1, 1, maxside, h) != 0)
+        return -1;
+    return 0;
 }

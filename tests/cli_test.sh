@@ -142,6 +142,30 @@ mkdir -p "$tmp/isdir.png"
 "$rt" -q -o "$tmp/isdir.png" "$src/scenes/demo.txt" > /dev/null 2> "$tmp/stderr"
 [ $? -eq 1 ] && grep -q "is a directory" "$tmp/stderr" || fail "a directory as output accepted"
 bad "overlong option value" "--resolution" -r "64x$(printf '0%.0s' $(seq 58))640" "$src/scenes/demo.txt"
+for v in 0 1001 -1 5x ""; do bad "--runs '$v'" "--runs" --runs "$v" "$src/scenes/demo.txt"; done
+for v in -1 1001 5x ms 5s 600001ms; do bad "--warmup '$v'" "--warmup" --warmup "$v" "$src/scenes/demo.txt"; done
+
+# --- --runs and --warmup: every backend counts them the same way; the image
+# and the counters are the single render's, render_ms is the median of the
+# runs and render_ms_best the fastest (never above the median)
+one=$("$rt" -q -r 32x24 -o "$tmp/r1.ppm" "$src/scenes/demo.txt") || fail "one run"
+three=$("$rt" -q -r 32x24 --runs 3 --warmup 2 -o "$tmp/r3.ppm" "$src/scenes/demo.txt") || fail "--runs 3 --warmup 2"
+key() { printf '%s\n' "$1" | tr ' ' '\n' | sed -n "s/^$2=//p"; }
+[ "$(key "$one" runs)/$(key "$one" warmups)" = 1/0 ] || fail "defaults: runs=$(key "$one" runs) warmups=$(key "$one" warmups)"
+[ "$(key "$three" runs)/$(key "$three" warmups)" = 3/2 ] || fail "--runs 3 --warmup 2: runs=$(key "$three" runs) warmups=$(key "$three" warmups)"
+for k in image_fnv1a rays node_visits prim_tests; do
+    [ "$(key "$one" $k)" = "$(key "$three" $k)" ] || fail "--runs 3 changed $k: $(key "$one" $k) vs $(key "$three" $k)"
+done
+awk -v b="$(key "$three" render_ms_best)" -v m="$(key "$three" render_ms)" 'BEGIN { exit !(b > 0 && b <= m) }' ||
+    fail "render_ms_best $(key "$three" render_ms_best) vs render_ms $(key "$three" render_ms)"
+timed=$("$rt" -q -r 32x24 --warmup 30ms -o "$tmp/r4.ppm" "$src/scenes/demo.txt") || fail "--warmup 30ms"
+[ "$(key "$timed" warmups)" -ge 1 ] || fail "--warmup 30ms: warmups=$(key "$timed" warmups)"
+
+# --- the product reads no tuning variables from the environment: every
+# choice a user has is an option (docs/gpu.md)
+if strings "$rt" | grep -E '^RAYBENCH_' > "$tmp/env"; then
+    fail "raytrace names environment variables: $(tr '\n' ' ' < "$tmp/env")"
+fi
 
 # --- images get the usual permissions (0666 less the umask), not mkstemp's 0600
 (umask 022 && "$rt" -q -r 16x12 -o "$tmp/mode.png" "$src/scenes/demo.txt" > /dev/null) || fail "mode render"

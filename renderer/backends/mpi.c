@@ -34,11 +34,9 @@
 #include "cpu_tiles.h"
 #include "rt.h"
 
-/* rank 0 parses and broadcasts: for arm-reach (the largest course scene) on
- * the 16-core machine the slowest rank held the scene after 5.2 ms (median)
- * vs 6.0 ms when all 16 ranks parse the file at once; at 2-4 ranks "every"
- * is 0.3 ms faster. Broadcast wins at scale and on clusters, where P ranks
- * would otherwise read one file from a shared file system. */
+/* rank 0 parses and broadcasts: it wins at 16 ranks and on clusters, where P
+ * ranks would otherwise read one file from a shared file system; at 2-4
+ * ranks "every" is slightly faster (docs/cpu-backends.md). */
 #define RT_MPI_SCENE_DEFAULT "bcast"
 #define RT_MPI_TILE 16
 enum { RT_TAG_ERROR = 1 };
@@ -86,9 +84,9 @@ static void mpi_finalize(void)
     g_inited = 0;
     /* After an agreed failure every rank is alive and knows it, and rank 0
      * has printed the one message (main.c): all ranks finalize together and
-     * exit 1. MPI_Abort would return from mpirun faster (0.3 s against
-     * 1.3-2.3 s, measured here), but Open MPI 4.1's PMIx thread sometimes
-     * crashed during the abort (exit 139 and a backtrace instead of one line). */
+     * exit 1. MPI_Abort would return from mpirun faster, but Open MPI 4.1's
+     * PMIx thread sometimes crashes during the abort (exit 139 and a
+     * backtrace instead of one line). */
     fflush(stdout);
     fflush(stderr);
     MPI_Finalize();
@@ -389,9 +387,9 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     }
     free(all);
     snprintf(out->extra, sizeof out->extra,
-             " mpi_schedule=%s render_ms_min=%.3f schedule=%s mpi_scene=%s load_ms_max=%.3f tiles_per_claim=%lld"
+             " mpi_schedule=%s schedule=%s mpi_scene=%s load_ms_max=%.3f tiles_per_claim=%lld"
              " rank_cores=%s",
-             job->mpi_schedule == RT_MPI_ROWS ? "rows" : "dynamic", ms_min,
+             job->mpi_schedule == RT_MPI_ROWS ? "rows" : "dynamic",
              job->schedule == RT_SCHED_PIXELS ? "pixels" : "tiles",
              g_scene_how, load_max,
              (long long)tiles_per_claim(threads), per_rank);
@@ -402,4 +400,4 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 
 static const RtCollective mpi_collective = {mpi_is_root, mpi_agree, mpi_scene_load};
 
-const RtBackend rt_backend_mpi = {"mpi", NULL, mpi_init, render_mpi, mpi_finalize, &mpi_collective};
+const RtBackend rt_backend_mpi = {"mpi", NULL, mpi_init, render_mpi, mpi_finalize, &mpi_collective, 0};

@@ -14,8 +14,8 @@
 #include "cpu_tiles.h"
 #include "rt.h"
 
-/* 16x16 measured best on the dragon (bvh) among 8x8, 16x16, 32x32 and 64x16
- * at 2 threads here and at 16 threads on the GPU machine's CPU: large enough
+/* 16x16 measured best on the dragon among 8x8, 16x16, 32x32 and 64x16, at 2
+ * and at 16 threads (docs/cpu-backends.md): large enough
  * that the per-tile scheduling cost vanishes, small enough (768 tiles for
  * 512x384) that the last tiles do not leave threads idle. */
 #define RT_OMP_TILE 16
@@ -50,4 +50,4 @@ static int render_openmp(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     return 0;
 }
 
-const RtBackend rt_backend_openmp = {"openmp", NULL, NULL, render_openmp, NULL, NULL};
+const RtBackend rt_backend_openmp = {"openmp", NULL, NULL, render_openmp, NULL, NULL, 0};
