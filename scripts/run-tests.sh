@@ -2,6 +2,7 @@
 # run-tests.sh - builds raybench and runs the whole test suite (unit,
 # sanitizer, CLI, image, CPU-backend, MPI, harness and GPU tests; GPU tests
 # skip without a GPU). Installs missing Debian packages first when run as root.
+# The experiments (experiments/README.md) are built and tested too.
 # Ends with one line: "N passed, N failed, N skipped".
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -16,11 +17,11 @@ BUILD=${BUILD:-build}
 course=${RAYBENCH_COURSE_DIR:-../shared/scenes/course}
 if [ -d "$course" ]; then course=$(cd "$course" && pwd); else course=none; fi
 if [ ! -f "$BUILD/build.ninja" ]; then
-    meson setup "$BUILD" -Dcourse_dir="$course" || { echo "0 passed, 1 failed"; exit 1; }
+    meson setup "$BUILD" -Dcourse_dir="$course" -Dexperiments=true || { echo "0 passed, 1 failed"; exit 1; }
 else
     # (a build made before the option existed needs --reconfigure to learn it)
-    meson configure "$BUILD" -Dcourse_dir="$course" > /dev/null 2>&1 ||
-        meson setup --reconfigure "$BUILD" -Dcourse_dir="$course" > /dev/null ||
+    meson configure "$BUILD" -Dcourse_dir="$course" -Dexperiments=true > /dev/null 2>&1 ||
+        meson setup --reconfigure "$BUILD" -Dcourse_dir="$course" -Dexperiments=true > /dev/null ||
         { echo "0 passed, 1 failed"; exit 1; }
 fi
 if [ "$course" = none ]; then

@@ -28,12 +28,11 @@
 #ifndef RT_WIDE_MERGE
 #define RT_WIDE_MERGE 4
 #endif
-/* Spatial splits are tried in nodes of at least this many references whose
- * best object split leaves children overlapping by more than this fraction
- * of the node's surface area. (Against trying them in every node of 32 or
- * more with any overlap: the slowest 32-pixel chunk of the dragon takes 405
- * steps instead of 404 in the CPU model, and the build takes a third of the
- * time, the tuning journal, git show 65ca656:git show 65ca656:docs/gpu.md, "Seventh round".) */
+/* Spatial splits (Stich et al. 2009, "SBVH") are tried in nodes of at least
+ * this many references whose best object split leaves children overlapping
+ * by more than this fraction of the node's surface area: trying them
+ * everywhere gives a tree of the same quality at three times the build time
+ * (docs/performance.md). */
 #define RT_BVH_SPATIAL_MIN 128
 #define RT_BVH_SPATIAL_OVERLAP 0.1f
 
@@ -609,32 +608,7 @@ typedef struct Widen {
     const RtBvhNode *bin;
     RtBvh4Node *wide;
     uint32_t n;
-    int ordered;   /* 1: slots front to back along `way` (widen_fill) */
-    float way[3];
 } Widen;
-
-/* The slot order. The GPU's shadow rays go through a node's children in slot
- * order, without sorting them (RT_ANY_HIT_SLOT, git show 65ca656:docs/gpu.md "Eleventh
- * round"). When every shadow ray of a scene goes the same way -- its one
- * light is directional -- the children are put in front-to-back order along
- * that way (by their boxes' centres), so that slot order is a front-to-back
- * order for every shadow ray, and one that is blocked meets its blocker
- * sooner. Otherwise the slots keep the collapse's order. The boxes and the
- * hits are the same either way. RT_WIDE_LIGHT_ORDER=0 (a build switch)
- * leaves every scene in the collapse's order, for comparison. */
-#ifndef RT_WIDE_LIGHT_ORDER
-#define RT_WIDE_LIGHT_ORDER 1
-#endif
-
-static void widen_way(Widen *w, const RtScene *s)
-{
-    w->ordered = 0;
-    if (!RT_WIDE_LIGHT_ORDER || s->nlights != 1 || s->lights[0].type != RT_LIGHT_DIRECTIONAL)
-        return;
-    w->ordered = 1;
-    for (int i = 0; i < 3; i++)
-        w->way[i] = -s->lights[0].dir[i]; /* towards the light */
-}
 
 static float node_area(const RtBvhNode *n)
 {
@@ -646,28 +620,10 @@ static float node_area(const RtBvhNode *n)
 
 static uint32_t widen_ref(Widen *w, uint32_t bi);
 
-/* Fills wide node wi with the binary nodes cand[0..nc), in that order or
- * front to back along w->way. */
-static void widen_fill(Widen *w, uint32_t wi, const uint32_t *cand_in, int nc)
+/* Fills wide node wi with the binary nodes cand[0..nc), in that order. (The
+ * CUDA backend reorders the slots for its shadow rays: its schedule.c.) */
+static void widen_fill(Widen *w, uint32_t wi, const uint32_t *cand, int nc)
 {
-    uint32_t cand[4];
-    float key[4];
-    for (int k = 0; k < nc; k++) {
-        const RtBvhNode *c = &w->bin[cand_in[k]];
-        cand[k] = cand_in[k];
-        key[k] = 0.0f;
-        for (int i = 0; w->ordered && i < 3; i++)
-            key[k] += 0.5f * (c->lo[i] + c->hi[i]) * w->way[i];
-    }
-    for (int i = 1; i < nc; i++) /* insertion sort: ties keep their order */
-        for (int j = i; j > 0 && key[j] < key[j - 1]; j--) {
-            const float t = key[j];
-            const uint32_t u = cand[j];
-            key[j] = key[j - 1];
-            cand[j] = cand[j - 1];
-            key[j - 1] = t;
-            cand[j - 1] = u;
-        }
     uint32_t refs[4];
     for (int k = 0; k < nc; k++)
         refs[k] = widen_ref(w, cand[k]); /* (may append nodes: index, not pointer) */
@@ -753,14 +709,13 @@ static uint32_t widen_ref(Widen *w, uint32_t bi)
 /* Builds a->wide from a->nodes. A tree that is one leaf gets a root with one
  * child. Fails only for lack of memory or more than 2^28 primitives (the
  * reference encoding); then the view simply has no wide tree. */
-static int widen(RtAccel *a, const RtScene *s)
+static int widen(RtAccel *a)
 {
     if (a->nnodes == 0 || a->nprims >= RT_WIDE_MAX_FIRST)
         return -1;
     Widen w;
     w.bin = a->nodes;
     w.n = 0;
-    widen_way(&w, s);
     /* At most one wide node per binary inner node, plus the root. */
     w.wide = malloc(((size_t)a->nnodes + 1) * sizeof *w.wide);
     if (!w.wide)
@@ -842,7 +797,7 @@ int rt_accel_build(const RtScene *s, RtAccelKind kind, RtAccel *a, RtError *err)
     a->nsplit = b.norder - n;
     a->depth = b.max_depth;
     a->leaves = b.leaves;
-    widen(a, s); /* optional: without it the GPU traverses the binary tree */
+    widen(a); /* optional: without it the GPU traverses the binary tree */
     return 0;
 }
 

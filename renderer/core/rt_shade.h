@@ -148,6 +148,37 @@ static inline RT_HD void rt_push_children(RtPending *stack, int *sp, const RtPen
     }
 }
 
+/* The pending stack of a pixel: its primary ray (none when max_depth is 0).
+ * Returns the stack's size. */
+static inline RT_HD int rt_path_begin(const RtSceneView *s, RtRay primary, RtPending *stack)
+{
+    if (s->max_depth <= 0)
+        return 0;
+    stack[0].o = primary.o;
+    stack[0].d = primary.d;
+    stack[0].w = rt_v3(1.0f, 1.0f, 1.0f);
+    stack[0].depth = s->max_depth;
+    return 1;
+}
+
+/* The next pending ray, counted as primary or secondary. */
+static inline RT_HD RtPending rt_path_pop(const RtSceneView *s, RtPending *stack, int *sp, RtCounters *cnt)
+{
+    const RtPending r = stack[--*sp];
+    if (r.depth == s->max_depth)
+        cnt->primary_rays++;
+    else
+        cnt->secondary_rays++;
+    return r;
+}
+
+/* How rt_trace_path traces each ray: light is -1 for a closest-hit ray, else
+ * the light of a shadow ray. A tool that studies the rays (a model of the
+ * GPU's warps, experiments/) defines it before including this file. */
+#ifndef RT_PATH_TRACE
+#define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) rt_trace_ray(s, o, d, tmax, any, hit, cnt)
+#endif
+
 /* The colour of one primary ray, unclamped: trace() of RENDERING-RULES with
  * the recursion unrolled into the pending-ray stack. Each popped ray is traced
  * for its closest hit; the hit's shadow rays are traced in the inner loop over
@@ -155,29 +186,18 @@ static inline RT_HD void rt_push_children(RtPending *stack, int *sp, const RtPen
  * colour is summed exactly as trace(): ambient, then each light in order,
  * then weight * local into the pixel.
  *
- * Two traversal call sites (closest and any hit) measured faster on the GPU
- * than one call site serving every ray kind from a single loop: 0.444 vs
- * 0.633 ms kernel time on the dragon (H100, docs/gpu.md); on the CPU they were
- * equal within 3%. */
+ * The closest-hit and any-hit queries are two call sites, not one loop
+ * serving every ray kind: on the GPU each keeps its own, smaller, traversal
+ * code (docs/gpu.md, "Design and defaults"). */
 static inline RT_HD RtVec3 rt_trace_path(const RtSceneView *s, RtRay primary, int shadow_any, RtCounters *cnt)
 {
     RtPending stack[RT_RAY_STACK];
     RtVec3 color = rt_v3(0.0f, 0.0f, 0.0f);
-    if (s->max_depth <= 0)
-        return color;
-    stack[0].o = primary.o;
-    stack[0].d = primary.d;
-    stack[0].w = rt_v3(1.0f, 1.0f, 1.0f);
-    stack[0].depth = s->max_depth;
-    int sp = 1;
+    int sp = rt_path_begin(s, primary, stack);
     while (sp > 0) {
-        RtPending r = stack[--sp];
-        if (r.depth == s->max_depth)
-            cnt->primary_rays++;
-        else
-            cnt->secondary_rays++;
+        RtPending r = rt_path_pop(s, stack, &sp, cnt);
         RtHit h;
-        if (!rt_trace_ray(s, r.o, r.d, RT_INF, 0, &h, cnt)) {
+        if (!RT_PATH_TRACE(s, r.o, r.d, RT_INF, 0, &h, cnt, -1)) {
             color = rt_add(color, rt_mul(r.w, s->background));
             continue;
         }
@@ -193,7 +213,7 @@ static inline RT_HD RtVec3 rt_trace_path(const RtSceneView *s, RtRay primary, in
                 continue;
             RtHit sh;
             cnt->shadow_rays++;
-            if (!rt_trace_ray(s, so, L, dist, shadow_any, &sh, cnt))
+            if (!RT_PATH_TRACE(s, so, L, dist, shadow_any, &sh, cnt, (int)li))
                 local = rt_add(local, c);
         }
         color = rt_add(color, rt_mul(r.w, local));

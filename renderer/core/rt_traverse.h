@@ -145,7 +145,7 @@ static inline RT_HD RtRayBox rt_raybox(RtVec3 o, RtVec3 d)
 
 /* The scalar slab test: entry distance of the ray into the box lo..hi within
  * [tmin, tmax], or RT_INF. Every scalar box test calls it (rt_box_enter without
- * SSE, the wide traversal, the GPU's binary variant in cuda.cu). */
+ * SSE, and the wide traversal). */
 static inline RT_HD float rt_slab_enter(float lx, float ly, float lz, float hx, float hy, float hz,
                                         const RtRayBox *rb, float tmin, float tmax)
 {
@@ -249,7 +249,7 @@ static inline RT_HD int rt_leaf_take(const RtPrim *p, float t, float u, float v,
 /* A leaf's primitives [first, first + count) against the ray, as the binary
  * traversal below tests them: closest hit (ties to the lower index), or for
  * any != 0 the first hit strictly closer than hit->t. Returns 1 when an
- * any-hit query is answered. The GPU traversals (wide; ldg in cuda.cu) use it. */
+ * any-hit query is answered. The wide traversal uses it too. */
 static inline RT_HD int rt_leaf_hits(const RtSceneView *s, uint32_t first, uint32_t count, RtVec3 o, RtVec3 d,
                                      int any, RtHit *hit, int *found, uint32_t *tests)
 {
@@ -278,7 +278,7 @@ static inline RT_HD int rt_leaf_hits(const RtSceneView *s, uint32_t first, uint3
  * for which the 4-wide traversal stacks a node's entered children in slot
  * order instead of sorting them (rt_wide_visit; the other traversals treat
  * it as RT_ANY_HIT). Same answers either way; which is faster depends on
- * the frame (the tuning journal, git show 65ca656:docs/gpu.md, "Eleventh round"), so the caller chooses. */
+ * the frame (docs/gpu.md), so the caller chooses. */
 #define RT_ANY_HIT 1
 #define RT_ANY_HIT_SLOT 2
 
@@ -295,11 +295,13 @@ static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, f
         /* Brute force: the report's baseline, every ray against every primitive.
          * Records are in index order, so a strict < keeps the lower index on ties. */
         uint64_t tests = 0;
+        RtPrim pr;
         for (uint32_t i = 0; i < s->nprims; i++) {
             tests++;
-            t = rt_prim_intersect(&s->prims[i], o, d, &u, &v);
+            rt_prim_fetch(&s->prims[i], &pr); /* read-only loads on the GPU */
+            t = rt_prim_intersect(&pr, o, d, &u, &v);
             if (t < hit->t) {
-                hit->t = t; hit->u = u; hit->v = v; hit->id = s->prims[i].id;
+                hit->t = t; hit->u = u; hit->v = v; hit->id = pr.id;
                 found = 1;
                 if (any)
                     break;
@@ -391,7 +393,7 @@ done:
 #define RT_WIDE_DONE 0xffffffffu /* no node left (has the leaf bit; never a reference) */
 
 /* Whether a ray with a leaf aside (has_leaf) stops going through inner nodes
- * and tests it: on the CPU at once; cuda.cu defines it before including this
+ * and tests it: on the CPU at once; kernels.cuh defines it before including this
  * as a vote of the warp's active lanes (all have a leaf aside). `any` lets a
  * backend treat shadow rays apart (none does: docs/gpu.md). */
 #ifndef RT_WIDE_LEAF_VOTE

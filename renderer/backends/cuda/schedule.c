@@ -1,0 +1,205 @@
+/* schedule.c - the CUDA backend's scheduling choices, each in one place, with
+ * the measurement behind it (docs/gpu.md, "Design and defaults"):
+ *   - block shapes: 16x8 for the tree, 8x8 for brute force;
+ *   - schedule: one block per tile (grid) for the tree, persistent warps
+ *     taking 32 pixels at a time for brute force (Aila and Laine, HPG 2009)
+ *     and for large images with the tree;
+ *   - the grid's tiles from the image's centre outwards;
+ *   - pixel pairs when their blocks all fit on the GPU at once;
+ *   - shadow rays in slot order, with the slots front to back along a single
+ *     directional light. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "schedule.h"
+
+#define RT_CUDA_TREE_BX 16
+#define RT_CUDA_TREE_BY 8
+#define RT_CUDA_NONE_BX 8
+#define RT_CUDA_NONE_BY 8
+/* Large images: from about 40 waves of the grid default's resident threads
+ * on the H100, persistent 8x8 blocks at 3 blocks per multiprocessor beat the
+ * grid on every report scene; at 31 waves (1920x1080) not on all. */
+#define RT_CUDA_LARGE_WAVES 40.0
+#define RT_CUDA_LARGE_BX 8
+#define RT_CUDA_LARGE_BY 8
+#define RT_CUDA_LARGE_MINB 3
+
+void rt_cuda_default_block(int has_tree, int *bx, int *by)
+{
+    *bx = has_tree ? RT_CUDA_TREE_BX : RT_CUDA_NONE_BX;
+    *by = has_tree ? RT_CUDA_TREE_BY : RT_CUDA_NONE_BY;
+}
+
+void rt_cuda_plan_start(RtCudaPlan *p, int has_tree, int block_x, int block_y)
+{
+    memset(p, 0, sizeof *p);
+    if (block_x > 0) {
+        p->bx = block_x;
+        p->by = block_y;
+    } else {
+        rt_cuda_default_block(has_tree, &p->bx, &p->by);
+    }
+    p->threads = p->bx * p->by;
+    p->persistent = !has_tree;
+    p->minb = 1;
+    p->center = has_tree;
+}
+
+int rt_cuda_plan_large(RtCudaPlan *p, double npix, double resident)
+{
+    if (!(resident > 0.0) || npix < RT_CUDA_LARGE_WAVES * resident)
+        return 0;
+    p->large = 1;
+    p->persistent = 1;
+    p->center = 0;
+    p->bx = RT_CUDA_LARGE_BX;
+    p->by = RT_CUDA_LARGE_BY;
+    p->threads = p->bx * p->by;
+    p->minb = RT_CUDA_LARGE_MINB;
+    return 1;
+}
+
+/* Pairs split a block's lanes two to a pixel: the grid schedule, an even
+ * block width and whole warps. */
+int rt_cuda_pairs_possible(const RtCudaPlan *p)
+{
+    return !p->persistent && p->bx % 2 == 0 && p->threads % 32 == 0;
+}
+
+/* The second lane per pixel costs no wave when every block of pairs is
+ * resident at once; then it shortens the chains of rays the frame waits on. */
+int rt_cuda_pairs_fit(const RtCudaPlan *p, int w, int h, int pair_blocks_per_sm, int nsm)
+{
+    const int pw = p->bx / 2;
+    const unsigned long long tiles =
+        (unsigned long long)((w + pw - 1) / pw) * (unsigned long long)((h + p->by - 1) / p->by);
+    return tiles <= (unsigned long long)pair_blocks_per_sm * (unsigned long long)nsm;
+}
+
+int rt_cuda_grid(const RtCudaPlan *p, int w, int h, RtCudaGrid *g, RtError *err)
+{
+    memset(g, 0, sizeof *g);
+    g->pairs = p->pairs;
+    g->persistent = p->persistent;
+    g->bx = p->pairs ? p->bx / 2 : p->bx;
+    g->by = p->by;
+    g->tiles_x = (w + g->bx - 1) / g->bx;
+    g->tile_items = (uint32_t)(g->bx * g->by);
+    const unsigned long long tiles = (unsigned long long)g->tiles_x * (unsigned long long)((h + g->by - 1) / g->by);
+    if (tiles * (unsigned long long)p->threads > 0xffffffffull - 1024ull)
+        return rt_fail(err, "cuda: a %dx%d image in %dx%d blocks has more than 2^32 work items", w, h, p->bx, p->by);
+    g->ntiles = (uint32_t)tiles;
+    g->total_items = (uint32_t)(tiles * g->tile_items);
+    return 0;
+}
+
+/* ---- The centre order ------------------------------------------------------
+ * A frame's heavy work is mostly on its subject, and a subject is mostly near
+ * the middle of the frame: its tiles go into the first wave instead of
+ * wherever the rows put them, so the frame does not end waiting on them.
+ * Depends on the image and tile sizes only, not on the scene. */
+typedef struct TileKey {
+    unsigned long long d2;
+    uint32_t tile;
+} TileKey;
+
+static int cmp_tile_key(const void *a, const void *b)
+{
+    const TileKey *x = (const TileKey *)a, *y = (const TileKey *)b;
+    if (x->d2 != y->d2)
+        return x->d2 < y->d2 ? -1 : 1;
+    return x->tile < y->tile ? -1 : (x->tile > y->tile ? 1 : 0);
+}
+
+uint32_t *rt_cuda_center_order(const RtCudaGrid *g, int w, int h, RtError *err)
+{
+    TileKey *k = malloc((size_t)g->ntiles * sizeof *k);
+    uint32_t *order = malloc((size_t)g->ntiles * sizeof *order);
+    if (!k || !order) {
+        free(k);
+        free(order);
+        rt_fail(err, "cuda: out of memory for the centre order of %u tiles", g->ntiles);
+        return NULL;
+    }
+    for (uint32_t t = 0; t < g->ntiles; t++) {
+        /* doubled pixel coordinates: tile centre against image centre, exact */
+        const long long cx = 2LL * (t % (uint32_t)g->tiles_x) * g->bx + g->bx - w;
+        const long long cy = 2LL * (t / (uint32_t)g->tiles_x) * g->by + g->by - h;
+        k[t].d2 = (unsigned long long)(cx * cx + cy * cy);
+        k[t].tile = t;
+    }
+    qsort(k, g->ntiles, sizeof *k, cmp_tile_key); /* ties: raster order */
+    for (uint32_t t = 0; t < g->ntiles; t++)
+        order[t] = k[t].tile;
+    free(k);
+    return order;
+}
+
+/* ---- The slot order ---------------------------------------------------------
+ * The kernel's shadow rays take a node's entered children in slot order,
+ * without sorting them (RT_ANY_HIT_SLOT, rt_traverse.h): fewer instructions
+ * per node. When every shadow ray of the scene goes the same way -- its one
+ * light is directional -- the slots are put front to back along that way (by
+ * their boxes' centres), so that a blocked shadow ray meets its blocker
+ * sooner. The copy is laid out depth first in the new slot order, as the
+ * build lays out its own. Boxes and hits are unchanged. */
+typedef struct SlotOrder {
+    const RtBvh4Node *in;
+    RtBvh4Node *out;
+    uint32_t n;
+    float way[3];
+} SlotOrder;
+
+static void slot_sort(const SlotOrder *so, RtBvh4Node *o)
+{
+    float key[4];
+    for (uint32_t k = 0; k < o->count; k++) {
+        key[k] = 0.0f;
+        key[k] += 0.5f * (o->lo_x[k] + o->hi_x[k]) * so->way[0];
+        key[k] += 0.5f * (o->lo_y[k] + o->hi_y[k]) * so->way[1];
+        key[k] += 0.5f * (o->lo_z[k] + o->hi_z[k]) * so->way[2];
+    }
+    for (uint32_t i = 1; i < o->count; i++) /* insertion sort: ties keep their order */
+        for (uint32_t j = i; j > 0 && key[j] < key[j - 1]; j--) {
+#define RT_SWAP(T, a) do { T t_ = (a)[j]; (a)[j] = (a)[j - 1]; (a)[j - 1] = t_; } while (0)
+            RT_SWAP(float, key);
+            RT_SWAP(float, o->lo_x); RT_SWAP(float, o->lo_y); RT_SWAP(float, o->lo_z);
+            RT_SWAP(float, o->hi_x); RT_SWAP(float, o->hi_y); RT_SWAP(float, o->hi_z);
+            RT_SWAP(uint32_t, o->child);
+#undef RT_SWAP
+        }
+}
+
+static void slot_copy(SlotOrder *so, uint32_t from, uint32_t to)
+{
+    RtBvh4Node o = so->in[from];
+    slot_sort(so, &o);
+    for (uint32_t k = 0; k < o.count; k++)
+        if (!(o.child[k] & RT_WIDE_LEAF)) {
+            const uint32_t c = o.child[k];
+            o.child[k] = so->n++;
+            slot_copy(so, c, o.child[k]);
+        }
+    so->out[to] = o;
+}
+
+RtBvh4Node *rt_cuda_slot_order(const RtSceneView *v, RtError *err, int *failed)
+{
+    *failed = 0;
+    if (!v->wide || v->nlights != 1 || v->lights[0].type != RT_LIGHT_DIRECTIONAL)
+        return NULL;
+    SlotOrder so;
+    so.in = v->wide;
+    so.out = malloc((size_t)v->nwide * sizeof *so.out);
+    if (!so.out) {
+        *failed = 1;
+        rt_fail(err, "cuda: out of memory for the slot order of %u nodes", v->nwide);
+        return NULL;
+    }
+    for (int i = 0; i < 3; i++)
+        so.way[i] = -v->lights[0].dir[i]; /* towards the light */
+    so.n = 1;
+    slot_copy(&so, 0, 0);
+    return so.out;
+}

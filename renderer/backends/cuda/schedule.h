@@ -1,0 +1,64 @@
+/* schedule.h - how the CUDA backend maps pixels to threads: the launch
+ * geometry the kernel reads, and the host-side choices that fill it in
+ * (schedule.c). Plain C, shared by nvcc and the C compiler, so the choices
+ * are tested without a GPU (tests/unit/test_cuda_schedule.c). */
+#ifndef RT_CUDA_SCHEDULE_H
+#define RT_CUDA_SCHEDULE_H
+
+#include <stdint.h>
+
+#include "rt.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Launch geometry the kernel reads (passed by value: the constant bank). */
+typedef struct RtCudaGrid {
+    int32_t bx, by;         /* pixel tile of a block (bx is half the block's width with pairs) */
+    int32_t tiles_x;        /* tiles per image row */
+    uint32_t tile_items;    /* bx * by: pixels per tile */
+    uint32_t total_items;   /* tiles_x * tiles_y * tile_items (edge tiles overhang the image) */
+    uint32_t ntiles;        /* tiles in the image */
+    int32_t persistent;     /* 1: warps fetch 32 pixels at a time from a counter; 0: one block per tile */
+    int32_t pairs;          /* 1: two lanes per pixel (grid schedule only) */
+    const uint32_t *units;  /* grid schedule: block b renders tile units[b] (the centre order); NULL: tile b */
+} RtCudaGrid;
+
+/* What the host decided for one render (the record prints it). */
+typedef struct RtCudaPlan {
+    int bx, by, threads;    /* the CUDA block */
+    int persistent;         /* schedule: persistent (1) or grid (0) */
+    int large;              /* the large-image defaults were taken */
+    int pairs;              /* two lanes per pixel */
+    int slot;               /* shadow rays take a node's children in slot order (RT_ANY_HIT_SLOT) */
+    int minb;               /* blocks per multiprocessor the kernel's register budget allows */
+    int center;             /* grid schedule: tiles from the image's centre outwards */
+} RtCudaPlan;
+
+/* The block when --block is not given: tree or brute force. */
+void rt_cuda_default_block(int has_tree, int *bx, int *by);
+/* The schedule and register cap before --block and the image are weighed in. */
+void rt_cuda_plan_start(RtCudaPlan *p, int has_tree, int block_x, int block_y);
+/* Large images with the tree and no --block: npix at least RT_CUDA_LARGE_WAVES
+ * times the pixels the default kernel keeps resident switch to the persistent
+ * schedule in its own block and register cap. Returns 1 when it switched. */
+int rt_cuda_plan_large(RtCudaPlan *p, double npix, double resident);
+/* Pixel pairs when the grid's blocks of pairs all fit on the GPU at once:
+ * pair_blocks_per_sm is the pairs kernel's occupancy. */
+int rt_cuda_pairs_possible(const RtCudaPlan *p);
+int rt_cuda_pairs_fit(const RtCudaPlan *p, int w, int h, int pair_blocks_per_sm, int nsm);
+/* Fills the launch geometry for a w x h image; -1 (err) past 2^32 work items. */
+int rt_cuda_grid(const RtCudaPlan *p, int w, int h, RtCudaGrid *g, RtError *err);
+/* The centre order of the grid's tiles (malloc'd, g->ntiles entries). */
+uint32_t *rt_cuda_center_order(const RtCudaGrid *g, int w, int h, RtError *err);
+/* The slot order of the 4-wide tree for shadow rays (a malloc'd copy of the
+ * nodes, or NULL when the scene has no single direction of shadow rays and
+ * the build's order stays): see schedule.c. */
+RtBvh4Node *rt_cuda_slot_order(const RtSceneView *v, RtError *err, int *failed);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif
