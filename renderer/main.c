@@ -23,6 +23,7 @@ typedef struct Options {
     int width, height;  /* 0: from the scene */
     int max_depth;      /* -1: from the scene */
     int threads;
+    int build_threads;  /* 0: every allowed CPU */
     int tile_w, tile_h;
     RtSchedule schedule;
     RtMpiSchedule mpi_schedule;
@@ -50,6 +51,8 @@ static void usage(FILE *fp)
             "  -r, --resolution WxH     override film_resolution\n"
             "  -d, --max-depth N        override max_depth (0..%d)\n"
             "  -t, --threads N          worker threads (openmp; per rank with mpi)\n"
+            "      --build-threads N    threads of the BVH build (default: every CPU the process may use;\n"
+            "                           the same tree on any number)\n"
             "      --tile WxH           tile size in pixels (default 32x32 serial, 16x16 openmp/mpi)\n"
             "      --schedule S         openmp: tiles (dynamic, default) or pixels (the report's collapse(2) static)\n"
             "      --mpi-schedule S     mpi: dynamic (default) or rows (the report's block rows + Gatherv)\n"
@@ -98,7 +101,7 @@ static int opt_error(const char *opt, const char *val, const char *why)
 static int parse_options(int argc, char **argv, Options *o)
 {
     enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE,
-           OPT_RUNS, OPT_WARMUP };
+           OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS };
     static const struct option longopts[] = {
         {"output", required_argument, NULL, 'o'},     {"backend", required_argument, NULL, 'b'},
         {"accel", required_argument, NULL, 'a'},      {"resolution", required_argument, NULL, 'r'},
@@ -108,6 +111,7 @@ static int parse_options(int argc, char **argv, Options *o)
         {"mpi-scene", required_argument, NULL, OPT_MPI_SCENE},
         {"block", required_argument, NULL, OPT_BLOCK}, {"device", required_argument, NULL, OPT_DEVICE},
         {"runs", required_argument, NULL, OPT_RUNS},  {"warmup", required_argument, NULL, OPT_WARMUP},
+        {"build-threads", required_argument, NULL, OPT_BUILD_THREADS},
         {"verify", no_argument, NULL, OPT_VERIFY},    {"calibrate", no_argument, NULL, OPT_CALIBRATE},    {"quiet", no_argument, NULL, 'q'},
         {"help", no_argument, NULL, 'h'},             {"version", no_argument, NULL, 'V'},
         {NULL, 0, NULL, 0}};
@@ -167,6 +171,10 @@ static int parse_options(int argc, char **argv, Options *o)
         case OPT_DEVICE:
             if (rt_parse_int(optarg, 0, 1023, &o->device) != 0)
                 return opt_error("--device", optarg, "expected a device index");
+            break;
+        case OPT_BUILD_THREADS:
+            if (rt_parse_int(optarg, 1, 4096, &o->build_threads) != 0)
+                return opt_error("--build-threads", optarg, "expected an integer from 1 to 4096");
             break;
         case OPT_RUNS:
             if (rt_parse_int(optarg, 1, 1000, &o->runs) != 0)
@@ -417,7 +425,8 @@ static int prepare(Run *r, RtError *err)
         return -1;
     }
     t0 = rt_now_ms();
-    if (rt_accel_build(&r->scene, o->accel, &r->accel, err) != 0 || rt_bvh_check(&r->accel, err) != 0)
+    if (rt_accel_build_threads(&r->scene, o->accel, o->build_threads, &r->accel, err) != 0 ||
+        rt_bvh_check(&r->accel, err) != 0)
         return -1;
     r->build_ms = rt_now_ms() - t0;
     r->npix = (size_t)r->cam.width * (size_t)r->cam.height;
@@ -565,7 +574,7 @@ static void print_record(const Run *r)
     printf("record: scene=%s width=%d height=%d backend=%s accel=%s threads=%d ranks=%d parse_ms=%.3f "
            "build_ms=%.3f render_ms=%.3f write_ms=%.3f total_ms=%.3f rays=%llu primary_rays=%llu "
            "shadow_rays=%llu secondary_rays=%llu node_visits=%llu prim_tests=%llu mrays_per_s=%.3f "
-           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u runs=%d warmups=%d render_ms_best=%.3f%s%s%s\n",
+           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u runs=%d warmups=%d render_ms_best=%.3f build_threads=%d sah_cost=%.4f%s%s%s\n",
            r->scene.name, r->cam.width, r->cam.height, r->be->name, rt_accel_name(o->accel), out->threads_used,
            out->ranks_used, r->parse_ms, r->build_ms, out->render_ms, r->write_ms, total_ms,
            (unsigned long long)rays, (unsigned long long)out->counters.primary_rays,
@@ -573,7 +582,8 @@ static void print_record(const Run *r)
            (unsigned long long)out->counters.node_visits, (unsigned long long)out->counters.prim_tests,
            out->render_ms > 0.0 ? (double)rays / (out->render_ms * 1000.0) : 0.0, (unsigned long long)r->hash, tw,
            th, out->cores[0] ? out->cores : "unknown", r->accel.nprims - r->accel.nsplit, r->accel.nnodes, out->runs,
-           out->warmups, out->render_ms_best, min_key, out->extra, calib_key);
+           out->warmups, out->render_ms_best, r->accel.build_threads, r->accel.sah_cost, min_key, out->extra,
+           calib_key);
     fflush(stdout);
 }
 

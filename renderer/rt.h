@@ -76,8 +76,13 @@ typedef struct RtAccel {
     uint32_t nwide;
     uint32_t depth;      /* deepest leaf */
     uint32_t leaves;
+    int build_threads;   /* threads the build ran on */
+    double sah_cost;     /* the tree's SAH cost (0 for none): its quality */
 } RtAccel;
 
+/* Builds the accelerator on `threads` threads (0: as many as OpenMP gives,
+ * by default one per allowed CPU); the same tree on any number of them. */
+int rt_accel_build_threads(const RtScene *scene, RtAccelKind kind, int threads, RtAccel *accel, RtError *err);
 int rt_accel_build(const RtScene *scene, RtAccelKind kind, RtAccel *accel, RtError *err);
 void rt_accel_free(RtAccel *accel);
 /* Checks the BVH invariants: every record slot in exactly one leaf, every

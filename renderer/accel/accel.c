@@ -10,10 +10,24 @@
  * Leaves of at most RT_BVH_LEAF_MAX records, nodes written depth-first so the
  * first child of node i is node i+1 (pbrt-v4 LinearBVHNode). Spheres and
  * triangles live in one tree. The primitive records are copied into leaf
- * order so a leaf's records are contiguous in memory. */
+ * order so a leaf's records are contiguous in memory.
+ *
+ * The build runs on all the threads it is given and makes the same tree on
+ * any number of them, so every backend's images and counters stay
+ * bit-identical. Large subtrees are OpenMP tasks, each writing its nodes and
+ * leaf order into arrays of its own, appended in depth-first order once both
+ * children are done; the spatial-split budget is shared between a task's
+ * children in proportion to their references, fixed by the counts alone. In
+ * large nodes the binning, the bounds and the object partition run over
+ * fixed chunks of references in parallel: bins and bounds merge by min, max
+ * and integer sums, which are exact in any order, and the partition keeps
+ * the serial order (Wald 2007, section 4, does the same horizontally). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "rt.h"
 #include "core/rt_traverse.h" /* RT_BVH_MAX_DEPTH: the traversal stack bounds the build */
@@ -28,13 +42,26 @@
 #ifndef RT_WIDE_MERGE
 #define RT_WIDE_MERGE 4
 #endif
-/* Spatial splits (Stich et al. 2009, "SBVH") are tried in nodes of at least
- * this many references whose best object split leaves children overlapping
- * by more than this fraction of the node's surface area: trying them
- * everywhere gives a tree of the same quality at three times the build time
- * (docs/performance.md). */
+/* Spatial splits (Stich et al. 2009, "SBVH") are tried in nodes whose best
+ * object split leaves children overlapping by more than this fraction of the
+ * node's surface area, and of at least RT_BVH_SPATIAL_MIN references and
+ * 1/RT_BVH_SPATIAL_SHARE of the scene's: a split pays where triangles are
+ * large against the node, near the top of the tree; trying them everywhere
+ * gives a tree of the same quality at three times the build time
+ * (docs/performance.md, "Large scenes"). */
+#ifndef RT_BVH_SPATIAL_MIN
 #define RT_BVH_SPATIAL_MIN 128
+#endif
+#ifndef RT_BVH_SPATIAL_SHARE
+#define RT_BVH_SPATIAL_SHARE 2048
+#endif
+#ifndef RT_BVH_SPATIAL_OVERLAP
 #define RT_BVH_SPATIAL_OVERLAP 0.1f
+#endif
+/* Subtrees of at least this many references are tasks of their own; nodes of
+ * at least two chunks of references bin and partition them in parallel. */
+#define RT_BVH_TASK_MIN 4096
+#define RT_BVH_CHUNK 16384
 
 typedef struct Box {
     float lo[3], hi[3];
@@ -99,7 +126,7 @@ int rt_accel_parse(const char *s, RtAccelKind *k)
     return -1;
 }
 
-static RtPrim *make_prims(const RtScene *s, uint32_t *n_out, RtError *err)
+static RtPrim *make_prims(const RtScene *s, int nt, uint32_t *n_out, RtError *err)
 {
     uint64_t n = (uint64_t)s->nspheres + s->ntriangles;
     if (n >= RT_PRIM_SPHERE_BIT) {
@@ -117,6 +144,8 @@ static RtPrim *make_prims(const RtScene *s, uint32_t *n_out, RtError *err)
         p[i].e1[0] = s->spheres[i].r;
         p[i].id = i | RT_PRIM_SPHERE_BIT;
     }
+    (void)nt;
+#pragma omp parallel for num_threads(nt) schedule(static)
     for (uint32_t i = 0; i < s->ntriangles; i++) {
         RtPrim *q = &p[s->nspheres + i];
         const RtTriangle *t = &s->triangles[i];
@@ -176,9 +205,22 @@ typedef struct Builder {
     uint32_t *order;      /* leaf order: the primitive of each record slot */
     uint32_t norder;
     uint32_t refs_left;   /* references spatial splits may still add */
+    uint32_t spatial_min; /* the smallest node that tries spatial splits */
     uint32_t max_depth, leaves;
     int oom;
 } Builder;
+
+/* Chunks of RT_BVH_CHUNK references: 1 below two chunks (then serial). */
+static int nchunks(uint32_t count)
+{
+    return count >= 2u * RT_BVH_CHUNK ? (int)((count + RT_BVH_CHUNK - 1) / RT_BVH_CHUNK) : 1;
+}
+
+static void chunk_range(uint32_t count, int c, uint32_t *i0, uint32_t *i1)
+{
+    *i0 = (uint32_t)c * RT_BVH_CHUNK;
+    *i1 = *i0 + RT_BVH_CHUNK < count ? *i0 + RT_BVH_CHUNK : count;
+}
 
 static float ref_cent(const Ref *r, int a) { return 0.5f * (r->box.lo[a] + r->box.hi[a]); }
 
@@ -278,27 +320,132 @@ static void sweep(const Box *bins, const uint32_t *lcnt, const uint32_t *rcnt, i
     }
 }
 
+/* Bins of the three axes (object splits: centroid bins; spatial splits:
+ * slabs, with the references entering and leaving each). */
+typedef struct Bins {
+    Box box[3][RT_BVH_BINS];
+    uint32_t in[3][RT_BVH_BINS], out[3][RT_BVH_BINS];
+} Bins;
+
+static void bins_empty(Bins *b, int nb)
+{
+    for (int a = 0; a < 3; a++)
+        for (int k = 0; k < nb; k++) {
+            box_empty(&b->box[a][k]);
+            b->in[a][k] = b->out[a][k] = 0;
+        }
+}
+
+static void bins_merge(Bins *to, const Bins *from, int nb)
+{
+    for (int a = 0; a < 3; a++)
+        for (int k = 0; k < nb; k++) {
+            box_grow(&to->box[a][k], &from->box[a][k]);
+            to->in[a][k] += from->in[a][k];
+            to->out[a][k] += from->out[a][k];
+        }
+}
+
+/* Centroid bins of refs[i0..i1) on the axes with scale[a] > 0. With SSE a
+ * bin's box grows by one min and one max over four lanes (the fourth is
+ * ignored): the same values as box_grow, which the same comparisons define. */
+#if RT_SSE
+static void object_bins(const Ref *refs, uint32_t i0, uint32_t i1, const Box *cb, const float *scale, int nb,
+                        Bins *o)
+{
+    __m128 lo[3][RT_BVH_BINS], hi[3][RT_BVH_BINS];
+    bins_empty(o, nb);
+    for (int a = 0; a < 3; a++)
+        for (int k = 0; k < nb; k++) {
+            lo[a][k] = _mm_set1_ps(RT_INF);
+            hi[a][k] = _mm_set1_ps(-RT_INF);
+        }
+    const __m128 half = _mm_set1_ps(0.5f);
+    for (uint32_t i = i0; i < i1; i++) {
+        /* (the loads read lo[0..2] and hi[0], then hi[0..2] and the prim
+         * index: both inside the Ref) */
+        const __m128 l = _mm_loadu_ps(refs[i].box.lo), h = _mm_loadu_ps(refs[i].box.hi);
+        float c[4];
+        _mm_storeu_ps(c, _mm_mul_ps(half, _mm_add_ps(l, h)));
+        for (int a = 0; a < 3; a++) {
+            if (!(scale[a] > 0.0f))
+                continue;
+            const int k = bin_of(c[a], cb->lo[a], scale[a], 0, nb - 1);
+            o->in[a][k]++;
+            lo[a][k] = _mm_min_ps(lo[a][k], l);
+            hi[a][k] = _mm_max_ps(hi[a][k], h);
+        }
+    }
+    for (int a = 0; a < 3; a++)
+        for (int k = 0; k < nb; k++) {
+            float l4[4], h4[4];
+            _mm_storeu_ps(l4, lo[a][k]);
+            _mm_storeu_ps(h4, hi[a][k]);
+            memcpy(o->box[a][k].lo, l4, sizeof o->box[a][k].lo);
+            memcpy(o->box[a][k].hi, h4, sizeof o->box[a][k].hi);
+        }
+}
+#else
+static void object_bins(const Ref *refs, uint32_t i0, uint32_t i1, const Box *cb, const float *scale, int nb,
+                        Bins *o)
+{
+    bins_empty(o, nb);
+    for (uint32_t i = i0; i < i1; i++)
+        for (int a = 0; a < 3; a++) {
+            if (!(scale[a] > 0.0f))
+                continue;
+            const int k = bin_of(ref_cent(&refs[i], a), cb->lo[a], scale[a], 0, nb - 1);
+            o->in[a][k]++;
+            box_grow(&o->box[a][k], &refs[i].box);
+        }
+}
+#endif
+
+typedef void (*BinFn)(const void *ctx, const Ref *refs, uint32_t i0, uint32_t i1, const Box *b, const float *scale,
+                      int nb, Bins *o);
+
+/* The bins of refs[0..count), over chunks in parallel in a large node. */
+static void bins_all(BinFn fn, const void *ctx, const Ref *refs, uint32_t count, const Box *b, const float *scale,
+                     int nb, Bins *o)
+{
+    const int nc = nchunks(count);
+    Bins *part = nc > 1 ? malloc((size_t)nc * sizeof *part) : NULL;
+    if (!part) {
+        fn(ctx, refs, 0, count, b, scale, nb, o);
+        return;
+    }
+#pragma omp taskloop grainsize(1)
+    for (int c = 0; c < nc; c++) {
+        uint32_t i0, i1;
+        chunk_range(count, c, &i0, &i1);
+        fn(ctx, refs, i0, i1, b, scale, nb, &part[c]);
+    }
+    bins_empty(o, nb);
+    for (int c = 0; c < nc; c++)
+        bins_merge(o, &part[c], nb);
+    free(part);
+}
+
+static void object_bin_fn(const void *ctx, const Ref *refs, uint32_t i0, uint32_t i1, const Box *b,
+                          const float *scale, int nb, Bins *o)
+{
+    (void)ctx;
+    object_bins(refs, i0, i1, b, scale, nb, o);
+}
+
 /* Binned SAH over the references' centroids (cb: their bounds). */
 static void object_split(const Ref *refs, uint32_t count, const Box *cb, int nb, Split *best)
 {
+    float scale[3];
     for (int a = 0; a < 3; a++) {
-        float w = cb->hi[a] - cb->lo[a];
-        if (!(w > 0.0f))
-            continue;
-        float scale = (float)nb / w;
-        Box bins[RT_BVH_BINS];
-        uint32_t cnt[RT_BVH_BINS];
-        for (int k = 0; k < nb; k++) {
-            box_empty(&bins[k]);
-            cnt[k] = 0;
-        }
-        for (uint32_t i = 0; i < count; i++) {
-            int k = bin_of(ref_cent(&refs[i], a), cb->lo[a], scale, 0, nb - 1);
-            cnt[k]++;
-            box_grow(&bins[k], &refs[i].box);
-        }
-        sweep(bins, cnt, cnt, nb, a, best, 0);
+        const float w = cb->hi[a] - cb->lo[a];
+        scale[a] = w > 0.0f ? (float)nb / w : 0.0f;
     }
+    Bins bins;
+    bins_all(object_bin_fn, NULL, refs, count, cb, scale, nb, &bins);
+    for (int a = 0; a < 3; a++)
+        if (scale[a] > 0.0f)
+            sweep(bins.box[a], bins.in[a], bins.in[a], nb, a, best, 0);
 }
 
 /* Grows bins k0..k1 (slab k between the planes lo + k/scale and
@@ -346,39 +493,49 @@ static void chop(const float (*v)[3], const Box *r, int a, float lo, float scale
 /* Binned spatial split: nb equal slabs of the node's box bb per axis; a
  * reference is cut into every slab it spans and counted entering its first
  * and leaving its last. */
-static void spatial_split(const Builder *b, const Ref *refs, uint32_t count, const Box *bb, int nb, Split *best)
+static void spatial_bins(const void *ctx, const Ref *refs, uint32_t i0, uint32_t i1, const Box *bb,
+                         const float *scale, int nb, Bins *o)
 {
+    const Builder *b = ctx;
+    bins_empty(o, nb);
     for (int a = 0; a < 3; a++) {
-        float w = bb->hi[a] - bb->lo[a];
-        if (!(w > 0.0f))
+        if (!(scale[a] > 0.0f))
             continue;
-        float scale = (float)nb / w;
-        Box bins[RT_BVH_BINS];
-        uint32_t enter[RT_BVH_BINS], leave[RT_BVH_BINS];
-        for (int k = 0; k < nb; k++) {
-            box_empty(&bins[k]);
-            enter[k] = leave[k] = 0;
-        }
-        for (uint32_t i = 0; i < count; i++) {
-            int k0 = bin_of(refs[i].box.lo[a], bb->lo[a], scale, 0, nb - 1);
-            int k1 = bin_of(refs[i].box.hi[a], bb->lo[a], scale, k0, nb - 1);
-            enter[k0]++;
-            leave[k1]++;
+        for (uint32_t i = i0; i < i1; i++) {
+            const int k0 = bin_of(refs[i].box.lo[a], bb->lo[a], scale[a], 0, nb - 1);
+            const int k1 = bin_of(refs[i].box.hi[a], bb->lo[a], scale[a], k0, nb - 1);
+            o->in[a][k0]++;
+            o->out[a][k1]++;
             if (k0 == k1 || (b->prims[refs[i].prim].id & RT_PRIM_SPHERE_BIT))
                 for (int k = k0; k <= k1; k++) {
                     Box part = refs[i].box;
-                    part.lo[a] = k > k0 ? bb->lo[a] + (float)k / scale : part.lo[a];
-                    part.hi[a] = k < k1 ? bb->lo[a] + (float)(k + 1) / scale : part.hi[a];
-                    box_grow(&bins[k], &part);
+                    part.lo[a] = k > k0 ? bb->lo[a] + (float)k / scale[a] : part.lo[a];
+                    part.hi[a] = k < k1 ? bb->lo[a] + (float)(k + 1) / scale[a] : part.hi[a];
+                    box_grow(&o->box[a][k], &part);
                 }
             else
-                chop(b->verts[refs[i].prim], &refs[i].box, a, bb->lo[a], scale, k0, k1, bins);
+                chop(b->verts[refs[i].prim], &refs[i].box, a, bb->lo[a], scale[a], k0, k1, o->box[a]);
         }
+    }
+}
+
+static void spatial_split(const Builder *b, const Ref *refs, uint32_t count, const Box *bb, int nb, Split *best)
+{
+    float scale[3];
+    for (int a = 0; a < 3; a++) {
+        const float w = bb->hi[a] - bb->lo[a];
+        scale[a] = w > 0.0f ? (float)nb / w : 0.0f;
+    }
+    Bins bins;
+    bins_all(spatial_bins, b, refs, count, bb, scale, nb, &bins);
+    for (int a = 0; a < 3; a++) {
+        if (!(scale[a] > 0.0f))
+            continue;
         Split s = *best;
-        sweep(bins, enter, leave, nb, a, &s, 1);
+        sweep(bins.box[a], bins.in[a], bins.out[a], nb, a, &s, 1);
         if (s.cost < best->cost) {
             *best = s;
-            best->pos = bb->lo[a] + (float)(best->bin + 1) / scale;
+            best->pos = bb->lo[a] + (float)(best->bin + 1) / scale[a];
         }
     }
 }
@@ -464,13 +621,15 @@ static int spatial_partition(Builder *b, const Ref *refs, uint32_t count, const 
     return 1;
 }
 
-/* qsort context for the median fallback (the build is single-threaded). */
-static int sort_axis;
-static int cmp_ref(const void *x, const void *y)
+/* Comparators for the median fallback, one per axis (tasks sort at once). */
+static int cmp_ref_axis(const void *x, const void *y, int axis)
 {
-    float a = ref_cent(x, sort_axis), c = ref_cent(y, sort_axis);
+    float a = ref_cent(x, axis), c = ref_cent(y, axis);
     return a < c ? -1 : (a > c ? 1 : 0);
 }
+static int cmp_ref0(const void *x, const void *y) { return cmp_ref_axis(x, y, 0); }
+static int cmp_ref1(const void *x, const void *y) { return cmp_ref_axis(x, y, 1); }
+static int cmp_ref2(const void *x, const void *y) { return cmp_ref_axis(x, y, 2); }
 
 /* The children's reference arrays of a node of count references, allocated
  * once; 0 (and b->oom) when out of memory. */
@@ -489,19 +648,175 @@ static int halves(Builder *b, uint32_t count, Ref **left, Ref **right)
     return 0;
 }
 
+/* The bounds of refs[i0..i1): their boxes (bb) and their centroids (cb). */
+static void bounds_range(const Ref *refs, uint32_t i0, uint32_t i1, Box *bc)
+{
+    box_empty(&bc[0]);
+    box_empty(&bc[1]);
+    for (uint32_t i = i0; i < i1; i++) {
+        float c[3] = {ref_cent(&refs[i], 0), ref_cent(&refs[i], 1), ref_cent(&refs[i], 2)};
+        box_grow(&bc[0], &refs[i].box);
+        box_grow_pt(&bc[1], c);
+    }
+}
+
+static void bounds_all(const Ref *refs, uint32_t count, Box *bb, Box *cb)
+{
+    const int nc = nchunks(count);
+    Box (*part)[2] = nc > 1 ? malloc((size_t)nc * sizeof *part) : NULL;
+    Box bc[2];
+    if (!part) {
+        bounds_range(refs, 0, count, bc);
+    } else {
+#pragma omp taskloop grainsize(1)
+        for (int c = 0; c < nc; c++) {
+            uint32_t i0, i1;
+            chunk_range(count, c, &i0, &i1);
+            bounds_range(refs, i0, i1, part[c]);
+        }
+        box_empty(&bc[0]);
+        box_empty(&bc[1]);
+        for (int c = 0; c < nc; c++) {
+            box_grow(&bc[0], &part[c][0]);
+            box_grow(&bc[1], &part[c][1]);
+        }
+        free(part);
+    }
+    *bb = bc[0];
+    *cb = bc[1];
+}
+
+/* The object split's partition, in the references' order: over chunks in
+ * parallel in a large node (each chunk's share of either side first
+ * counted, so every chunk knows where its references go). */
+static int obj_left(const Ref *r, const Box *cb, const Split *obj, float scale)
+{
+    return bin_of(ref_cent(r, obj->axis), cb->lo[obj->axis], scale, 0, obj->nbins - 1) <= obj->bin;
+}
+
+static void object_partition(const Ref *refs, uint32_t count, const Box *cb, const Split *obj, Ref *left,
+                             uint32_t *nl_out, Ref *right, uint32_t *nr_out)
+{
+    const float scale = (float)obj->nbins / (cb->hi[obj->axis] - cb->lo[obj->axis]);
+    const int nc = nchunks(count);
+    uint32_t *nleft = nc > 1 ? malloc((size_t)nc * sizeof *nleft) : NULL;
+    uint32_t nl = 0, nr = 0;
+    if (!nleft) {
+        for (uint32_t i = 0; i < count; i++) {
+            if (obj_left(&refs[i], cb, obj, scale))
+                left[nl++] = refs[i];
+            else
+                right[nr++] = refs[i];
+        }
+        *nl_out = nl;
+        *nr_out = nr;
+        return;
+    }
+#pragma omp taskloop grainsize(1)
+    for (int c = 0; c < nc; c++) {
+        uint32_t i0, i1, k = 0;
+        chunk_range(count, c, &i0, &i1);
+        for (uint32_t i = i0; i < i1; i++)
+            k += (uint32_t)obj_left(&refs[i], cb, obj, scale);
+        nleft[c] = k;
+    }
+    for (int c = 0; c < nc; c++) { /* exclusive prefix sums: each chunk's first slot on the left */
+        const uint32_t k = nleft[c];
+        nleft[c] = nl;
+        nl += k;
+    }
+#pragma omp taskloop grainsize(1)
+    for (int c = 0; c < nc; c++) {
+        uint32_t i0, i1;
+        chunk_range(count, c, &i0, &i1);
+        uint32_t l = nleft[c], r = i0 - nleft[c];
+        for (uint32_t i = i0; i < i1; i++) {
+            if (obj_left(&refs[i], cb, obj, scale))
+                left[l++] = refs[i];
+            else
+                right[r++] = refs[i];
+        }
+    }
+    free(nleft);
+    *nl_out = nl;
+    *nr_out = count - nl;
+}
+
+static uint32_t build(Builder *b, Ref *refs, uint32_t count, uint32_t depth);
+
+/* A builder for a subtree of count references with `budget` of its own,
+ * writing into arrays of its own; 0, or -1 out of memory. */
+static int sub_init(Builder *s, const Builder *p, uint32_t count, uint32_t budget)
+{
+    memset(s, 0, sizeof *s);
+    s->prims = p->prims;
+    s->verts = p->verts;
+    s->refs_left = budget;
+    s->spatial_min = p->spatial_min;
+    const size_t recs = (size_t)count + budget;
+    s->nodes = malloc(2 * recs * sizeof *s->nodes);
+    s->order = malloc(recs * sizeof *s->order);
+    if (s->nodes && s->order)
+        return 0;
+    free(s->nodes);
+    free(s->order);
+    return -1;
+}
+
+/* Appends subtree s to p: node and record indices shifted by where they land. */
+static void sub_append(Builder *p, Builder *s)
+{
+    for (uint32_t i = 0; i < s->nnodes; i++) {
+        RtBvhNode n = s->nodes[i];
+        n.index += (n.meta & 0xffu) ? p->norder : p->nnodes;
+        p->nodes[p->nnodes + i] = n;
+    }
+    memcpy(p->order + p->norder, s->order, (size_t)s->norder * sizeof *s->order);
+    p->nnodes += s->nnodes;
+    p->norder += s->norder;
+    p->refs_left += s->refs_left;
+    p->leaves += s->leaves;
+    p->max_depth = s->max_depth > p->max_depth ? s->max_depth : p->max_depth;
+    p->oom |= s->oom;
+    free(s->nodes);
+    free(s->order);
+}
+
+/* The two children of a large node, the left one as a task (see the file's
+ * header); returns the right child's node. Out of memory for the children's
+ * arrays, they are built here one after the other. */
+static uint32_t build_pair(Builder *b, Ref *left, uint32_t nl, Ref *right, uint32_t nr, uint32_t depth)
+{
+    Builder sb[2];
+    const uint32_t bl = (uint32_t)((uint64_t)b->refs_left * nl / ((uint64_t)nl + nr));
+    if (sub_init(&sb[0], b, nl, bl) != 0) {
+        build(b, left, nl, depth);
+        return build(b, right, nr, depth);
+    }
+    if (sub_init(&sb[1], b, nr, b->refs_left - bl) != 0) {
+        free(sb[0].nodes);
+        free(sb[0].order);
+        build(b, left, nl, depth);
+        return build(b, right, nr, depth);
+    }
+    b->refs_left = 0;
+#pragma omp task default(shared)
+    build(&sb[0], left, nl, depth);
+    build(&sb[1], right, nr, depth);
+#pragma omp taskwait
+    sub_append(b, &sb[0]);
+    const uint32_t r = b->nnodes;
+    sub_append(b, &sb[1]);
+    return r;
+}
+
 /* Builds the subtree over refs[0..count) (which it frees) and returns its
  * node; the nodes are written depth-first. */
 static uint32_t build(Builder *b, Ref *refs, uint32_t count, uint32_t depth)
 {
     uint32_t ni = b->nnodes++;
     Box bb, cb;
-    box_empty(&bb);
-    box_empty(&cb);
-    for (uint32_t i = 0; i < count; i++) {
-        float c[3] = {ref_cent(&refs[i], 0), ref_cent(&refs[i], 1), ref_cent(&refs[i], 2)};
-        box_grow(&bb, &refs[i].box);
-        box_grow_pt(&cb, c);
-    }
+    bounds_all(refs, count, &bb, &cb);
     RtBvhNode *n = &b->nodes[ni];
     memcpy(n->lo, bb.lo, sizeof n->lo);
     memcpy(n->hi, bb.hi, sizeof n->hi);
@@ -532,7 +847,7 @@ static uint32_t build(Builder *b, Ref *refs, uint32_t count, uint32_t depth)
         Split s = obj;
         Box overlap = obj.left;
         box_clip(&overlap, &obj.right);
-        if (count >= RT_BVH_SPATIAL_MIN && b->refs_left > 0 &&
+        if (count >= b->spatial_min && b->refs_left > 0 &&
             (obj.axis < 0 || box_area(&overlap) > RT_BVH_SPATIAL_OVERLAP * parea))
             spatial_split(b, refs, count, &bb, nb, &s);
         /* SAH: traversal cost 1, intersection cost 1 per primitive. */
@@ -547,14 +862,7 @@ static uint32_t build(Builder *b, Ref *refs, uint32_t count, uint32_t depth)
             else if (obj.axis >= 0) {
                 /* the object split, also when the spatial one separated
                  * nothing or ran out of its reference budget */
-                nl = nr = 0;
-                float scale = (float)obj.nbins / (cb.hi[obj.axis] - cb.lo[obj.axis]);
-                for (uint32_t i = 0; i < count; i++) {
-                    if (bin_of(ref_cent(&refs[i], obj.axis), cb.lo[obj.axis], scale, 0, obj.nbins - 1) <= obj.bin)
-                        left[nl++] = refs[i];
-                    else
-                        right[nr++] = refs[i];
-                }
+                object_partition(refs, count, &cb, &obj, left, &nl, right, &nr);
                 if (nl > 0 && nr > 0)
                     axis = obj.axis;
             }
@@ -568,10 +876,8 @@ static uint32_t build(Builder *b, Ref *refs, uint32_t count, uint32_t depth)
             return ni;
         }
         axis = ext_axis;
-        if (ext > 0.0f) {
-            sort_axis = axis;
-            qsort(refs, count, sizeof *refs, cmp_ref);
-        }
+        if (ext > 0.0f)
+            qsort(refs, count, sizeof *refs, axis == 0 ? cmp_ref0 : (axis == 1 ? cmp_ref1 : cmp_ref2));
         nl = count / 2;
         nr = count - nl;
         memcpy(left, refs, nl * sizeof *refs);
@@ -589,8 +895,13 @@ static uint32_t build(Builder *b, Ref *refs, uint32_t count, uint32_t depth)
         return ni;
     }
     free(refs);
-    build(b, left, nl, depth + 1);
-    uint32_t r = build(b, right, nr, depth + 1);
+    uint32_t r;
+    if (count >= RT_BVH_TASK_MIN) {
+        r = build_pair(b, left, nl, right, nr, depth + 1);
+    } else {
+        build(b, left, nl, depth + 1);
+        r = build(b, right, nr, depth + 1);
+    }
     n = &b->nodes[ni]; /* (nodes never move: capacity reserved up front) */
     n->index = r;
     n->meta = (uint32_t)axis << 8;
@@ -735,12 +1046,39 @@ static int widen(RtAccel *a)
     return 0;
 }
 
+/* The tree's SAH cost (traversal and intersection cost 1, as the build
+ * weighs them): the expected work of a ray that meets the root's box. */
+static double sah_cost(const RtBvhNode *nodes, uint32_t nnodes)
+{
+    const double root = node_area(&nodes[0]);
+    if (!(root > 0.0))
+        return 0.0;
+    double c = 0.0;
+    for (uint32_t i = 0; i < nnodes; i++) {
+        const uint32_t count = nodes[i].meta & 0xffu;
+        c += node_area(&nodes[i]) * (count ? (double)count : 1.0);
+    }
+    return c / root;
+}
+
 int rt_accel_build(const RtScene *s, RtAccelKind kind, RtAccel *a, RtError *err)
+{
+    return rt_accel_build_threads(s, kind, 0, a, err);
+}
+
+int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAccel *a, RtError *err)
 {
     memset(a, 0, sizeof *a);
     a->kind = kind;
+    a->build_threads = 1;
+#ifdef _OPENMP
+    const int nt = threads > 0 ? threads : omp_get_max_threads();
+#else
+    const int nt = 1;
+    (void)threads;
+#endif
     uint32_t n = 0;
-    RtPrim *prims = make_prims(s, &n, err);
+    RtPrim *prims = make_prims(s, nt, &n, err);
     if (!prims)
         return -1;
     a->nprims = n;
@@ -762,6 +1100,7 @@ int rt_accel_build(const RtScene *s, RtAccelKind kind, RtAccel *a, RtError *err)
         free(refs); free(verts); free(nodes); free(order); free(prims);
         return rt_fail(err, "out of memory building a BVH over %u primitives", n);
     }
+#pragma omp parallel for num_threads(nt) schedule(static)
     for (uint32_t i = 0; i < n; i++) {
         if (!(prims[i].id & RT_PRIM_SPHERE_BIT))
             prim_verts(s, &prims[i], verts[i]);
@@ -775,13 +1114,24 @@ int rt_accel_build(const RtScene *s, RtAccelKind kind, RtAccel *a, RtError *err)
     b.nodes = nodes;
     b.order = order;
     b.refs_left = budget;
+    b.spatial_min = n / RT_BVH_SPATIAL_SHARE > RT_BVH_SPATIAL_MIN ? n / RT_BVH_SPATIAL_SHARE : RT_BVH_SPATIAL_MIN;
+#ifdef _OPENMP
+#pragma omp parallel num_threads(nt)
+#pragma omp single
+    {
+        a->build_threads = omp_get_num_threads();
+        build(&b, refs, n, 0);
+    }
+#else
     build(&b, refs, n, 0);
+#endif
     free(verts);
     RtPrim *ordered = b.oom ? NULL : malloc((size_t)b.norder * sizeof *ordered);
     if (!ordered) {
         free(nodes); free(order); free(prims);
         return rt_fail(err, "out of memory building a BVH over %u primitives", n);
     }
+#pragma omp parallel for num_threads(nt) schedule(static)
     for (uint32_t i = 0; i < b.norder; i++)
         ordered[i] = prims[order[i]];
     free(order); free(prims);
@@ -797,6 +1147,7 @@ int rt_accel_build(const RtScene *s, RtAccelKind kind, RtAccel *a, RtError *err)
     a->nsplit = b.norder - n;
     a->depth = b.max_depth;
     a->leaves = b.leaves;
+    a->sah_cost = sah_cost(a->nodes, a->nnodes);
     widen(a); /* optional: without it the GPU traverses the binary tree */
     return 0;
 }
