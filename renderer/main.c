@@ -51,8 +51,8 @@ static void usage(FILE *fp)
             "  -r, --resolution WxH     override film_resolution\n"
             "  -d, --max-depth N        override max_depth (0..%d)\n"
             "  -t, --threads N          worker threads (openmp; per rank with mpi)\n"
-            "      --build-threads N    threads of the BVH build (default: every CPU the process may use;\n"
-            "                           the same tree on any number)\n"
+            "      --build-threads N    threads that parse the scene and build the BVH (default: every CPU\n"
+            "                           the process may use; the same scene and tree on any number)\n"
             "      --tile WxH           tile size in pixels (default 32x32 serial, 16x16 openmp/mpi)\n"
             "      --schedule S         openmp: tiles (dynamic, default) or pixels (the report's collapse(2) static)\n"
             "      --mpi-schedule S     mpi: dynamic (default) or rows (the report's block rows + Gatherv)\n"
@@ -401,7 +401,7 @@ static int prepare(Run *r, RtError *err)
     /* warnings are not progress: --quiet keeps them (README) */
     RtWarnFn warn = r->is_root ? warn_cb : NULL;
     if (r->col && r->col->scene_load ? r->col->scene_load(o->scene, o->mpi_scene, &r->scene, warn, NULL, err) != 0
-                                     : rt_scene_load(o->scene, &r->scene, warn, NULL, err) != 0)
+                                     : rt_scene_load_threads(o->scene, o->build_threads, &r->scene, warn, NULL, err) != 0)
         return -1;
     r->parse_ms = rt_now_ms() - t0;
     if (o->width) {

@@ -53,9 +53,16 @@ typedef void (*RtWarnFn)(void *ctx, const char *msg);
 /* Parses path into scene (which the caller zeroes or frees). Unknown commands
  * go to warn (may be NULL). Returns 0, or -1 with "path:line: message". */
 int rt_scene_load(const char *path, RtScene *scene, RtWarnFn warn, void *warn_ctx, RtError *err);
-/* Parses a scene held in memory; name is used in messages. */
+/* As rt_scene_load on `threads` threads (0: as many as OpenMP gives): files
+ * of 8 MB and more are parsed in parallel, with the same result. */
+int rt_scene_load_threads(const char *path, int threads, RtScene *scene, RtWarnFn warn, void *warn_ctx,
+                          RtError *err);
+/* Parses a scene held in memory (len bytes, no terminator needed); name is
+ * used in messages. */
 int rt_scene_parse_buffer(const char *name, const char *buf, size_t len, RtScene *scene, RtWarnFn warn,
                           void *warn_ctx, RtError *err);
+int rt_scene_parse_buffer_threads(const char *name, const char *buf, size_t len, int threads, RtScene *scene,
+                                  RtWarnFn warn, void *warn_ctx, RtError *err);
 void rt_scene_free(RtScene *scene);
 /* Checks the camera and resolution (after CLI overrides) and builds the camera. */
 int rt_scene_camera(const RtScene *scene, RtCamera *cam, RtError *err);

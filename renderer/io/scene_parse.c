@@ -4,7 +4,14 @@
  * Numbers go through a fast decimal path (exact for up to 19 significant
  * digits and powers of ten up to 1e22, Clinger 1990) with strtof as the
  * fallback, which is what makes the 500 KB dragon parse in a few ms.
- * Every error names file and line and leaves the scene freeable. */
+ * Every error names file and line and leaves the scene freeable.
+ *
+ * Large files are mapped and parsed in two passes (parse_chunks below):
+ * chunks of lines in parallel turn vertex, normal, triangle and sphere lines
+ * into records, then one pass in file order checks the triangles' indices,
+ * gives each primitive its material and runs every other line as the
+ * serial parser does. The scene, the warnings and the first error are the
+ * serial parser's, byte for byte (tests/unit/test_parse_threads.c). */
 #include <ctype.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -13,8 +20,12 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "rt.h"
 
@@ -579,6 +590,26 @@ static int parse_line(Parser *p, char *line)
     return 0;
 }
 
+/* The line at *pos into `line` (NUL-terminated, the '\n' dropped), *pos
+ * moved past it; a line too long or with binary bytes is an error. */
+static int next_line(Parser *p, const char *buf, size_t len, size_t *pos, char *line)
+{
+    const size_t start = *pos;
+    const char *nl = memchr(buf + start, '\n', len - start);
+    const size_t ll = nl ? (size_t)(nl - (buf + start)) : len - start;
+    *pos = start + ll + (nl != NULL);
+    if (ll > RT_MAX_LINE)
+        return perr(p, "line longer than %d bytes", RT_MAX_LINE);
+    for (size_t i = 0; i < ll; i++) {
+        const unsigned char c = (unsigned char)buf[start + i];
+        if ((c < 0x20 && c != '\t' && c != '\r') || c == 0x7f)
+            return perr(p, "binary data (byte 0x%02x at column %zu): not a scene file", c, i + 1);
+    }
+    memcpy(line, buf + start, ll);
+    line[ll] = '\0';
+    return 0;
+}
+
 static void scene_defaults(RtScene *s)
 {
     s->camera_pos = rt_v3(0, 0, 0);
@@ -608,62 +639,353 @@ static void scene_name(RtScene *s, const char *path)
     snprintf(s->path, sizeof s->path, "%s", path);
 }
 
-int rt_scene_parse_buffer(const char *name, const char *buf, size_t len, RtScene *scene, RtWarnFn warn,
-                          void *warn_ctx, RtError *err)
+/* A parser at the start of a scene: the defaults and material 0, the
+ * format's default, used until the first material line. */
+static int parse_start(Parser *p, const char *name, RtScene *scene, RtWarnFn warn, void *warn_ctx, RtError *err)
 {
     memset(scene, 0, sizeof *scene);
     scene_defaults(scene);
     scene_name(scene, name);
-    Parser p;
-    memset(&p, 0, sizeof p);
-    p.file = name;
-    p.s = scene;
-    p.err = err;
-    p.warn = warn;
-    p.warn_ctx = warn_ctx;
-    /* Material 0 is the format's default, used until the first material line. */
-    if (GROW(&p, materials, "materials") != 0)
+    memset(p, 0, sizeof *p);
+    p->file = name;
+    p->s = scene;
+    p->err = err;
+    p->warn = warn;
+    p->warn_ctx = warn_ctx;
+    if (GROW(p, materials, "materials") != 0)
         return -1;
     RtMaterial *m = &scene->materials[scene->nmaterials++];
     memset(m, 0, sizeof *m);
     m->kd[0] = m->kd[1] = m->kd[2] = 1.0f;
     m->ns = 5.0f;
     m->ior = 1.0f;
+    return 0;
+}
+
+static int parse_serial(Parser *p, const char *buf, size_t len)
+{
     char *line = malloc(RT_MAX_LINE + 1);
     if (!line)
-        return rt_fail(err, "%s: out of memory", name);
+        return rt_fail(p->err, "%s: out of memory", p->file);
     size_t pos = 0;
     int rc = 0;
     while (pos < len && rc == 0) {
-        p.line++;
-        size_t start = pos;
-        while (pos < len && buf[pos] != '\n')
-            pos++;
-        size_t ll = pos - start;
-        if (pos < len)
-            pos++; /* the '\n' */
-        if (ll > RT_MAX_LINE) {
-            rc = perr(&p, "line longer than %d bytes", RT_MAX_LINE);
-            break;
-        }
-        for (size_t i = 0; i < ll; i++) {
-            unsigned char c = (unsigned char)buf[start + i];
-            if ((c < 0x20 && c != '\t' && c != '\r') || c == 0x7f) {
-                rc = perr(&p, "binary data (byte 0x%02x at column %zu): not a scene file", c, i + 1);
-                break;
-            }
-        }
-        if (rc)
-            break;
-        memcpy(line, buf + start, ll);
-        line[ll] = '\0';
-        rc = parse_line(&p, line);
+        p->line++;
+        rc = next_line(p, buf, len, &pos, line);
+        if (rc == 0)
+            rc = parse_line(p, line);
     }
     free(line);
     return rc;
 }
 
-int rt_scene_load(const char *path, RtScene *scene, RtWarnFn warn, void *warn_ctx, RtError *err)
+/* ---- Large files in parallel ----------------------------------------------
+ * Pass 1, per chunk of lines: vertex and normal lines into the chunk's
+ * pools, triangle and sphere lines into records that remember what the
+ * serial parser would have known there (the chunk's vertices, normals and
+ * deferred lines so far), every other line deferred; a chunk stops at its
+ * first error. Pass 2, in file order: each chunk's pools appended, then its
+ * records and deferred lines in their order, so materials, index checks,
+ * warnings and the first error come out as the serial parser's. */
+#define RT_PARSE_CHUNK (4u << 20) /* bytes per chunk; smaller files are parsed serially */
+
+typedef struct TriRec {
+    uint32_t v[3], n[3];
+    uint32_t nv, nn;    /* the chunk's vertices and normals before it */
+    uint32_t deferred;  /* the chunk's deferred lines before it */
+    int32_t line;       /* negative: a normal_triangle on line -line */
+} TriRec;
+
+typedef struct SphRec {
+    float f[4];
+    uint32_t deferred;
+} SphRec;
+
+typedef struct Chunk {
+    size_t begin, end;  /* bytes */
+    int line0;          /* lines before the chunk */
+    RtVec3 *verts, *norms;
+    uint32_t nv, nn, cap_v, cap_n;
+    TriRec *tris;
+    uint32_t nt, cap_t;
+    SphRec *sphs;
+    uint32_t ns, cap_s;
+    struct Deferred {
+        size_t pos;     /* the line's first byte */
+        int line;
+    } *defs;            /* the lines pass 2 runs through parse_line */
+    uint32_t nd, cap_d;
+    int failed;         /* pass 1 stopped at an error (err) after its records */
+    RtError err;
+} Chunk;
+
+/* Appends one element to a chunk's array; -1 out of memory. */
+static int chunk_push(void **arr, uint32_t *n, uint32_t *cap, size_t elem)
+{
+    if (*n < *cap)
+        return 0;
+    const uint32_t nc = *cap ? *cap * 2 : 1024;
+    void *na = nc > *cap ? realloc(*arr, (size_t)nc * elem) : NULL;
+    if (!na)
+        return -1;
+    *arr = na;
+    *cap = nc;
+    return 0;
+}
+#define CHUNK_PUSH(c, arr, n, cap) chunk_push((void **)&(c)->arr, &(c)->n, &(c)->cap, sizeof *(c)->arr)
+
+/* One line of pass 1; -1 stops the chunk (p->err holds the message). */
+static int chunk_line(Parser *p, Chunk *c, char *line, size_t at)
+{
+    char *cmd = NULL, *v = NULL;
+    const int rc = split_line(p, line, &cmd, &v);
+    if (rc != 0)
+        return rc < 0 ? -1 : 0;
+    float f[4];
+    if (strcmp(cmd, "vertex") == 0 || strcmp(cmd, "normal") == 0) {
+        if (get_floats(p, cmd, v, f, 3) != 0)
+            return -1;
+        if (cmd[0] == 'v' ? CHUNK_PUSH(c, verts, nv, cap_v) : CHUNK_PUSH(c, norms, nn, cap_n))
+            return perr(p, "out of memory");
+        if (cmd[0] == 'v')
+            c->verts[c->nv++] = v3f(f);
+        else
+            c->norms[c->nn++] = v3f(f);
+    } else if (strcmp(cmd, "triangle") == 0 || strcmp(cmd, "normal_triangle") == 0) {
+        int64_t ix[6];
+        const int nt = cmd[0] == 'n';
+        if (get_indices(p, cmd, v, ix, nt ? 6 : 3) != 0)
+            return -1;
+        if (CHUNK_PUSH(c, tris, nt, cap_t))
+            return perr(p, "out of memory");
+        TriRec *t = &c->tris[c->nt++];
+        for (int i = 0; i < 3; i++) {
+            t->v[i] = (uint32_t)ix[i];
+            t->n[i] = nt ? (uint32_t)ix[3 + i] : 0;
+        }
+        t->nv = c->nv;
+        t->nn = c->nn;
+        t->deferred = c->nd;
+        t->line = nt ? -p->line : p->line;
+    } else if (strcmp(cmd, "sphere") == 0) {
+        if (get_floats(p, "sphere", v, f, 4) != 0)
+            return -1;
+        if (!(f[3] > 0.0f))
+            return perr(p, "sphere: radius must be positive, got %g", (double)f[3]);
+        if (CHUNK_PUSH(c, sphs, ns, cap_s))
+            return perr(p, "out of memory");
+        memcpy(c->sphs[c->ns].f, f, sizeof f);
+        c->sphs[c->ns++].deferred = c->nd;
+    } else {
+        if (CHUNK_PUSH(c, defs, nd, cap_d))
+            return perr(p, "out of memory");
+        c->defs[c->nd].pos = at;
+        c->defs[c->nd++].line = p->line;
+    }
+    return 0;
+}
+/* Pass 1 over one chunk. */
+static void chunk_parse(const Parser *p0, Chunk *c, const char *buf)
+{
+    Parser p = *p0;
+    p.err = &c->err;
+    p.warn = NULL;
+    p.line = c->line0;
+    char *line = malloc(RT_MAX_LINE + 1);
+    if (!line) {
+        c->failed = 1;
+        rt_fail(&c->err, "%s: out of memory", p.file);
+        return;
+    }
+    size_t pos = c->begin;
+    while (pos < c->end && !c->failed) {
+        const size_t at = pos;
+        p.line++;
+        c->failed = next_line(&p, buf, c->end, &pos, line) != 0 || chunk_line(&p, c, line, at) != 0;
+    }
+    free(line);
+}
+
+/* Pass 2 for a chunk's triangles and spheres before its deferred line j. */
+static int chunk_prims(Parser *p, const Chunk *c, uint32_t j, uint32_t *ti, uint32_t *si, uint32_t nv0, uint32_t nn0)
+{
+    RtScene *sc = p->s;
+    for (; *ti < c->nt && c->tris[*ti].deferred == j; (*ti)++) {
+        const TriRec *t = &c->tris[*ti];
+        const int normals = t->line < 0;
+        const char *cmd = normals ? "normal_triangle" : "triangle";
+        p->line = normals ? -t->line : t->line;
+        for (int i = 0; i < 3; i++)
+            if (check_index(p, cmd, t->v[i], nv0 + t->nv, "vertex") != 0)
+                return -1;
+        for (int i = 0; i < 3 && normals; i++)
+            if (check_index(p, cmd, t->n[i], nn0 + t->nn, "normal") != 0)
+                return -1;
+        RtTriangle *o = &sc->triangles[sc->ntriangles++];
+        for (int i = 0; i < 3; i++) {
+            o->v[i] = t->v[i];
+            o->n[i] = normals ? (int32_t)t->n[i] : -1;
+        }
+        o->material = p->material;
+    }
+    for (; *si < c->ns && c->sphs[*si].deferred == j; (*si)++) {
+        RtSphere *o = &sc->spheres[sc->nspheres++];
+        memcpy(o->c, c->sphs[*si].f, 3 * sizeof(float));
+        o->r = c->sphs[*si].f[3];
+        o->material = p->material;
+    }
+    return 0;
+}
+
+/* Pass 2 for one chunk, in file order. */
+static int chunk_merge(Parser *p, const Chunk *c, const char *buf, char *line)
+{
+    RtScene *sc = p->s;
+    const uint32_t nv0 = sc->nvertices, nn0 = sc->nnormals;
+    memcpy(sc->vertices + nv0, c->verts, (size_t)c->nv * sizeof *c->verts);
+    memcpy(sc->normals + nn0, c->norms, (size_t)c->nn * sizeof *c->norms);
+    sc->nvertices += c->nv;
+    sc->nnormals += c->nn;
+    uint32_t ti = 0, si = 0;
+    for (uint32_t j = 0; j <= c->nd; j++) {
+        if (chunk_prims(p, c, j, &ti, &si, nv0, nn0) != 0)
+            return -1;
+        if (j == c->nd)
+            break;
+        size_t pos = c->defs[j].pos;
+        p->line = c->defs[j].line;
+        if (next_line(p, buf, c->end, &pos, line) != 0 || parse_line(p, line) != 0)
+            return -1;
+    }
+    if (c->failed) { /* the chunk's first error, after everything before it */
+        *p->err = c->err;
+        return -1;
+    }
+    return 0;
+}
+
+/* Chunks at line starts, about RT_PARSE_CHUNK bytes each, and the lines
+ * before each (counted in parallel). */
+static int chunk_split(const char *buf, size_t len, Chunk **out, int nt)
+{
+    int n = (int)(len / RT_PARSE_CHUNK) + 1;
+    Chunk *c = calloc((size_t)n, sizeof *c);
+    if (!c)
+        return -1;
+    size_t at = 0;
+    for (int i = 0; i < n; i++) {
+        c[i].begin = at;
+        size_t e = (size_t)(i + 1) * RT_PARSE_CHUNK;
+        if (i == n - 1 || e >= len) {
+            e = len;
+        } else {
+            const char *nl = memchr(buf + e, '\n', len - e);
+            e = nl ? (size_t)(nl - buf) + 1 : len;
+        }
+        c[i].end = at = e;
+    }
+    (void)nt;
+#pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
+    for (int i = 0; i < n; i++) {
+        int lines = 0;
+        for (const char *q = buf + c[i].begin, *end = buf + c[i].end; (q = memchr(q, '\n', (size_t)(end - q))); q++)
+            lines++;
+        c[i].line0 = lines; /* (made cumulative below) */
+    }
+    for (int i = 0, sum = 0; i < n; i++) {
+        const int k = c[i].line0;
+        c[i].line0 = sum;
+        sum += k;
+    }
+    *out = c;
+    return n;
+}
+
+static void chunks_free(Chunk *c, int n)
+{
+    for (int i = 0; i < n; i++) {
+        free(c[i].verts);
+        free(c[i].norms);
+        free(c[i].tris);
+        free(c[i].sphs);
+        free(c[i].defs);
+    }
+    free(c);
+}
+
+/* The scene's pools sized for every chunk's records at once. */
+static int reserve_all(Parser *p, const Chunk *c, int n)
+{
+    uint64_t nv = 0, nn = 0, nt = 0, ns = 0;
+    for (int i = 0; i < n; i++) {
+        nv += c[i].nv;
+        nn += c[i].nn;
+        nt += c[i].nt;
+        ns += c[i].ns;
+    }
+    RtScene *sc = p->s;
+    if (nv > RT_MAX_POOL || nn > RT_MAX_POOL || nt > RT_MAX_POOL || ns > RT_MAX_POOL)
+        return rt_fail(p->err, "%s: more than %u vertices, normals, triangles or spheres", p->file, RT_MAX_POOL);
+    sc->vertices = malloc((size_t)(nv ? nv : 1) * sizeof *sc->vertices);
+    sc->normals = malloc((size_t)(nn ? nn : 1) * sizeof *sc->normals);
+    sc->triangles = malloc((size_t)(nt ? nt : 1) * sizeof *sc->triangles);
+    sc->spheres = malloc((size_t)(ns ? ns : 1) * sizeof *sc->spheres);
+    if (!sc->vertices || !sc->normals || !sc->triangles || !sc->spheres)
+        return rt_fail(p->err, "%s: out of memory for the scene's pools", p->file);
+    sc->cap_vertices = (uint32_t)(nv ? nv : 1);
+    sc->cap_normals = (uint32_t)(nn ? nn : 1);
+    sc->cap_triangles = (uint32_t)(nt ? nt : 1);
+    sc->cap_spheres = (uint32_t)(ns ? ns : 1);
+    return 0;
+}
+
+static int parse_chunks(Parser *p, const char *buf, size_t len, int nt)
+{
+    Chunk *c = NULL;
+    const int n = chunk_split(buf, len, &c, nt);
+    if (n < 0)
+        return rt_fail(p->err, "%s: out of memory", p->file);
+#pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
+    for (int i = 0; i < n; i++)
+        chunk_parse(p, &c[i], buf);
+    /* pools sized for every chunk up to the first that failed (the rest is never reached) */
+    int upto = 0;
+    while (upto < n && !c[upto].failed)
+        upto++;
+    char *line = malloc(RT_MAX_LINE + 1);
+    int rc = line ? reserve_all(p, c, upto < n ? upto + 1 : n) : rt_fail(p->err, "%s: out of memory", p->file);
+    for (int i = 0; i < n && rc == 0; i++)
+        rc = chunk_merge(p, &c[i], buf, line);
+    free(line);
+    chunks_free(c, n);
+    return rc;
+}
+
+int rt_scene_parse_buffer_threads(const char *name, const char *buf, size_t len, int threads, RtScene *scene,
+                                  RtWarnFn warn, void *warn_ctx, RtError *err)
+{
+    Parser p;
+    if (parse_start(&p, name, scene, warn, warn_ctx, err) != 0)
+        return -1;
+#ifdef _OPENMP
+    const int nt = threads > 0 ? threads : omp_get_max_threads();
+#else
+    const int nt = 1;
+    (void)threads;
+#endif
+    if (nt > 1 && len >= 2 * (size_t)RT_PARSE_CHUNK)
+        return parse_chunks(&p, buf, len, nt);
+    return parse_serial(&p, buf, len);
+}
+
+int rt_scene_parse_buffer(const char *name, const char *buf, size_t len, RtScene *scene, RtWarnFn warn,
+                          void *warn_ctx, RtError *err)
+{
+    return rt_scene_parse_buffer_threads(name, buf, len, 1, scene, warn, warn_ctx, err);
+}
+
+int rt_scene_load_threads(const char *path, int threads, RtScene *scene, RtWarnFn warn, void *warn_ctx,
+                          RtError *err)
 {
     memset(scene, 0, sizeof *scene);
     /* O_NONBLOCK: opening a FIFO for reading would wait for a writer forever;
@@ -676,33 +998,30 @@ int rt_scene_load(const char *path, RtScene *scene, RtWarnFn warn, void *warn_ct
         close(fd);
         return rt_fail(err, "%s: not a regular file", path);
     }
-    FILE *fp = fdopen(fd, "rb");
-    if (!fp) {
-        close(fd);
-        return rt_fail(err, "%s: cannot open: %s", path, strerror(errno));
-    }
     if ((unsigned long long)st.st_size > RT_MAX_FILE) {
-        fclose(fp);
+        close(fd);
         return rt_fail(err, "%s: file of %lld bytes is larger than the %llu-byte limit", path, (long long)st.st_size,
                        (unsigned long long)RT_MAX_FILE);
     }
-    size_t len = (size_t)st.st_size;
-    char *buf = malloc(len + 1);
-    if (!buf) {
-        fclose(fp);
-        return rt_fail(err, "%s: out of memory reading %zu bytes", path, len);
+    const size_t len = (size_t)st.st_size;
+    if (len == 0) {
+        close(fd);
+        return rt_scene_parse_buffer_threads(path, "", 0, threads, scene, warn, warn_ctx, err);
     }
-    size_t got = fread(buf, 1, len, fp);
-    int rerr = ferror(fp);
-    fclose(fp);
-    if (rerr || got != len) {
-        free(buf);
-        return rt_fail(err, "%s: read error", path);
-    }
-    buf[len] = '\0';
-    int rc = rt_scene_parse_buffer(path, buf, len, scene, warn, warn_ctx, err);
-    free(buf);
+    /* Mapped, not read: no copy of a file of hundreds of MB, and the threads
+     * of the parse fault its pages in side by side. */
+    void *map = mmap(NULL, len, PROT_READ, MAP_PRIVATE, fd, 0);
+    close(fd);
+    if (map == MAP_FAILED)
+        return rt_fail(err, "%s: cannot map: %s", path, strerror(errno));
+    const int rc = rt_scene_parse_buffer_threads(path, map, len, threads, scene, warn, warn_ctx, err);
+    munmap(map, len);
     return rc;
+}
+
+int rt_scene_load(const char *path, RtScene *scene, RtWarnFn warn, void *warn_ctx, RtError *err)
+{
+    return rt_scene_load_threads(path, 0, scene, warn, warn_ctx, err);
 }
 
 void rt_scene_free(RtScene *s)
