@@ -263,7 +263,7 @@ static int dim_of_key(const char *key)
 
 static const char *const scalar_keys[] = {
     "study", "scene_dir", "repeats", "warmup", "timeout", "oversubscribe",
-    "baseline", "raytrace", "mpirun", "launcher", NULL};
+    "baseline", "raytrace", "mpirun", "launcher", "scene_cache", NULL};
 
 int hx_launcher_parse(const char *name, HxLauncher *out)
 {
@@ -438,6 +438,8 @@ int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
             cfg->raytrace = hx_strdup(v);
         } else if (strcmp(key, "mpirun") == 0) {
             cfg->mpirun = hx_strdup(v);
+        } else if (strcmp(key, "scene_cache") == 0) {
+            cfg->scene_cache = hx_strdup(v);
         } else if (strcmp(key, "launcher") == 0) {
             if (hx_launcher_parse(v, &cfg->launcher))
                 rc = set_err(err, errlen, path, lineno,
@@ -548,6 +550,7 @@ void hx_config_free(HxConfig *cfg)
     free(cfg->baseline);
     free(cfg->raytrace);
     free(cfg->mpirun);
+    free(cfg->scene_cache);
     memset(cfg, 0, sizeof *cfg);
 }
 

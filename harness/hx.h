@@ -121,6 +121,7 @@ typedef struct {
     char *mpirun;
     HxLauncher launcher;
     HxStrList extra_args;       /* passed verbatim to raytrace */
+    char *scene_cache;          /* raytrace --cache DIR; "off": none; NULL: the user's cache directory */
 } HxConfig;
 
 typedef struct {

@@ -291,10 +291,33 @@ typedef struct {
     int bind;        /* bind the child with hwloc before exec */
 } Command;
 
+/* raytrace's --cache directory (docs/harness.md, "Scene cache"): the
+ * config's scene_cache, none for "off", else the user's cache directory
+ * ($XDG_CACHE_HOME or ~/.cache, then raybench; created here). */
+static const char *scene_cache_dir(const HxConfig *cfg, char *buf, size_t size)
+{
+    if (cfg->scene_cache)
+        return strcmp(cfg->scene_cache, "off") == 0 ? NULL : cfg->scene_cache;
+    const char *x = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
+    if (x && x[0] == '/') {
+        snprintf(buf, size, "%s/raybench", x);
+        mkdir(x, 0755); /* (raytrace warns if the cache cannot be written) */
+    } else if (home && home[0] == '/') {
+        snprintf(buf, size, "%s/.cache", home);
+        mkdir(buf, 0755);
+        snprintf(buf, size, "%s/.cache/raybench", home);
+    } else {
+        snprintf(buf, size, "/tmp/raybench-cache-%u", (unsigned)getuid());
+    }
+    return buf;
+}
+
 static void build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r,
                           const char *raytrace, const char *image, Command *c)
 {
     memset(c, 0, sizeof *c);
+    char cache_buf[4096];
+    const char *cache_dir = scene_cache_dir(cfg, cache_buf, sizeof cache_buf);
     const char *be = r->v[HX_DIM_BACKEND];
     int is_mpi = strcmp(be, "mpi") == 0;
     int pinned = strcmp(r->v[HX_DIM_PIN], "none") != 0;
@@ -384,6 +407,10 @@ static void build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *
     hx_strlist_push(&c->argv, image);
     for (size_t i = 0; i < cfg->extra_args.n; i++)
         hx_strlist_push(&c->argv, cfg->extra_args.v[i]);
+    if (cache_dir) {
+        hx_strlist_push(&c->argv, "--cache");
+        hx_strlist_push(&c->argv, cache_dir);
+    }
     hx_strlist_push(&c->argv, r->scene_path);
     if (strcmp(be, "openmp") == 0) {
         char n[16];

@@ -36,6 +36,7 @@ typedef struct Options {
     int verify;
     int calibrate;
     const char *mpi_scene; /* NULL: the mpi backend's default */
+    const char *cache;     /* scene cache directory; NULL: none */
 } Options;
 
 static const char *prog = "raytrace";
@@ -64,6 +65,8 @@ static void usage(FILE *fp)
             "                           fewer past 4 s of kernel time)\n"
             "      --warmup N|Tms       untimed renders first: N of them, or as many as take T ms, at least\n"
             "                           one (default 0; cuda 50ms)\n"
+            "      --cache DIR          keep the parsed scene and its BVH in DIR, keyed by the scene's\n"
+            "                           content, the options and this program; a later run maps it\n"
             "      --verify             poison the image first and fail unless every pixel is written\n"
             "      --calibrate          time a fixed CPU workload before rendering (record key calib_ms)\n"
             "  -q, --quiet              no progress output (warnings and errors still go to stderr)\n"
@@ -101,7 +104,7 @@ static int opt_error(const char *opt, const char *val, const char *why)
 static int parse_options(int argc, char **argv, Options *o)
 {
     enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE,
-           OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS };
+           OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE };
     static const struct option longopts[] = {
         {"output", required_argument, NULL, 'o'},     {"backend", required_argument, NULL, 'b'},
         {"accel", required_argument, NULL, 'a'},      {"resolution", required_argument, NULL, 'r'},
@@ -111,7 +114,7 @@ static int parse_options(int argc, char **argv, Options *o)
         {"mpi-scene", required_argument, NULL, OPT_MPI_SCENE},
         {"block", required_argument, NULL, OPT_BLOCK}, {"device", required_argument, NULL, OPT_DEVICE},
         {"runs", required_argument, NULL, OPT_RUNS},  {"warmup", required_argument, NULL, OPT_WARMUP},
-        {"build-threads", required_argument, NULL, OPT_BUILD_THREADS},
+        {"build-threads", required_argument, NULL, OPT_BUILD_THREADS}, {"cache", required_argument, NULL, OPT_CACHE},
         {"verify", no_argument, NULL, OPT_VERIFY},    {"calibrate", no_argument, NULL, OPT_CALIBRATE},    {"quiet", no_argument, NULL, 'q'},
         {"help", no_argument, NULL, 'h'},             {"version", no_argument, NULL, 'V'},
         {NULL, 0, NULL, 0}};
@@ -171,6 +174,13 @@ static int parse_options(int argc, char **argv, Options *o)
         case OPT_DEVICE:
             if (rt_parse_int(optarg, 0, 1023, &o->device) != 0)
                 return opt_error("--device", optarg, "expected a device index");
+            break;
+        case OPT_CACHE:
+            if (!*optarg)
+                return opt_error("--cache", optarg, "expected a directory");
+            if (rt_cache_unavailable())
+                return opt_error("--cache", optarg, rt_cache_unavailable());
+            o->cache = optarg;
             break;
         case OPT_BUILD_THREADS:
             if (rt_parse_int(optarg, 1, 4096, &o->build_threads) != 0)
@@ -388,6 +398,8 @@ typedef struct {
     uint8_t *rgb;
     size_t npix;
     double t_start, parse_ms, build_ms, calib_ms, write_ms;
+    const char *cache;  /* off, built or loaded */
+    char cache_key[33];
     uint64_t hash;
     RtRenderOut out;
 } Run;
@@ -400,8 +412,13 @@ static int prepare(Run *r, RtError *err)
     double t0 = rt_now_ms();
     /* warnings are not progress: --quiet keeps them (README) */
     RtWarnFn warn = r->is_root ? warn_cb : NULL;
-    if (r->col && r->col->scene_load ? r->col->scene_load(o->scene, o->mpi_scene, &r->scene, warn, NULL, err) != 0
-                                     : rt_scene_load_threads(o->scene, o->build_threads, &r->scene, warn, NULL, err) != 0)
+    const int loaded = o->cache ? rt_cache_load(o->cache, o->scene, o->accel, &r->scene, &r->accel, r->cache_key, err) : 0;
+    if (loaded < 0)
+        return -1;
+    r->cache = loaded ? "loaded" : (o->cache ? "built" : "off");
+    if (!loaded && (r->col && r->col->scene_load
+                        ? r->col->scene_load(o->scene, o->mpi_scene, &r->scene, warn, NULL, err) != 0
+                        : rt_scene_load_threads(o->scene, o->build_threads, &r->scene, warn, NULL, err) != 0))
         return -1;
     r->parse_ms = rt_now_ms() - t0;
     if (o->width) {
@@ -425,10 +442,15 @@ static int prepare(Run *r, RtError *err)
         return -1;
     }
     t0 = rt_now_ms();
-    if (rt_accel_build_threads(&r->scene, o->accel, o->build_threads, &r->accel, err) != 0 ||
-        rt_bvh_check(&r->accel, err) != 0)
+    if (!loaded && (rt_accel_build_threads(&r->scene, o->accel, o->build_threads, &r->accel, err) != 0 ||
+                    rt_bvh_check(&r->accel, err) != 0))
         return -1;
     r->build_ms = rt_now_ms() - t0;
+    if (o->cache && !loaded && r->is_root) { /* (without it the run goes on: a warning) */
+        RtError cerr;
+        if (rt_cache_store(o->cache, r->cache_key, &r->scene, &r->accel, &cerr) != 0)
+            fprintf(stderr, "%s: warning: %s\n", prog, cerr.msg);
+    }
     r->npix = (size_t)r->cam.width * (size_t)r->cam.height;
     r->rgbf = malloc(r->npix * 3 * sizeof *r->rgbf);
     r->rgb = malloc(r->npix * 3);
@@ -574,7 +596,7 @@ static void print_record(const Run *r)
     printf("record: scene=%s width=%d height=%d backend=%s accel=%s threads=%d ranks=%d parse_ms=%.3f "
            "build_ms=%.3f render_ms=%.3f write_ms=%.3f total_ms=%.3f rays=%llu primary_rays=%llu "
            "shadow_rays=%llu secondary_rays=%llu node_visits=%llu prim_tests=%llu mrays_per_s=%.3f "
-           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u runs=%d warmups=%d render_ms_best=%.3f build_threads=%d sah_cost=%.4f%s%s%s\n",
+           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u runs=%d warmups=%d render_ms_best=%.3f build_threads=%d sah_cost=%.4f cache=%s%s%s%s\n",
            r->scene.name, r->cam.width, r->cam.height, r->be->name, rt_accel_name(o->accel), out->threads_used,
            out->ranks_used, r->parse_ms, r->build_ms, out->render_ms, r->write_ms, total_ms,
            (unsigned long long)rays, (unsigned long long)out->counters.primary_rays,
@@ -582,7 +604,7 @@ static void print_record(const Run *r)
            (unsigned long long)out->counters.node_visits, (unsigned long long)out->counters.prim_tests,
            out->render_ms > 0.0 ? (double)rays / (out->render_ms * 1000.0) : 0.0, (unsigned long long)r->hash, tw,
            th, out->cores[0] ? out->cores : "unknown", r->accel.nprims - r->accel.nsplit, r->accel.nnodes, out->runs,
-           out->warmups, out->render_ms_best, r->accel.build_threads, r->accel.sah_cost, min_key, out->extra,
+           out->warmups, out->render_ms_best, r->accel.build_threads, r->accel.sah_cost, r->cache, min_key, out->extra,
            calib_key);
     fflush(stdout);
 }

@@ -46,6 +46,9 @@ typedef struct RtScene {
     char path[4096];    /* file it came from */
     /* lines that set camera values (0: default), for error messages */
     int line_fwd, line_up, line_fov, line_res, line_depth, line_output;
+    /* the scene cache's mapping the arrays live in (rt_cache_load); NULL: malloc'd */
+    void *cache_map;
+    size_t cache_len;
 } RtScene;
 
 typedef void (*RtWarnFn)(void *ctx, const char *msg);
@@ -64,6 +67,8 @@ int rt_scene_parse_buffer(const char *name, const char *buf, size_t len, RtScene
 int rt_scene_parse_buffer_threads(const char *name, const char *buf, size_t len, int threads, RtScene *scene,
                                   RtWarnFn warn, void *warn_ctx, RtError *err);
 void rt_scene_free(RtScene *scene);
+/* Sets the scene's name (the file name without directory and extension) and path. */
+void rt_scene_name(RtScene *scene, const char *path);
 /* Checks the camera and resolution (after CLI overrides) and builds the camera. */
 int rt_scene_camera(const RtScene *scene, RtCamera *cam, RtError *err);
 
@@ -85,6 +90,7 @@ typedef struct RtAccel {
     uint32_t leaves;
     int build_threads;   /* threads the build ran on */
     double sah_cost;     /* the tree's SAH cost (0 for none): its quality */
+    int mapped;          /* the arrays are in the scene's cache mapping: not freed here */
 } RtAccel;
 
 /* Builds the accelerator on `threads` threads (0: as many as OpenMP gives,
@@ -101,6 +107,20 @@ int rt_accel_parse(const char *s, RtAccelKind *kind);
 
 /* The view the shading code reads; pointers into scene and accel. */
 RtSceneView rt_scene_view(const RtScene *scene, const RtAccel *accel, const RtCamera *cam);
+
+/* ---------------------------------------------------------------- scene cache */
+
+/* The parsed scene and its accelerator for scene_path from the cache
+ * directory dir (docs/scene-format.md, "Scene cache"): 1 loaded (the arrays
+ * mapped; rt_scene_free and rt_accel_free release them), 0 a miss (a stale
+ * or corrupt entry is removed), -1 an error. key (33 bytes) receives the
+ * entry's name for rt_cache_store. */
+int rt_cache_load(const char *dir, const char *scene_path, RtAccelKind kind, RtScene *scene, RtAccel *accel,
+                  char *key, RtError *err);
+/* Stores a scene and its accelerator under key (written whole or not at all). */
+int rt_cache_store(const char *dir, const char *key, const RtScene *scene, const RtAccel *accel, RtError *err);
+/* NULL when this build has the cache; else why not. */
+const char *rt_cache_unavailable(void);
 
 /* ---------------------------------------------------------------- images */
 

@@ -1154,9 +1154,11 @@ int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAc
 
 void rt_accel_free(RtAccel *a)
 {
-    free(a->prims);
-    free(a->nodes);
-    free(a->wide);
+    if (!a->mapped) {
+        free(a->prims);
+        free(a->nodes);
+        free(a->wide);
+    }
     memset(a, 0, sizeof *a);
 }
 

@@ -624,7 +624,7 @@ static void scene_defaults(RtScene *s)
     snprintf(s->output, sizeof s->output, "raytraced.bmp");
 }
 
-static void scene_name(RtScene *s, const char *path)
+void rt_scene_name(RtScene *s, const char *path)
 {
     const char *b = strrchr(path, '/');
     b = b ? b + 1 : path;
@@ -645,7 +645,7 @@ static int parse_start(Parser *p, const char *name, RtScene *scene, RtWarnFn war
 {
     memset(scene, 0, sizeof *scene);
     scene_defaults(scene);
-    scene_name(scene, name);
+    rt_scene_name(scene, name);
     memset(p, 0, sizeof *p);
     p->file = name;
     p->s = scene;
@@ -1026,11 +1026,15 @@ int rt_scene_load(const char *path, RtScene *scene, RtWarnFn warn, void *warn_ct
 
 void rt_scene_free(RtScene *s)
 {
-    free(s->vertices);
-    free(s->normals);
-    free(s->spheres);
-    free(s->triangles);
-    free(s->materials);
-    free(s->lights);
+    if (s->cache_map) {
+        munmap(s->cache_map, s->cache_len);
+    } else {
+        free(s->vertices);
+        free(s->normals);
+        free(s->spheres);
+        free(s->triangles);
+        free(s->materials);
+        free(s->lights);
+    }
     memset(s, 0, sizeof *s);
 }

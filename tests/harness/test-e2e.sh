@@ -64,6 +64,20 @@ if command -v mpirun > /dev/null && ! "$RT" -V | grep -q 'mpi(not built)'; then
     left=$(pgrep -f "$T/deep/deep.txt")
     [ -z "$left" ] || { ps -fp $left; fail "MPI ranks outlived the harness's kill"; }
 fi
+# the scene cache across a study's repeats: the first run builds, the
+# others load (the record's cache= in the extra column), with one image
+if "$RT" -q --cache "$T/probe" -r 8x6 -o "$T/p.ppm" scenes/demo.txt > /dev/null 2>&1; then
+    printf 'study: cached\nscene_dir: %s/scenes\nscenes: glass\nresolution: 64x48\nrepeats: 3\nwarmup: 0\npin: none\nscene_cache: %s/sc\n' \
+        "$SRC" "$T" > "$T/cached.conf"
+    "$H" run "$T/cached.conf" --raytrace "$RT" -o "$T/cached.csv" -q 2> "$T/cached.log" || { cat "$T/cached.log"; fail "cached study failed"; }
+    [ "$(grep -c 'cache=built' "$T/cached.csv")" -eq 1 ] && [ "$(grep -c 'cache=loaded' "$T/cached.csv")" -eq 2 ] ||
+        { cat "$T/cached.csv"; fail "the study did not build once and load twice"; }
+    [ "$(ls "$T/sc" | wc -l)" -eq 1 ] || fail "one cache entry expected in $T/sc"
+    printf 'study: nocache\nscene_dir: %s/scenes\nscenes: glass\nresolution: 64x48\nrepeats: 2\nwarmup: 0\npin: none\nscene_cache: off\n' \
+        "$SRC" > "$T/nocache.conf"
+    "$H" run "$T/nocache.conf" --raytrace "$RT" -o "$T/nocache.csv" -q 2> /dev/null || fail "scene_cache: off failed"
+    [ "$(grep -c 'cache=off' "$T/nocache.csv")" -eq 2 ] || fail "scene_cache: off still passed --cache"
+fi
 command -v gnuplot > /dev/null || { echo "gnuplot missing: plot check skipped"; exit 77; }
 "$H" plot "$T/quick.csv" -o "$T/quick" || fail "plot failed"
 for k in speedup efficiency scenes; do

@@ -1,0 +1,296 @@
+/* scene_cache.c - the parsed scene and its acceleration structure in one
+ * binary file, mapped by a later run instead of parsing and building again
+ * (docs/scene-format.md, "Scene cache").
+ *
+ * A cache file is DIR/KEY.rbc. KEY is a 128-bit XXH3 hash of the scene
+ * file's bytes, the accelerator kind, the format version and the running
+ * program's own bytes, so any change of the scene, the options or the code
+ * misses. The file is a header (counts, array offsets, the hash of the
+ * payload), the scene struct and the arrays, each at a 64-byte offset. A
+ * load checks the header against the file's size and the payload (the scene
+ * struct and every array) against its hash; a file that fails is removed and
+ * the scene is built again. A store writes a
+ * temporary file and renames it, so a reader never sees half a file. */
+#include <errno.h>
+#include <fcntl.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "config.h"
+#include "rt.h"
+
+#if HAVE_XXHASH
+#include <xxhash.h>
+
+#define RT_CACHE_MAGIC "RBCACHE1"
+#define RT_CACHE_FORMAT 1u
+#define RT_CACHE_ALIGN 64u
+#define RT_HASH_CHUNK (64u << 20)
+
+enum { A_VERTS, A_NORMALS, A_SPHERES, A_TRIS, A_MATS, A_LIGHTS, A_PRIMS, A_NODES, A_WIDE, A_COUNT };
+static const size_t elem[A_COUNT] = {sizeof(RtVec3),     sizeof(RtVec3),  sizeof(RtSphere), sizeof(RtTriangle),
+                                     sizeof(RtMaterial), sizeof(RtLight), sizeof(RtPrim),   sizeof(RtBvhNode),
+                                     sizeof(RtBvh4Node)};
+
+typedef struct CacheHeader {
+    char magic[8];
+    uint32_t format, header_size, scene_size; /* sizeof checks: another layout never loads */
+    uint32_t counts[A_COUNT];
+    uint64_t offset[A_COUNT];
+    uint64_t file_size, payload_hash;
+    uint8_t key[16];
+    /* the accelerator's scalars */
+    int32_t kind;
+    uint32_t nsplit, depth, leaves;
+    double sah_cost;
+} CacheHeader;
+
+/* XXH3-128 of a buffer, over 64 MB pieces in parallel, then of the pieces'
+ * hashes: the same value on any number of threads. */
+static XXH128_hash_t hash_big(const void *data, size_t len)
+{
+    const size_t n = len / RT_HASH_CHUNK + 1;
+    XXH128_hash_t *part = malloc(n * sizeof *part);
+    if (!part)
+        return XXH3_128bits(data, len);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (size_t i = 0; i < n; i++) {
+        const size_t a = i * RT_HASH_CHUNK, b = a + RT_HASH_CHUNK < len ? a + RT_HASH_CHUNK : len;
+        part[i] = XXH3_128bits((const char *)data + a, b - a);
+    }
+    XXH128_hash_t h = XXH3_128bits(part, n * sizeof *part);
+    free(part);
+    return h;
+}
+
+/* The whole of a regular file, mapped read-only (*len 0: empty, no map). */
+static void *map_file(const char *path, size_t *len, int *fd_out)
+{
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    struct stat st;
+    if (fd < 0)
+        return NULL;
+    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode) || st.st_size <= 0) {
+        close(fd);
+        return NULL;
+    }
+    *len = (size_t)st.st_size;
+    void *m = mmap(NULL, *len, PROT_READ, MAP_PRIVATE, fd, 0);
+    if (fd_out)
+        *fd_out = fd;
+    else
+        close(fd);
+    return m == MAP_FAILED ? NULL : m;
+}
+
+/* The key: the scene's bytes, the accelerator kind, the format, and the
+ * program itself (any rebuild with other code misses). */
+static int cache_key(const char *scene_path, RtAccelKind kind, char *hex, RtError *err)
+{
+    size_t slen = 0, elen = 0;
+    void *s = map_file(scene_path, &slen, NULL);
+    if (!s)
+        return rt_fail(err, "%s: cannot read for the scene cache: %s", scene_path, strerror(errno));
+    XXH128_hash_t h[3];
+    h[0] = hash_big(s, slen);
+    munmap(s, slen);
+    void *exe = map_file("/proc/self/exe", &elen, NULL);
+    h[1] = exe ? hash_big(exe, elen) : XXH3_128bits(RT_BUILD_FLAGS, sizeof RT_BUILD_FLAGS);
+    if (exe)
+        munmap(exe, elen);
+    const uint32_t opts[2] = {(uint32_t)kind, RT_CACHE_FORMAT};
+    h[2] = XXH3_128bits(opts, sizeof opts);
+    const XXH128_hash_t k = XXH3_128bits(h, sizeof h);
+    snprintf(hex, 33, "%016llx%016llx", (unsigned long long)k.high64, (unsigned long long)k.low64);
+    return 0;
+}
+
+static void cache_path(char *out, size_t size, const char *dir, const char *hex)
+{
+    snprintf(out, size, "%s/%s.rbc", dir, hex);
+}
+
+/* The arrays of a scene and its accelerator, with their sizes in bytes. */
+static void arrays(const RtScene *s, const RtAccel *a, const void **p, uint64_t *bytes, uint32_t *count)
+{
+    const void *ptr[A_COUNT] = {s->vertices, s->normals, s->spheres, s->triangles, s->materials,
+                                s->lights,   a->prims,   a->nodes,   a->wide};
+    const uint32_t n[A_COUNT] = {s->nvertices, s->nnormals, s->nspheres, s->ntriangles, s->nmaterials,
+                                 s->nlights,   a->nprims,   a->nnodes,   a->wide ? a->nwide : 0};
+    for (int i = 0; i < A_COUNT; i++) {
+        p[i] = ptr[i];
+        count[i] = n[i];
+        bytes[i] = (uint64_t)n[i] * elem[i];
+    }
+}
+
+/* The payload's hash: of the scene struct's and every array's hash. */
+static uint64_t payload_hash(const void *scene_struct, const void **p, const uint64_t *bytes)
+{
+    XXH128_hash_t h[1 + A_COUNT];
+    h[0] = XXH3_128bits(scene_struct, sizeof(RtScene));
+    for (int i = 0; i < A_COUNT; i++)
+        h[1 + i] = hash_big(p[i], (size_t)bytes[i]);
+    return XXH3_64bits(h, sizeof h);
+}
+
+/* Everything a header must satisfy before its offsets are followed. */
+static int header_ok(const CacheHeader *h, size_t len)
+{
+    if (len < sizeof *h || memcmp(h->magic, RT_CACHE_MAGIC, 8) != 0 || h->format != RT_CACHE_FORMAT ||
+        h->header_size != sizeof *h || h->scene_size != sizeof(RtScene) || h->file_size != len)
+        return 0;
+    for (int i = 0; i < A_COUNT; i++)
+        if (h->offset[i] % RT_CACHE_ALIGN || h->offset[i] > len ||
+            (uint64_t)h->counts[i] * elem[i] > len - h->offset[i])
+            return 0;
+    return 1;
+}
+
+int rt_cache_load(const char *dir, const char *scene_path, RtAccelKind kind, RtScene *scene, RtAccel *accel,
+                  char *key, RtError *err)
+{
+    if (cache_key(scene_path, kind, key, err) != 0)
+        return -1;
+    char path[4200];
+    cache_path(path, sizeof path, dir, key);
+    size_t len = 0;
+    void *m = map_file(path, &len, NULL);
+    if (!m)
+        return 0; /* a miss */
+    const CacheHeader *h = m;
+    int ok = header_ok(h, len) && len >= sizeof(CacheHeader) + sizeof(RtScene);
+    if (ok) {
+        const void *p[A_COUNT];
+        uint64_t bytes[A_COUNT];
+        for (int i = 0; i < A_COUNT; i++) {
+            p[i] = (const char *)m + h->offset[i];
+            bytes[i] = (uint64_t)h->counts[i] * elem[i];
+        }
+        ok = payload_hash((const char *)m + sizeof *h, p, bytes) == h->payload_hash;
+    }
+    if (!ok) {
+        munmap(m, len);
+        unlink(path); /* stale or corrupt: never trusted, built again */
+        return 0;
+    }
+    /* copy-on-write: the arrays are the map's, the structs are ours */
+    munmap(m, len);
+    m = NULL;
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd >= 0) {
+        m = mmap(NULL, len, PROT_READ | PROT_WRITE, MAP_PRIVATE, fd, 0);
+        close(fd);
+    }
+    if (!m || m == MAP_FAILED)
+        return 0;
+    h = m;
+    char *base = m;
+    memcpy(scene, base + sizeof *h, sizeof *scene);
+    rt_scene_name(scene, scene_path);
+    void **sp[6] = {(void **)&scene->vertices, (void **)&scene->normals,   (void **)&scene->spheres,
+                    (void **)&scene->triangles, (void **)&scene->materials, (void **)&scene->lights};
+    for (int i = 0; i < 6; i++)
+        *sp[i] = base + h->offset[i];
+    scene->cache_map = m;
+    scene->cache_len = len;
+    memset(accel, 0, sizeof *accel);
+    accel->kind = (RtAccelKind)h->kind;
+    accel->prims = (RtPrim *)(base + h->offset[A_PRIMS]);
+    accel->nprims = h->counts[A_PRIMS];
+    accel->nodes = h->counts[A_NODES] ? (RtBvhNode *)(base + h->offset[A_NODES]) : NULL;
+    accel->nnodes = h->counts[A_NODES];
+    accel->wide = h->counts[A_WIDE] ? (RtBvh4Node *)(base + h->offset[A_WIDE]) : NULL;
+    accel->nwide = h->counts[A_WIDE];
+    accel->nsplit = h->nsplit;
+    accel->depth = h->depth;
+    accel->leaves = h->leaves;
+    accel->sah_cost = h->sah_cost;
+    accel->mapped = 1;
+    return 1;
+}
+
+/* Writes the header, the scene struct and the arrays to f. */
+static int write_all(FILE *f, CacheHeader *h, const RtScene *scene, const void **p, const uint64_t *bytes)
+{
+    static const char zero[RT_CACHE_ALIGN] = {0};
+    int ok = fwrite(h, sizeof *h, 1, f) == 1 && fwrite(scene, sizeof *scene, 1, f) == 1;
+    uint64_t at = sizeof *h + sizeof *scene;
+    for (int i = 0; i < A_COUNT && ok; i++) {
+        ok = fwrite(zero, 1, h->offset[i] - at, f) == h->offset[i] - at &&
+             (bytes[i] == 0 || fwrite(p[i], 1, bytes[i], f) == bytes[i]);
+        at = h->offset[i] + bytes[i];
+    }
+    return ok;
+}
+
+int rt_cache_store(const char *dir, const char *key, const RtScene *scene, const RtAccel *accel, RtError *err)
+{
+    const void *p[A_COUNT];
+    uint64_t bytes[A_COUNT];
+    CacheHeader h;
+    memset(&h, 0, sizeof h);
+    arrays(scene, accel, p, bytes, h.counts);
+    memcpy(h.magic, RT_CACHE_MAGIC, 8);
+    h.format = RT_CACHE_FORMAT;
+    h.header_size = sizeof h;
+    h.scene_size = sizeof *scene;
+    uint64_t at = sizeof h + sizeof *scene;
+    for (int i = 0; i < A_COUNT; i++) {
+        at = (at + RT_CACHE_ALIGN - 1) / RT_CACHE_ALIGN * RT_CACHE_ALIGN;
+        h.offset[i] = at;
+        at += bytes[i];
+    }
+    h.file_size = at;
+    h.kind = accel->kind;
+    h.nsplit = accel->nsplit;
+    h.depth = accel->depth;
+    h.leaves = accel->leaves;
+    h.sah_cost = accel->sah_cost;
+    memcpy(h.key, key, sizeof h.key); /* (the first half of the hex: a check only) */
+    h.payload_hash = payload_hash(scene, p, bytes);
+    char path[4200], tmp[4300];
+    cache_path(path, sizeof path, dir, key);
+    snprintf(tmp, sizeof tmp, "%s.tmp.XXXXXX", path);
+    if (mkdir(dir, 0777) != 0 && errno != EEXIST)
+        return rt_fail(err, "scene cache: cannot create %s: %s", dir, strerror(errno));
+    int fd = mkstemp(tmp);
+    FILE *f = fd >= 0 ? fdopen(fd, "wb") : NULL;
+    int ok = f && write_all(f, &h, scene, p, bytes);
+    if (f)
+        ok = fclose(f) == 0 && ok;
+    else if (fd >= 0)
+        close(fd);
+    if (!ok || chmod(tmp, 0644) != 0 || rename(tmp, path) != 0) {
+        const int e = errno;
+        if (fd >= 0)
+            unlink(tmp);
+        return rt_fail(err, "scene cache: cannot write %s: %s", path, strerror(e));
+    }
+    return 0;
+}
+
+const char *rt_cache_unavailable(void) { return NULL; }
+
+#else
+
+int rt_cache_load(const char *dir, const char *scene_path, RtAccelKind kind, RtScene *scene, RtAccel *accel,
+                  char *key, RtError *err)
+{
+    (void)dir; (void)scene_path; (void)kind; (void)scene; (void)accel; (void)key;
+    return rt_fail(err, "--cache: this build has no scene cache (it needs libxxhash: scripts/install-deps.sh)");
+}
+
+int rt_cache_store(const char *dir, const char *key, const RtScene *scene, const RtAccel *accel, RtError *err)
+{
+    (void)dir; (void)key; (void)scene; (void)accel;
+    return rt_fail(err, "--cache: this build has no scene cache");
+}
+
+const char *rt_cache_unavailable(void) { return "this build has no scene cache (it needs libxxhash)"; }
+
+#endif

@@ -1,0 +1,67 @@
+#!/bin/sh
+# cache_test.sh RAYTRACE SCENE - the scene cache (--cache DIR): a second run
+# loads what the first built, with the same image and counters; a changed
+# scene, another accelerator, a corrupt or truncated entry and a tampered
+# header all build again (never trusted); an unwritable directory is a
+# warning, not a failure; a bad option value is one line and exit 1.
+RT=$1
+SRC=$2
+fail=0
+TMP=$(mktemp -d) || exit 1
+trap 'rm -rf "$TMP"' EXIT
+FAIL() { echo "FAIL: $*"; fail=1; }
+key() { printf '%s\n' "$1" | tr ' ' '\n' | sed -n "s/^$2=//p"; }
+cp "$SRC" "$TMP/s.txt"
+run() { "$RT" -q -r 48x36 --cache "$TMP/c" -o "$TMP/o.ppm" "$@" "$TMP/s.txt"; }
+same() { # the image and the exact counters of two records
+    for k in image_fnv1a rays node_visits prim_tests prims bvh_nodes sah_cost; do
+        [ "$(key "$1" $k)" = "$(key "$2" $k)" ] || { FAIL "$3: $k $(key "$1" $k) vs $(key "$2" $k)"; return; }
+    done
+}
+
+off=$("$RT" -q -r 48x36 -o "$TMP/o.ppm" "$TMP/s.txt") || FAIL "no cache: the run failed"
+[ "$(key "$off" cache)" = off ] || FAIL "without --cache: cache=$(key "$off" cache)"
+a=$(run) || FAIL "first run"
+b=$(run) || FAIL "second run"
+[ "$(key "$a" cache)/$(key "$b" cache)" = built/loaded ] || FAIL "built then loaded: $(key "$a" cache)/$(key "$b" cache)"
+same "$off" "$b" "loaded vs no cache"
+[ "$(ls "$TMP/c" | wc -l)" = 1 ] || FAIL "one entry expected: $(ls "$TMP/c")"
+
+n=$(run --accel none) || FAIL "accel none"
+[ "$(key "$n" cache)" = built ] || FAIL "another accelerator loaded the tree's entry"
+
+entry=$(ls "$TMP/c"/*.rbc | head -n 1)
+for bad in flip truncate header; do
+    rm -rf "$TMP/c"
+    run > /dev/null || FAIL "$bad: build"
+    entry=$(ls "$TMP/c"/*.rbc)
+    size=$(stat -c %s "$entry")
+    case $bad in
+        flip) printf '\377' | dd of="$entry" bs=1 seek=$((size - 100)) conv=notrunc 2> /dev/null ;;
+        truncate) truncate -s $((size - 64)) "$entry" ;;
+        header) printf '\377\377\377\177' | dd of="$entry" bs=1 seek=16 conv=notrunc 2> /dev/null ;;
+    esac
+    c=$(run) || FAIL "$bad: the run failed"
+    [ "$(key "$c" cache)" = built ] || FAIL "$bad: a damaged entry was trusted (cache=$(key "$c" cache))"
+    same "$off" "$c" "$bad"
+    d=$(run) || FAIL "$bad: the run after the rebuild failed"
+    [ "$(key "$d" cache)" = loaded ] || FAIL "$bad: the rebuilt entry did not load"
+done
+
+# a changed scene: another entry, and the new scene's image
+printf 'sphere: 0 3 -12 1\n' >> "$TMP/s.txt"
+e=$(run) || FAIL "changed scene"
+[ "$(key "$e" cache)" = built ] || FAIL "a changed scene loaded the old entry"
+[ "$(key "$e" image_fnv1a)" != "$(key "$off" image_fnv1a)" ] || FAIL "the changed scene rendered the old image"
+
+# an unwritable cache directory: a warning, and the render goes on
+mkdir -p "$TMP/ro" && printf x > "$TMP/ro/c"
+w=$("$RT" -q -r 48x36 --cache "$TMP/ro/c" -o "$TMP/o.ppm" "$TMP/s.txt" 2> "$TMP/err") || FAIL "unwritable cache: the run failed"
+grep -q "warning: scene cache: cannot" "$TMP/err" || FAIL "unwritable cache: no warning: $(cat "$TMP/err")"
+[ "$(key "$w" cache)" = built ] || FAIL "unwritable cache: cache=$(key "$w" cache)"
+
+"$RT" -q --cache "" -o "$TMP/o.ppm" "$TMP/s.txt" > /dev/null 2> "$TMP/err"
+rc=$?
+[ $rc -eq 1 ] && [ "$(wc -l < "$TMP/err")" -eq 1 ] && grep -q -- "--cache" "$TMP/err" || FAIL "--cache '': exit $rc, $(cat "$TMP/err")"
+[ $fail -eq 0 ] && echo "cache: ok"
+exit $fail
