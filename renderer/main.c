@@ -44,8 +44,9 @@ static const char *prog = "raytrace";
 static void usage(FILE *fp)
 {
     fprintf(fp,
-            "Usage: %s [OPTIONS] SCENE\n"
-            "Renders a scene file (docs/scene-format.md) with Whitted ray tracing.\n\n"
+            "Usage: %s [OPTIONS] SCENE|MODEL\n"
+            "Renders a scene file (docs/scene-format.md) with Whitted ray tracing; a model file (OBJ,\n"
+            "PLY, STL, glTF, ...) alone with a camera that frames it.\n\n"
             "  -o, --output FILE        image to write (.png, .bmp, .ppm); default: the scene's output_image\n"
             "  -b, --backend NAME       serial (default), openmp, mpi, cuda\n"
             "  -a, --accel NAME         bvh (default) or none (every ray against every primitive)\n"

@@ -108,6 +108,21 @@ int rt_accel_parse(const char *s, RtAccelKind *kind);
 /* The view the shading code reads; pointers into scene and accel. */
 RtSceneView rt_scene_view(const RtScene *scene, const RtAccel *accel, const RtCamera *cam);
 
+/* ---------------------------------------------------------------- models */
+
+/* Appends every triangle of a model file (OBJ, PLY, STL, glTF, ...: Assimp)
+ * to the scene with the given material, positions through the 3x4 row-major
+ * affine map xf (normals through its inverse transpose). Smooth triangles
+ * where the file has usable normals, flat ones otherwise. 0, or -1 with
+ * "FILE: message". */
+int rt_model_append(const char *file, const float xf[12], uint32_t material, RtScene *scene, RtError *err);
+/* Whether path names a model file this build reads (not a .txt scene). */
+int rt_model_supported(const char *path);
+/* A scene around one model: a camera that frames it, a light, a material. */
+int rt_model_scene(const char *path, RtScene *scene, RtError *err);
+/* NULL when this build reads models; else why not. */
+const char *rt_model_unavailable(void);
+
 /* ---------------------------------------------------------------- scene cache */
 
 /* The parsed scene and its accelerator for scene_path from the cache

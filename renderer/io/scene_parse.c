@@ -431,6 +431,102 @@ static int cmd_capacity(Parser *p, const char *cmd, const char *v)
     return 0;
 }
 
+/* The next token of a mesh line into tok (a file name may be quoted), *s
+ * moved past it; NULL at the end, or for a token longer than tok. */
+static char *mesh_token(const char **s, char *tok, size_t size)
+{
+    const char *t = skip_ws(*s), *e;
+    if (!*t)
+        return NULL;
+    if (*t == '"' || *t == '\'') {
+        if (!(e = strchr(t + 1, *t)))
+            return NULL;
+        *s = e + 1;
+        t++;
+    } else {
+        for (e = t; *e && *e != ' ' && *e != '\t'; e++)
+            ;
+        *s = e;
+    }
+    if ((size_t)(e - t) >= size)
+        return NULL;
+    memcpy(tok, t, (size_t)(e - t));
+    tok[e - t] = '\0';
+    return tok;
+}
+
+/* M = op * M for the 3x4 row-major affine maps of a mesh line. */
+static void xf_then(float *m, const float *op)
+{
+    float r[12];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++)
+            r[4 * i + j] = op[4 * i] * m[j] + op[4 * i + 1] * m[4 + j] + op[4 * i + 2] * m[8 + j] + (j == 3 ? op[4 * i + 3] : 0.0f);
+    memcpy(m, r, sizeof r);
+}
+
+/* The transform of a mesh line: scale S | scale SX SY SZ | rotate x|y|z DEG |
+ * translate X Y Z, applied in the order written. */
+static int mesh_transform(Parser *p, const char *s, float *m)
+{
+    char kw[64], axis[64], num[64];
+    while (mesh_token(&s, kw, sizeof kw) != NULL) {
+        float v[3] = {0, 0, 0}, op[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+        const char *tok;
+        int n = 0;
+        if (strcmp(kw, "rotate") == 0) {
+            if (!mesh_token(&s, axis, sizeof axis) || strlen(axis) != 1 || !strchr("xyz", axis[0]) ||
+                !(tok = mesh_token(&s, num, sizeof num)) || parse_float(&tok, &v[0]) != 0 || *tok)
+                return perr(p, "mesh: rotate: expected an axis x, y or z and an angle in degrees");
+            const float a = v[0] * 3.14159265358979f / 180.0f, c = cosf(a), sn = sinf(a);
+            const int i = (axis[0] - 'x' + 1) % 3, j = (axis[0] - 'x' + 2) % 3; /* the plane it turns */
+            op[5 * i] = c; op[4 * i + j] = -sn; op[4 * j + i] = sn; op[5 * j] = c;
+        } else if (strcmp(kw, "scale") == 0 || strcmp(kw, "translate") == 0) {
+            const char *save = s;
+            while (n < 3 && (tok = mesh_token(&s, num, sizeof num)) != NULL && parse_float(&tok, &v[n]) == 0 &&
+                   *tok == '\0') {
+                n++;
+                save = s;
+            }
+            s = save;
+            if (kw[0] == 't' ? n != 3 : n != 1 && n != 3)
+                return perr(p, "mesh: %s: expected %s", kw, kw[0] == 't' ? "X Y Z" : "S or SX SY SZ");
+            if (kw[0] == 't') {
+                op[3] = v[0]; op[7] = v[1]; op[11] = v[2];
+            } else {
+                op[0] = v[0]; op[5] = n == 3 ? v[1] : v[0]; op[10] = n == 3 ? v[2] : v[0];
+            }
+        } else {
+            return perr(p, "mesh: unknown transform '%.40s' (expected scale, rotate or translate)", kw);
+        }
+        xf_then(m, op);
+    }
+    return 0;
+}
+
+/* mesh: FILE [transform...]: every triangle of a model file (Assimp), with
+ * the current material; FILE is relative to the scene file's folder. */
+static int cmd_mesh(Parser *p, const char *v)
+{
+    const char *s = v;
+    char file[2048];
+    if (!mesh_token(&s, file, sizeof file) || !*file)
+        return perr(p, "mesh: expected a model file name");
+    float m[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+    if (mesh_transform(p, s, m) != 0)
+        return -1;
+    char path[4096];
+    const char *slash = strrchr(p->file, '/');
+    if (file[0] == '/' || !slash)
+        snprintf(path, sizeof path, "%s", file);
+    else
+        snprintf(path, sizeof path, "%.*s/%s", (int)(slash - p->file), p->file, file);
+    RtError e;
+    if (rt_model_append(path, m, p->material, p->s, &e) != 0)
+        return perr(p, "mesh: %s", e.msg);
+    return 0;
+}
+
 /* Geometry: the vertex and normal pools, triangles, spheres, pool hints. */
 static int cmd_geometry(Parser *p, const char *cmd, const char *v)
 {
@@ -456,6 +552,8 @@ static int cmd_geometry(Parser *p, const char *cmd, const char *v)
         return cmd_sphere(p, v);
     if (strcmp(cmd, "max_vertices") == 0 || strcmp(cmd, "max_normals") == 0)
         return cmd_capacity(p, cmd, v);
+    if (strcmp(cmd, "mesh") == 0)
+        return cmd_mesh(p, v);
     return NOT_MINE;
 }
 
@@ -716,6 +814,7 @@ typedef struct Chunk {
     } *defs;            /* the lines pass 2 runs through parse_line */
     uint32_t nd, cap_d;
     int failed;         /* pass 1 stopped at an error (err) after its records */
+    int has_mesh;       /* a mesh: line (its vertices come between the chunk's): parse serially */
     RtError err;
 } Chunk;
 
@@ -777,6 +876,7 @@ static int chunk_line(Parser *p, Chunk *c, char *line, size_t at)
         memcpy(c->sphs[c->ns].f, f, sizeof f);
         c->sphs[c->ns++].deferred = c->nd;
     } else {
+        c->has_mesh |= strcmp(cmd, "mesh") == 0;
         if (CHUNK_PUSH(c, defs, nd, cap_d))
             return perr(p, "out of memory");
         c->defs[c->nd].pos = at;
@@ -948,6 +1048,11 @@ static int parse_chunks(Parser *p, const char *buf, size_t len, int nt)
 #pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
     for (int i = 0; i < n; i++)
         chunk_parse(p, &c[i], buf);
+    for (int i = 0; i < n; i++)
+        if (c[i].has_mesh) { /* a model's vertices go between the file's: one pass in order */
+            chunks_free(c, n);
+            return parse_serial(p, buf, len);
+        }
     /* pools sized for every chunk up to the first that failed (the rest is never reached) */
     int upto = 0;
     while (upto < n && !c[upto].failed)
@@ -997,6 +1102,10 @@ int rt_scene_load_threads(const char *path, int threads, RtScene *scene, RtWarnF
     if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
         close(fd);
         return rt_fail(err, "%s: not a regular file", path);
+    }
+    if (rt_model_supported(path)) { /* raytrace MODEL: Assimp reads it */
+        close(fd);
+        return rt_model_scene(path, scene, err);
     }
     if ((unsigned long long)st.st_size > RT_MAX_FILE) {
         close(fd);

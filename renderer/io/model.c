@@ -1,0 +1,202 @@
+/* model.c - triangle meshes from model files (OBJ, PLY, STL, glTF and the
+ * other formats Assimp reads): the scene format's `mesh:` line, and
+ * `raytrace MODEL`, which frames a model with a default camera, lights and
+ * material (docs/scene-format.md, "Models"). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "config.h"
+#include "rt.h"
+
+#if HAVE_ASSIMP
+#include <assimp/cimport.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+/* Grows a scene pool to hold `more` further elements. */
+static int reserve(void **arr, uint32_t *cap, uint32_t n, uint64_t more, size_t elem)
+{
+    if ((uint64_t)n + more <= *cap)
+        return 0;
+    if ((uint64_t)n + more > 0x7fffffffu)
+        return -1;
+    void *na = realloc(*arr, (size_t)(n + more) * elem);
+    if (!na)
+        return -1;
+    *arr = na;
+    *cap = (uint32_t)(n + more);
+    return 0;
+}
+
+/* Assimp's message, on one line. */
+static void one_line(char *dst, size_t size, const char *src)
+{
+    snprintf(dst, size, "%s", src && *src ? src : "unknown error");
+    for (char *c = dst; *c; c++)
+        if (*c == '\n' || *c == '\r')
+            *c = ' ';
+}
+
+/* The normal matrix: the inverse transpose of xf's 3x3 part, up to a
+ * positive factor (the adjugate's transpose; the renderer normalizes). */
+static void normal_matrix(const float *xf, float n[9])
+{
+    const float a = xf[0], b = xf[1], c = xf[2], d = xf[4], e = xf[5], f = xf[6], g = xf[8], h = xf[9], i = xf[10];
+    const float co[9] = {e * i - f * h, f * g - d * i, d * h - e * g, c * h - b * i, a * i - c * g,
+                         b * g - a * h, b * f - c * e, c * d - a * f, a * e - b * d};
+    const float det = a * co[0] + b * co[1] + c * co[2];
+    for (int k = 0; k < 9; k++)
+        n[k] = det < 0.0f ? -co[k] : co[k];
+}
+
+static RtVec3 apply(const float *m, int stride, const struct aiVector3D *v, int affine)
+{
+    return rt_v3(m[0] * v->x + m[1] * v->y + m[2] * v->z + (affine ? m[3] : 0.0f),
+                 m[stride] * v->x + m[stride + 1] * v->y + m[stride + 2] * v->z + (affine ? m[stride + 3] : 0.0f),
+                 m[2 * stride] * v->x + m[2 * stride + 1] * v->y + m[2 * stride + 2] * v->z +
+                     (affine ? m[2 * stride + 3] : 0.0f));
+}
+
+/* Whether a face's normals can shade it: finite and not zero. */
+static int usable_normals(const struct aiMesh *m, const unsigned *ix)
+{
+    for (int k = 0; k < 3; k++) {
+        const struct aiVector3D *n = &m->mNormals[ix[k]];
+        const float l = n->x * n->x + n->y * n->y + n->z * n->z;
+        if (!(l > 0.0f) || !isfinite(l))
+            return 0;
+    }
+    return 1;
+}
+
+/* One mesh's vertices, normals and triangles into the scene. */
+static void append_mesh(const struct aiMesh *m, const float *xf, const float *nm, uint32_t material, RtScene *s)
+{
+    const uint32_t v0 = s->nvertices, n0 = s->nnormals;
+    for (unsigned k = 0; k < m->mNumVertices; k++)
+        s->vertices[s->nvertices++] = apply(xf, 4, &m->mVertices[k], 1);
+    if (m->mNormals)
+        for (unsigned k = 0; k < m->mNumVertices; k++)
+            s->normals[s->nnormals++] = apply(nm, 3, &m->mNormals[k], 0);
+    for (unsigned f = 0; f < m->mNumFaces; f++) {
+        const struct aiFace *fc = &m->mFaces[f];
+        if (fc->mNumIndices != 3)
+            continue; /* points and lines (aiProcess_SortByPType keeps them apart) */
+        RtTriangle *t = &s->triangles[s->ntriangles++];
+        const int smooth = m->mNormals && usable_normals(m, fc->mIndices);
+        for (int k = 0; k < 3; k++) {
+            t->v[k] = v0 + fc->mIndices[k];
+            t->n[k] = smooth ? (int32_t)(n0 + fc->mIndices[k]) : -1;
+        }
+        t->material = material;
+    }
+}
+
+int rt_model_append(const char *file, const float xf[12], uint32_t material, RtScene *s, RtError *err)
+{
+    const struct aiScene *sc = aiImportFile(file, aiProcess_Triangulate | aiProcess_PreTransformVertices |
+                                                      aiProcess_JoinIdenticalVertices | aiProcess_SortByPType);
+    if (!sc) {
+        char msg[400];
+        one_line(msg, sizeof msg, aiGetErrorString());
+        return rt_fail(err, "%s: %s", file, msg);
+    }
+    uint64_t nv = 0, nn = 0, nt = 0;
+    for (unsigned i = 0; i < sc->mNumMeshes; i++) {
+        const struct aiMesh *m = sc->mMeshes[i];
+        nv += m->mNumVertices;
+        nn += m->mNormals ? m->mNumVertices : 0;
+        for (unsigned f = 0; f < m->mNumFaces; f++)
+            nt += m->mFaces[f].mNumIndices == 3;
+    }
+    int rc = 0;
+    if (nt == 0) {
+        rc = rt_fail(err, "%s: no triangles in the model", file);
+    } else if (reserve((void **)&s->vertices, &s->cap_vertices, s->nvertices, nv, sizeof *s->vertices) ||
+               reserve((void **)&s->normals, &s->cap_normals, s->nnormals, nn, sizeof *s->normals) ||
+               reserve((void **)&s->triangles, &s->cap_triangles, s->ntriangles, nt, sizeof *s->triangles)) {
+        rc = rt_fail(err, "%s: out of memory for %llu triangles", file, (unsigned long long)nt);
+    } else {
+        float nm[9];
+        normal_matrix(xf, nm);
+        for (unsigned i = 0; i < sc->mNumMeshes; i++)
+            append_mesh(sc->mMeshes[i], xf, nm, material, s);
+    }
+    aiReleaseImport(sc);
+    return rc;
+}
+
+int rt_model_supported(const char *path)
+{
+    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
+    if (!dot || (slash && dot < slash) || strcmp(dot, ".txt") == 0)
+        return 0;
+    return aiIsExtensionSupported(dot) == AI_TRUE;
+}
+
+const char *rt_model_unavailable(void) { return NULL; }
+
+#else
+
+int rt_model_append(const char *file, const float xf[12], uint32_t material, RtScene *s, RtError *err)
+{
+    (void)xf; (void)material; (void)s;
+    return rt_fail(err, "%s: this build cannot read models (it needs Assimp: scripts/install-deps.sh)", file);
+}
+
+int rt_model_supported(const char *path)
+{
+    (void)path;
+    return 0;
+}
+
+const char *rt_model_unavailable(void) { return "this build cannot read models (it needs Assimp)"; }
+
+#endif
+
+/* ---- raytrace MODEL ----------------------------------------------------------
+ * A scene around one model: a 3/4 view from the front, above and to the
+ * right, far enough that the bounding sphere fills the frame; a white key
+ * light from the upper left, ambient light, a grey material with a
+ * highlight. */
+static void frame_model(RtScene *s)
+{
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t i = 0; i < s->nvertices; i++) {
+        const float v[3] = {s->vertices[i].x, s->vertices[i].y, s->vertices[i].z};
+        for (int k = 0; k < 3; k++) {
+            lo[k] = v[k] < lo[k] ? v[k] : lo[k];
+            hi[k] = v[k] > hi[k] ? v[k] : hi[k];
+        }
+    }
+    const RtVec3 c = rt_v3(0.5f * (lo[0] + hi[0]), 0.5f * (lo[1] + hi[1]), 0.5f * (lo[2] + hi[2]));
+    float r = 0.5f * sqrtf((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                           (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    r = r > 0.0f ? r : 1.0f;
+    const RtVec3 dir = rt_normalize(rt_v3(0.55f, 0.45f, 1.0f)); /* from the model towards the camera */
+    s->fov_ha = 25.0f;
+    const float dist = 1.15f * r / sinf(s->fov_ha * 3.14159265f / 180.0f);
+    s->camera_pos = rt_madd(c, dir, dist);
+    s->camera_fwd = dir; /* the camera looks along minus camera_fwd */
+    s->camera_up = rt_v3(0.0f, 1.0f, 0.0f);
+    s->width = 800;
+    s->height = 600;
+    s->background = rt_v3(0.12f, 0.14f, 0.18f);
+    s->ambient = rt_v3(0.18f, 0.18f, 0.2f);
+}
+
+int rt_model_scene(const char *path, RtScene *s, RtError *err)
+{
+    static const char text[] = "material: .3 .3 .3 .65 .65 .62 .25 .25 .25 40 0 0 0 1\n"
+                               "directional_light: .95 .95 .9 .6 -.8 -.5\n";
+    if (rt_scene_parse_buffer(path, text, sizeof text - 1, s, NULL, NULL, err) != 0)
+        return -1;
+    static const float id[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+    if (rt_model_append(path, id, 1, s, err) != 0)
+        return -1;
+    frame_model(s);
+    snprintf(s->output, sizeof s->output, "%s.png", s->name);
+    return 0;
+}
