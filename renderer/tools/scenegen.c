@@ -1,12 +1,19 @@
 /* scenegen.c - writes large scenes in the course format, deterministically,
  * to stand in for the report's big models (which raybench does not ship).
  *
- *   scenegen [--triangles N] [--seed S] [--resolution WxH] [-o FILE]
+ *   scenegen [--kind spheres|island|objects] [--triangles N] [--seed S] [--resolution WxH] [-o FILE]
  *
- * The scene: a floor, a field of smooth-shaded tessellated spheres (about N
- * triangles in all, each sphere a latitude/longitude mesh with per-vertex
- * normals), a mirror and a glass sphere, a point, a directional and a spot
- * light. Same arguments, same bytes. */
+ * spheres (the default): a floor, a field of smooth-shaded tessellated
+ *   spheres (about N triangles in all, each a latitude/longitude mesh with
+ *   per-vertex normals), a mirror and a glass sphere, a point, a directional
+ *   and a spot light;
+ * island: a terrain heightfield of about N smooth triangles (fractal value
+ *   noise under a radial falloff) in sand, grass and rock, in a sea of two
+ *   large glass-like triangles, under the sun (the report's island);
+ * objects: many small objects -- tetrahedra, boxes, shards, small smooth
+ *   spheres -- whose sizes span three orders of magnitude, on a floor before
+ *   a few huge triangles: a scene of widely varying triangle sizes.
+ * Same arguments, same bytes. */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -26,11 +33,12 @@ static double urand(void)
 
 static void usage(FILE *fp)
 {
-    fprintf(fp, "usage: scenegen [--triangles N] [--seed S] [--resolution WxH] [-o FILE]\n"
+    fprintf(fp, "usage: scenegen [--kind spheres|island|objects] [--triangles N] [--seed S] [--resolution WxH] [-o FILE]\n"
                 "writes a deterministic scene of about N triangles (default 100000) in the course format\n");
 }
 
 typedef struct Options {
+    const char *kind;
     long ntri, w, h;
     unsigned long long seed;
     const char *out; /* NULL: stdout */
@@ -70,6 +78,13 @@ static int parse_options(int argc, char **argv, Options *o)
             }
             o->w = w;
             o->h = h;
+            i++;
+        } else if (strcmp(a, "--kind") == 0 && v) {
+            if (strcmp(v, "spheres") != 0 && strcmp(v, "island") != 0 && strcmp(v, "objects") != 0) {
+                fprintf(stderr, "scenegen: option --kind '%s': expected spheres, island or objects\n", v);
+                return -1;
+            }
+            o->kind = v;
             i++;
         } else if ((strcmp(a, "-o") == 0 || strcmp(a, "--output") == 0) && v) {
             o->out = v;
@@ -179,9 +194,177 @@ static long write_scene(FILE *fp, const Options *o)
     return ntris;
 }
 
+/* ---- island ------------------------------------------------------------------ */
+
+/* Value noise on the integer lattice, smoothly interpolated, in [0, 1). */
+static double lattice(long x, long z, unsigned long long seed)
+{
+    unsigned long long h = (unsigned long long)x * 0x9E3779B97F4A7C15ull ^ (unsigned long long)z * 0xC2B2AE3D27D4EB4Full ^ seed;
+    h ^= h >> 33;
+    h *= 0xff51afd7ed558ccdull;
+    h ^= h >> 33;
+    return (double)(h >> 11) * (1.0 / 9007199254740992.0);
+}
+
+static double value_noise(double x, double z, unsigned long long seed)
+{
+    const long xi = (long)floor(x), zi = (long)floor(z);
+    double fx = x - (double)xi, fz = z - (double)zi;
+    fx = fx * fx * (3.0 - 2.0 * fx);
+    fz = fz * fz * (3.0 - 2.0 * fz);
+    const double a = lattice(xi, zi, seed), b = lattice(xi + 1, zi, seed);
+    const double c = lattice(xi, zi + 1, seed), d = lattice(xi + 1, zi + 1, seed);
+    return (a + (b - a) * fx) * (1.0 - fz) + (c + (d - c) * fx) * fz;
+}
+
+/* The island's height at (x, z) in [-1, 1]^2: six octaves of noise under a
+ * radial falloff, so the coast is ragged and the sea floor deepens outwards. */
+static double island_height(double x, double z, unsigned long long seed)
+{
+    double n = 0.0, amp = 0.5, f = 3.0;
+    for (int o = 0; o < 6; o++, amp *= 0.5, f *= 2.0)
+        n += amp * value_noise(x * f, z * f, seed + (unsigned long long)o);
+    const double r = sqrt(x * x + z * z);
+    return 30.0 * (n + 0.25) * (1.0 - r * r) - 6.0;
+}
+
+/* Vertices and normals of a (g+1) x (g+1) grid over [-L, L]^2. */
+static void island_grid(FILE *fp, long g, double L, unsigned long long seed, float *hgt)
+{
+    for (long j = 0; j <= g; j++)
+        for (long i = 0; i <= g; i++)
+            hgt[j * (g + 1) + i] = (float)island_height(2.0 * i / g - 1.0, 2.0 * j / g - 1.0, seed);
+    const double step = 2.0 * L / (double)g;
+    for (long j = 0; j <= g; j++)
+        for (long i = 0; i <= g; i++) {
+            const long i0 = i > 0 ? i - 1 : i, i1 = i < g ? i + 1 : i, j0 = j > 0 ? j - 1 : j, j1 = j < g ? j + 1 : j;
+            const double dx = (hgt[j * (g + 1) + i1] - hgt[j * (g + 1) + i0]) / ((double)(i1 - i0) * step);
+            const double dz = (hgt[j1 * (g + 1) + i] - hgt[j0 * (g + 1) + i]) / ((double)(j1 - j0) * step);
+            fprintf(fp, "vertex: %.4f %.4f %.4f\nnormal: %.4f 1 %.4f\n", -L + i * step, (double)hgt[j * (g + 1) + i],
+                    -L + j * step, -dx, -dz);
+        }
+}
+
+static long write_island(FILE *fp, const Options *o)
+{
+    const long g = (long)sqrt((double)o->ntri / 2.0) > 8 ? (long)sqrt((double)o->ntri / 2.0) : 8;
+    const double L = 100.0;
+    float *hgt = malloc((size_t)(g + 1) * (size_t)(g + 1) * sizeof *hgt);
+    if (!hgt)
+        return -1;
+    fprintf(fp, "# generated by: scenegen --kind island --triangles %ld --seed %llu --resolution %ldx%ld\n", o->ntri,
+            o->seed, o->w, o->h);
+    fprintf(fp, "film_resolution: %ld %ld\noutput_image: island.png\ncamera_pos: 0 55 175\ncamera_fwd: 0 .3 1\n"
+                "camera_up: 0 1 0\ncamera_fov_ha: 28\nbackground: .5 .65 .85\nambient_light: .15 .15 .17\nmax_depth: 4\n"
+                "directional_light: 1 .95 .85  -.5 -1 -.35\n",
+            o->w, o->h);
+    island_grid(fp, g, L, o->seed, hgt);
+    /* the land in three bands by the mean height of a triangle */
+    static const char *const band_mat[3] = {"material: .2 .19 .14  .75 .7 .5  0 0 0  5  0 0 0  1",
+                                            "material: .06 .1 .04  .25 .45 .18  0 0 0  5  0 0 0  1",
+                                            "material: .1 .1 .1  .45 .42 .4  .05 .05 .05  20  0 0 0  1"};
+    long ntris = 0;
+    for (int band = 0; band < 3; band++) {
+        fprintf(fp, "%s\n", band_mat[band]);
+        for (long j = 0; j < g; j++)
+            for (long i = 0; i < g; i++) {
+                const long a = j * (g + 1) + i, b = a + 1, c = a + g + 1, d = c + 1;
+                const double m = (hgt[a] + hgt[b] + hgt[c] + hgt[d]) * 0.25;
+                if ((m < 1.5 ? 0 : m < 12.0 ? 1 : 2) != band)
+                    continue;
+                fprintf(fp, "normal_triangle: %ld %ld %ld %ld %ld %ld\nnormal_triangle: %ld %ld %ld %ld %ld %ld\n", a, c,
+                        d, a, c, d, a, d, b, a, d, b);
+                ntris += 2;
+            }
+    }
+    /* the sea: reflects and lets the sea floor show through */
+    const long w0 = (g + 1) * (g + 1);
+    fprintf(fp, "material: 0 .02 .03  .02 .08 .1  .25 .3 .3  120  .55 .65 .65  1.33\n");
+    fprintf(fp, "vertex: -300 0 -300\nvertex: 300 0 -300\nvertex: 300 0 300\nvertex: -300 0 300\n");
+    fprintf(fp, "triangle: %ld %ld %ld\ntriangle: %ld %ld %ld\n", w0, w0 + 3, w0 + 2, w0, w0 + 2, w0 + 1);
+    free(hgt);
+    return ntris + 2;
+}
+
+/* ---- objects --------------------------------------------------------------- */
+
+static long nverts_written;
+
+static void put_vertex(FILE *fp, double x, double y, double z)
+{
+    fprintf(fp, "vertex: %.6g %.6g %.6g\n", x, y, z);
+    nverts_written++;
+}
+
+/* A box, tetrahedron or shard of size sz at (x, y, z): flat triangles. */
+static long put_solid(FILE *fp, int type, double x, double y, double z, double sz)
+{
+    static const signed char box_v[8][3] = {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1},
+                                            {-1, -1, 1},  {1, -1, 1},  {1, 1, 1},  {-1, 1, 1}};
+    static const unsigned char box_t[12][3] = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}, {0, 1, 5}, {0, 5, 4},
+                                               {3, 6, 2}, {3, 7, 6}, {0, 4, 7}, {0, 7, 3}, {1, 2, 6}, {1, 6, 5}};
+    static const signed char tet_v[4][3] = {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}};
+    static const unsigned char tet_t[4][3] = {{0, 1, 2}, {0, 3, 1}, {0, 2, 3}, {1, 3, 2}};
+    const long base = nverts_written;
+    const double h = 0.5 * sz, t = urand() * 6.2831853;
+    const double c = cos(t), sn = sin(t);
+    if (type == 2) { /* a shard: one long thin sliver, both faces */
+        put_vertex(fp, x - 3 * h * c, y, z - 3 * h * sn);
+        put_vertex(fp, x + 3 * h * c, y + 0.2 * h, z + 3 * h * sn);
+        put_vertex(fp, x, y + 1.5 * h, z);
+        fprintf(fp, "triangle: %ld %ld %ld\ntriangle: %ld %ld %ld\n", base, base + 1, base + 2, base, base + 2, base + 1);
+        return 2;
+    }
+    const int nv = type ? 4 : 8, nt = type ? 4 : 12;
+    for (int k = 0; k < nv; k++) {
+        const signed char *v = type ? tet_v[k] : box_v[k];
+        put_vertex(fp, x + h * (v[0] * c - v[2] * sn), y + h * v[1], z + h * (v[0] * sn + v[2] * c));
+    }
+    for (int k = 0; k < nt; k++) {
+        const unsigned char *q = type ? tet_t[k] : box_t[k];
+        fprintf(fp, "triangle: %ld %ld %ld\n", base + q[0], base + q[1], base + q[2]);
+    }
+    return nt;
+}
+
+static long write_objects(FILE *fp, const Options *o)
+{
+    nverts_written = 0;
+    fprintf(fp, "# generated by: scenegen --kind objects --triangles %ld --seed %llu --resolution %ldx%ld\n", o->ntri,
+            o->seed, o->w, o->h);
+    fprintf(fp, "film_resolution: %ld %ld\noutput_image: objects.png\ncamera_pos: 0 30 95\ncamera_fwd: 0 .35 1\n"
+                "camera_up: 0 1 0\ncamera_fov_ha: 30\nbackground: .2 .22 .28\nambient_light: .15 .15 .15\nmax_depth: 4\n"
+                "directional_light: .9 .9 .85  -.4 -1 -.5\npoint_light: 3000 2800 2500  -30 40 30\n",
+            o->w, o->h);
+    /* the floor and three huge triangles behind: the other end of the size range */
+    fprintf(fp, "material: .1 .1 .1  .5 .5 .5  0 0 0  5  0 0 0  1\n");
+    put_vertex(fp, -200, 0, -200); put_vertex(fp, 200, 0, -200); put_vertex(fp, 200, 0, 200); put_vertex(fp, -200, 0, 200);
+    fprintf(fp, "triangle: 0 2 1\ntriangle: 0 3 2\n");
+    long ntris = 2;
+    for (int k = 0; k < 3; k++) {
+        const long b = nverts_written;
+        put_vertex(fp, -180 + 120 * k, 0, -140); put_vertex(fp, -60 + 120 * k, 0, -140); put_vertex(fp, -120 + 120 * k, 130, -145);
+        fprintf(fp, "triangle: %ld %ld %ld\n", b, b + 1, b + 2);
+        ntris++;
+    }
+    static const char *const mats[4] = {"material: .1 .02 .02  .7 .15 .1  .2 .2 .2  40  0 0 0  1",
+                                        "material: .02 .05 .1  .1 .3 .7  .3 .3 .3  60  0 0 0  1",
+                                        "material: .02 .02 .02  .05 .05 .05  .8 .8 .8  300  0 0 0  1",
+                                        "material: .08 .08 .02  .6 .55 .15  .1 .1 .1  10  0 0 0  1"};
+    for (int m = 0; ntris < o->ntri; m = (m + 1) % 4) {
+        fprintf(fp, "%s\n", mats[m]);
+        for (int i = 0; i < 1000 && ntris < o->ntri; i++) {
+            const double sz = 0.01 * pow(10.0, 2.8 * urand()); /* 0.01 .. 6.3 */
+            const double x = (urand() - 0.5) * 240.0, z = (urand() - 0.5) * 220.0 - 20.0;
+            ntris += put_solid(fp, (int)(urand() * 3.0), x, 0.5 * sz, z, sz);
+        }
+    }
+    return ntris;
+}
+
 int main(int argc, char **argv)
 {
-    Options o = {.ntri = 100000, .w = 800, .h = 600, .seed = 1, .out = NULL};
+    Options o = {.kind = "spheres", .ntri = 100000, .w = 800, .h = 600, .seed = 1, .out = NULL};
     int rc = parse_options(argc, argv, &o);
     if (rc != 0)
         return rc < 0 ? 1 : 0;
@@ -193,7 +376,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "scenegen: %s: %s\n", o.out, strerror(errno));
         return 1;
     }
-    long ntris = write_scene(fp, &o);
+    long ntris = o.kind[0] == 's' ? write_scene(fp, &o) : o.kind[0] == 'i' ? write_island(fp, &o) : write_objects(fp, &o);
     if (ferror(fp) || (o.out && fclose(fp) != 0)) {
         fprintf(stderr, "scenegen: %s: write failed\n", o.out ? o.out : "stdout");
         return 1;
