@@ -5,7 +5,8 @@
 # every machine; when nvcc is missing the CUDA backend is simply not built.
 set -euo pipefail
 pkgs=(meson ninja-build gcc pkg-config libpng-dev libhwloc-dev hwloc
-      libopenmpi-dev openmpi-bin gnuplot-nox libxxhash-dev libassimp-dev assimp-testmodels)
+      libopenmpi-dev openmpi-bin gnuplot-nox libxxhash-dev libassimp-dev assimp-testmodels
+      libembree-dev)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
