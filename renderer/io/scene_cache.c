@@ -24,6 +24,7 @@
 #include "rt.h"
 
 #if HAVE_XXHASH
+#define XXH_INLINE_ALL /* the header alone: no library to link */
 #include <xxhash.h>
 
 #define RT_CACHE_MAGIC "RBCACHE1"
