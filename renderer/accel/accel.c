@@ -763,13 +763,22 @@ static int sub_init(Builder *s, const Builder *p, uint32_t count, uint32_t budge
     return -1;
 }
 
-/* Appends subtree s to p: node and record indices shifted by where they land. */
+/* Appends subtree s to p: node and record indices shifted by where they
+ * land; a large subtree is copied over chunks in parallel. */
 static void sub_append(Builder *p, Builder *s)
 {
-    for (uint32_t i = 0; i < s->nnodes; i++) {
-        RtBvhNode n = s->nodes[i];
-        n.index += (n.meta & 0xffu) ? p->norder : p->nnodes;
-        p->nodes[p->nnodes + i] = n;
+    const uint32_t nn = s->nnodes, no = p->norder, nb = p->nnodes;
+    const int nc = nchunks(nn);
+#pragma omp taskloop grainsize(1) if (nc > 1)
+    for (int c = 0; c < nc; c++) {
+        uint32_t i0 = 0, i1 = nn;
+        if (nc > 1)
+            chunk_range(nn, c, &i0, &i1);
+        for (uint32_t i = i0; i < i1; i++) {
+            RtBvhNode n = s->nodes[i];
+            n.index += (n.meta & 0xffu) ? no : nb;
+            p->nodes[nb + i] = n;
+        }
     }
     memcpy(p->order + p->norder, s->order, (size_t)s->norder * sizeof *s->order);
     p->nnodes += s->nnodes;
@@ -933,11 +942,66 @@ static uint32_t widen_ref(Widen *w, uint32_t bi);
 
 /* Fills wide node wi with the binary nodes cand[0..nc), in that order. (The
  * CUDA backend reorders the slots for its shadow rays: its schedule.c.) */
+/* The records under binary node bi (a subtree's leaves are contiguous). */
+static uint32_t records_under(const RtBvhNode *bin, uint32_t bi)
+{
+    uint32_t lo = bi, hi = bi;
+    while (!(bin[lo].meta & 0xffu))
+        lo = lo + 1;
+    while (!(bin[hi].meta & 0xffu))
+        hi = bin[hi].index;
+    return bin[hi].index + (bin[hi].meta & 0xffu) - bin[lo].index;
+}
+
+/* The children of a large wide node, each subtree a task writing its own
+ * array, appended in order with their inner references shifted (the same
+ * nodes in the same order as one after the other). 0, or -1 out of memory. */
+static int widen_children_tasks(Widen *w, const uint32_t *cand, int nc, uint32_t *refs)
+{
+    Widen sw[4];
+    uint32_t r[4];
+    int k;
+    for (k = 0; k < nc; k++) {
+        sw[k].bin = w->bin;
+        sw[k].n = 0;
+        sw[k].wide = malloc(((size_t)2 * records_under(w->bin, cand[k]) + 1) * sizeof *sw[k].wide);
+        if (!sw[k].wide)
+            break;
+    }
+    if (k < nc) {
+        while (k-- > 0)
+            free(sw[k].wide);
+        return -1;
+    }
+    for (k = 0; k < nc; k++) {
+#pragma omp task default(shared) firstprivate(k)
+        r[k] = widen_ref(&sw[k], cand[k]);
+    }
+#pragma omp taskwait
+    for (k = 0; k < nc; k++) {
+        const uint32_t off = w->n;
+        for (uint32_t i = 0; i < sw[k].n; i++) {
+            RtBvh4Node o = sw[k].wide[i];
+            for (int c = 0; c < 4; c++)
+                o.child[c] += (o.child[c] & RT_WIDE_LEAF) ? 0u : off;
+            w->wide[off + i] = o;
+        }
+        refs[k] = (r[k] & RT_WIDE_LEAF) ? r[k] : r[k] + off;
+        w->n += sw[k].n;
+        free(sw[k].wide);
+    }
+    return 0;
+}
+
 static void widen_fill(Widen *w, uint32_t wi, const uint32_t *cand, int nc)
 {
     uint32_t refs[4];
-    for (int k = 0; k < nc; k++)
-        refs[k] = widen_ref(w, cand[k]); /* (may append nodes: index, not pointer) */
+    int big = 0;
+    for (int k = 0; k < nc && !big; k++)
+        big = !(w->bin[cand[k]].meta & 0xffu) && records_under(w->bin, cand[k]) >= RT_BVH_TASK_MIN * 16u;
+    if (!big || widen_children_tasks(w, cand, nc, refs) != 0)
+        for (int k = 0; k < nc; k++)
+            refs[k] = widen_ref(w, cand[k]); /* (may append nodes: index, not pointer) */
     RtBvh4Node *o = &w->wide[wi];
     memset(o, 0, sizeof *o);
     for (int k = 0; k < 4; k++) {
@@ -1020,7 +1084,7 @@ static uint32_t widen_ref(Widen *w, uint32_t bi)
 /* Builds a->wide from a->nodes. A tree that is one leaf gets a root with one
  * child. Fails only for lack of memory or more than 2^28 primitives (the
  * reference encoding); then the view simply has no wide tree. */
-static int widen(RtAccel *a)
+static int widen(RtAccel *a, int nt)
 {
     if (a->nnodes == 0 || a->nprims >= RT_WIDE_MAX_FIRST)
         return -1;
@@ -1038,6 +1102,9 @@ static int widen(RtAccel *a)
         w.n = 1;
         widen_fill(&w, 0, &root, 1);
     } else {
+        (void)nt;
+#pragma omp parallel num_threads(nt)
+#pragma omp single
         widen_ref(&w, 0);
     }
     RtBvh4Node *shrunk = realloc(w.wide, (size_t)w.n * sizeof *w.wide);
@@ -1148,7 +1215,7 @@ int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAc
     a->depth = b.max_depth;
     a->leaves = b.leaves;
     a->sah_cost = sah_cost(a->nodes, a->nnodes);
-    widen(a); /* optional: without it the GPU traverses the binary tree */
+    widen(a, nt); /* optional: without it the GPU traverses the binary tree */
     return 0;
 }
 

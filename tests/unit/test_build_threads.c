@@ -2,7 +2,8 @@
  * threads (renderer/accel/accel.c): the binary nodes, the primitive records
  * in leaf order and the 4-wide copy are compared byte for byte between 1, 2,
  * 3 and 7 threads, on a scene large enough for every parallel path (tasks,
- * chunked binning and partition) and with triangles long enough that spatial
+ * chunked binning and partition, the 4-wide copy's subtree tasks from 65536
+ * records) and with triangles long enough that spatial
  * splits cut some of them (checked: the build adds records). Scenes named on
  * the command line are compared too. */
 #include <stdlib.h>
@@ -69,7 +70,7 @@ int main(int argc, char **argv)
     RtScene sc;
     RtError err;
     size_t len;
-    char *buf = random_scene(60000, &len);
+    char *buf = random_scene(80000, &len);
     CHECK(rt_scene_parse_buffer("random", buf, len, &sc, NULL, NULL, &err) == 0, "random scene: %s", err.msg);
     free(buf);
     compare_threads("random", &sc, 1);
