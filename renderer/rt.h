@@ -256,6 +256,9 @@ static inline void rt_tile_rect(int w, int h, int tw, int th, int index, int *x0
  * integer in lo..hi, and WxH with 1 <= W,H <= maxside. 0, or -1 (out untouched). */
 int rt_parse_int(const char *s, long lo, long hi, int *out);
 int rt_parse_wxh(const char *s, int maxside, int *w, int *h);
+/* The threads a loading step runs on when `asked` for (0: as many as
+ * OpenMP gives, one per allowed CPU; 1 in a build without OpenMP). */
+int rt_thread_count(int asked);
 /* Appends the CPU the calling thread runs on to a sorted, unique list. */
 void rt_cores_note(char *list, size_t size, int cpu);
 int rt_current_cpu(void);

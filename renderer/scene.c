@@ -9,6 +9,10 @@
 #include <string.h>
 #include <time.h>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 #include "rt.h"
 #include "core/rt_shade.h" /* rt_quantize: one rounding for every backend */
 
@@ -210,4 +214,14 @@ int rt_parse_wxh(const char *s, int maxside, int *w, int *h)
     if (rt_parse_int(buf, 1, maxside, w) != 0 || rt_parse_int(x + 1, 1, maxside, h) != 0)
         return -1;
     return 0;
+}
+
+int rt_thread_count(int asked)
+{
+#ifdef _OPENMP
+    return asked > 0 ? asked : omp_get_max_threads();
+#else
+    (void)asked;
+    return 1;
+#endif
 }

@@ -433,14 +433,20 @@ static void object_bin_fn(const void *ctx, const Ref *refs, uint32_t i0, uint32_
     object_bins(refs, i0, i1, b, scale, nb, o);
 }
 
+/* nb bins per unit of each axis of box b; 0 on an axis of no extent. */
+static void bin_scales(const Box *b, int nb, float *scale)
+{
+    for (int a = 0; a < 3; a++) {
+        const float w = b->hi[a] - b->lo[a];
+        scale[a] = w > 0.0f ? (float)nb / w : 0.0f;
+    }
+}
+
 /* Binned SAH over the references' centroids (cb: their bounds). */
 static void object_split(const Ref *refs, uint32_t count, const Box *cb, int nb, Split *best)
 {
     float scale[3];
-    for (int a = 0; a < 3; a++) {
-        const float w = cb->hi[a] - cb->lo[a];
-        scale[a] = w > 0.0f ? (float)nb / w : 0.0f;
-    }
+    bin_scales(cb, nb, scale);
     Bins bins;
     bins_all(object_bin_fn, NULL, refs, count, cb, scale, nb, &bins);
     for (int a = 0; a < 3; a++)
@@ -522,10 +528,7 @@ static void spatial_bins(const void *ctx, const Ref *refs, uint32_t i0, uint32_t
 static void spatial_split(const Builder *b, const Ref *refs, uint32_t count, const Box *bb, int nb, Split *best)
 {
     float scale[3];
-    for (int a = 0; a < 3; a++) {
-        const float w = bb->hi[a] - bb->lo[a];
-        scale[a] = w > 0.0f ? (float)nb / w : 0.0f;
-    }
+    bin_scales(bb, nb, scale);
     Bins bins;
     bins_all(spatial_bins, b, refs, count, bb, scale, nb, &bins);
     for (int a = 0; a < 3; a++) {
@@ -1138,12 +1141,7 @@ int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAc
     memset(a, 0, sizeof *a);
     a->kind = kind;
     a->build_threads = 1;
-#ifdef _OPENMP
-    const int nt = threads > 0 ? threads : omp_get_max_threads();
-#else
-    const int nt = 1;
-    (void)threads;
-#endif
+    const int nt = rt_thread_count(threads);
     uint32_t n = 0;
     RtPrim *prims = make_prims(s, nt, &n, err);
     if (!prims)

@@ -23,9 +23,6 @@
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 #include "rt.h"
 
@@ -1072,12 +1069,7 @@ int rt_scene_parse_buffer_threads(const char *name, const char *buf, size_t len,
     Parser p;
     if (parse_start(&p, name, scene, warn, warn_ctx, err) != 0)
         return -1;
-#ifdef _OPENMP
-    const int nt = threads > 0 ? threads : omp_get_max_threads();
-#else
-    const int nt = 1;
-    (void)threads;
-#endif
+    const int nt = rt_thread_count(threads);
     if (nt > 1 && len >= 2 * (size_t)RT_PARSE_CHUNK)
         return parse_chunks(&p, buf, len, nt);
     return parse_serial(&p, buf, len);
