@@ -103,10 +103,46 @@ static int opt_error(const char *opt, const char *val, const char *why)
     return -1;
 }
 
+enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE,
+       OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE };
+
+static void print_version(void)
+{
+    printf("raytrace (raybench) %s\nbackends:", RT_VERSION);
+    const RtBackend *const *b = rt_backend_list();
+    for (int i = 0; b[i]; i++)
+        printf(" %s%s", b[i]->name, b[i]->unavailable ? "(not built)" : "");
+    printf("\nbuild: %s\n", RT_BUILD_FLAGS);
+}
+
+/* --cache, --build-threads, --runs and --warmup. */
+static int parse_load_timing(int c, const char *arg, Options *o)
+{
+    switch (c) {
+    case OPT_CACHE:
+        if (!*arg)
+            return opt_error("--cache", arg, "expected a directory");
+        if (rt_cache_unavailable())
+            return opt_error("--cache", arg, rt_cache_unavailable());
+        o->cache = arg;
+        return 0;
+    case OPT_BUILD_THREADS:
+        if (rt_parse_int(arg, 1, 4096, &o->build_threads) != 0)
+            return opt_error("--build-threads", arg, "expected an integer from 1 to 4096");
+        return 0;
+    case OPT_RUNS:
+        if (rt_parse_int(arg, 1, 1000, &o->runs) != 0)
+            return opt_error("--runs", arg, "expected an integer from 1 to 1000");
+        return 0;
+    default:
+        if (parse_warmup(arg, &o->warmup_runs, &o->warmup_ms) != 0)
+            return opt_error("--warmup", arg, "expected a count from 0 to 1000, or a time such as 50ms (at most 600000ms)");
+        return 0;
+    }
+}
+
 static int parse_options(int argc, char **argv, Options *o)
 {
-    enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE,
-           OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE };
     static const struct option longopts[] = {
         {"output", required_argument, NULL, 'o'},     {"backend", required_argument, NULL, 'b'},
         {"accel", required_argument, NULL, 'a'},      {"resolution", required_argument, NULL, 'r'},
@@ -177,37 +213,15 @@ static int parse_options(int argc, char **argv, Options *o)
             if (rt_parse_int(optarg, 0, 1023, &o->device) != 0)
                 return opt_error("--device", optarg, "expected a device index");
             break;
-        case OPT_CACHE:
-            if (!*optarg)
-                return opt_error("--cache", optarg, "expected a directory");
-            if (rt_cache_unavailable())
-                return opt_error("--cache", optarg, rt_cache_unavailable());
-            o->cache = optarg;
-            break;
-        case OPT_BUILD_THREADS:
-            if (rt_parse_int(optarg, 1, 4096, &o->build_threads) != 0)
-                return opt_error("--build-threads", optarg, "expected an integer from 1 to 4096");
-            break;
-        case OPT_RUNS:
-            if (rt_parse_int(optarg, 1, 1000, &o->runs) != 0)
-                return opt_error("--runs", optarg, "expected an integer from 1 to 1000");
-            break;
-        case OPT_WARMUP:
-            if (parse_warmup(optarg, &o->warmup_runs, &o->warmup_ms) != 0)
-                return opt_error("--warmup", optarg, "expected a count from 0 to 1000, or a time such as 50ms (at most 600000ms)");
+        case OPT_CACHE: case OPT_BUILD_THREADS: case OPT_RUNS: case OPT_WARMUP:
+            if (parse_load_timing(c, optarg, o) != 0)
+                return -1;
             break;
         case OPT_VERIFY: o->verify = 1; break;
         case OPT_CALIBRATE: o->calibrate = 1; break;
         case 'q': o->quiet = 1; break;
         case 'h': usage(stdout); exit(0);
-        case 'V': {
-            printf("raytrace (raybench) %s\nbackends:", RT_VERSION);
-            const RtBackend *const *b = rt_backend_list();
-            for (int i = 0; b[i]; i++)
-                printf(" %s%s", b[i]->name, b[i]->unavailable ? "(not built)" : "");
-            printf("\nbuild: %s\n", RT_BUILD_FLAGS);
-            exit(0);
-        }
+        case 'V': print_version(); exit(0);
         case ':':
             fprintf(stderr, "%s: option %s needs a value\n", prog, argv[optind - 1]);
             return -1;
