@@ -193,10 +193,18 @@ int rt_cache_load(const char *dir, const char *scene_path, RtAccelKind kind, RtS
     char *base = m;
     memcpy(scene, base + sizeof *h, sizeof *scene);
     rt_scene_name(scene, scene_path);
+    scene->output[sizeof scene->output - 1] = '\0';
+    /* the pools as the header (checked against the file) has them */
     void **sp[6] = {(void **)&scene->vertices, (void **)&scene->normals,   (void **)&scene->spheres,
                     (void **)&scene->triangles, (void **)&scene->materials, (void **)&scene->lights};
-    for (int i = 0; i < 6; i++)
+    uint32_t *np[6] = {&scene->nvertices, &scene->nnormals,   &scene->nspheres,
+                       &scene->ntriangles, &scene->nmaterials, &scene->nlights};
+    uint32_t *cp[6] = {&scene->cap_vertices, &scene->cap_normals,   &scene->cap_spheres,
+                       &scene->cap_triangles, &scene->cap_materials, &scene->cap_lights};
+    for (int i = 0; i < 6; i++) {
         *sp[i] = base + h->offset[i];
+        *np[i] = *cp[i] = h->counts[i];
+    }
     scene->cache_map = m;
     scene->cache_len = len;
     memset(accel, 0, sizeof *accel);
