@@ -422,21 +422,50 @@ typedef struct {
 
 /* The scene loaded with the overrides applied, the camera checked, the
  * output checked, the accelerator built and the image buffers allocated. */
+/* The scene and its accelerator from --cache, if every process finds them
+ * there (MPI: a rank that missed would wait in the others' broadcast).
+ * 1: loaded; 0: parse and build (an unreadable scene is reported there). */
+static int cache_load(Run *r)
+{
+    RtError scratch;
+    int loaded = rt_cache_load(r->o->cache, r->o->scene, r->o->accel, &r->scene, &r->accel, r->cache_key, &scratch) == 1;
+    if (r->col && r->col->agree(!loaded, &scratch) != 0 && loaded) {
+        rt_accel_free(&r->accel);
+        rt_scene_free(&r->scene);
+        loaded = 0;
+    }
+    return loaded;
+}
+
+/* Stores the scene as parsed (before the -r and -d overrides, which the key
+ * does not cover) with its accelerator. Scenes that pull in model files are
+ * not stored: the key covers the scene file's bytes only. */
+static void cache_store(const Run *r, const RtScene *parsed)
+{
+    RtScene st = r->scene;
+    st.width = parsed->width;
+    st.height = parsed->height;
+    st.max_depth = parsed->max_depth;
+    st.line_res = parsed->line_res;
+    RtError cerr;
+    if (!st.models && rt_cache_store(r->o->cache, r->cache_key, &st, &r->accel, &cerr) != 0)
+        fprintf(stderr, "%s: warning: %s\n", prog, cerr.msg); /* the run goes on */
+}
+
 static int prepare(Run *r, RtError *err)
 {
     const Options *o = r->o;
     double t0 = rt_now_ms();
     /* warnings are not progress: --quiet keeps them (README) */
     RtWarnFn warn = r->is_root ? warn_cb : NULL;
-    const int loaded = o->cache ? rt_cache_load(o->cache, o->scene, o->accel, &r->scene, &r->accel, r->cache_key, err) : 0;
-    if (loaded < 0)
-        return -1;
+    const int loaded = o->cache ? cache_load(r) : 0;
     r->cache = loaded ? "loaded" : (o->cache ? "built" : "off");
     if (!loaded && (r->col && r->col->scene_load
                         ? r->col->scene_load(o->scene, o->mpi_scene, &r->scene, warn, NULL, err) != 0
                         : rt_scene_load_threads(o->scene, o->build_threads, &r->scene, warn, NULL, err) != 0))
         return -1;
     r->parse_ms = rt_now_ms() - t0;
+    const RtScene parsed = r->scene; /* (the settings as read, for the cache) */
     if (o->width) {
         r->scene.width = o->width;
         r->scene.height = o->height;
@@ -465,11 +494,8 @@ static int prepare(Run *r, RtError *err)
      * --verify, after the timed build. */
     if (o->verify && rt_bvh_check(&r->accel, err) != 0)
         return -1;
-    if (o->cache && !loaded && r->is_root) { /* (without it the run goes on: a warning) */
-        RtError cerr;
-        if (rt_cache_store(o->cache, r->cache_key, &r->scene, &r->accel, &cerr) != 0)
-            fprintf(stderr, "%s: warning: %s\n", prog, cerr.msg);
-    }
+    if (o->cache && !loaded && r->is_root)
+        cache_store(r, &parsed);
     r->npix = (size_t)r->cam.width * (size_t)r->cam.height;
     r->rgbf = malloc(r->npix * 3 * sizeof *r->rgbf);
     r->rgb = malloc(r->npix * 3);

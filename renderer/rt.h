@@ -46,6 +46,7 @@ typedef struct RtScene {
     char path[4096];    /* file it came from */
     /* lines that set camera values (0: default), for error messages */
     int line_fwd, line_up, line_fov, line_res, line_depth, line_output;
+    int models;         /* mesh: lines read (their files are not in the cache's key) */
     /* the scene cache's mapping the arrays live in (rt_cache_load); NULL: malloc'd */
     void *cache_map;
     size_t cache_len;

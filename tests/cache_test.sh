@@ -48,6 +48,21 @@ for bad in flip truncate header; do
     [ "$(key "$d" cache)" = loaded ] || FAIL "$bad: the rebuilt entry did not load"
 done
 
+# overrides (-d, -r) apply after the cache: an entry built with them serves
+# a run without them with the scene's own settings
+rm -rf "$TMP/c"
+run -d 0 > /dev/null || FAIL "-d 0 build"
+o=$(run) || FAIL "after -d 0"
+[ "$(key "$o" cache)" = loaded ] && same "$off" "$o" "an entry built with -d 0, loaded without"
+"$RT" -q --cache "$TMP/c2" -r 24x18 -o "$TMP/o.ppm" "$TMP/s.txt" > /dev/null || FAIL "-r build"
+w2=$("$RT" -q --cache "$TMP/c2" -o "$TMP/o.ppm" "$TMP/s.txt") || FAIL "after -r"
+[ "$(key "$w2" width)x$(key "$w2" height)" = "$(key "$("$RT" -q -o "$TMP/o.ppm" "$TMP/s.txt")" width)x$(key "$("$RT" -q -o "$TMP/o.ppm" "$TMP/s.txt")" height)" ] ||
+    FAIL "an entry built with -r 24x18 gave $(key "$w2" width)x$(key "$w2" height) without -r"
+
+# an empty scene renders with the cache as without
+: > "$TMP/empty.txt"
+"$RT" -q -r 8x6 --cache "$TMP/c" -o "$TMP/e.ppm" "$TMP/empty.txt" > /dev/null 2> "$TMP/err" || FAIL "empty scene with --cache: $(cat "$TMP/err")"
+
 # a changed scene: another entry, and the new scene's image
 printf 'sphere: 0 3 -12 1\n' >> "$TMP/s.txt"
 e=$(run) || FAIL "changed scene"

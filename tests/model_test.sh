@@ -60,5 +60,14 @@ bad "no triangles" "no triangles" "mesh: points.obj"
 bad "unknown transform" "unknown transform 'spin'" "mesh: box.obj spin 3"
 bad "short translate" "translate: expected X Y Z" "mesh: box.obj translate 1 2"
 bad "no file" "expected a model file name" "mesh:"
+bad "overlong transform word" "cannot read the transform" "mesh: box.obj scale 2 $(printf 'r%.0s' $(seq 70)) 5"
+bad "open quote in the transform" "cannot read the transform" 'mesh: box.obj translate 1 2 3 "scale 100'
+mkfifo "$TMP/fifo.obj"
+printf "${head}mesh: fifo.obj\n" > "$TMP/bad.txt"
+timeout 20 "$RT" -q -o "$TMP/bad.png" "$TMP/bad.txt" > /dev/null 2> "$TMP/err"
+rc=$?
+{ [ $rc -eq 1 ] && grep -q "bad.txt:7: mesh: .*fifo.obj: not a regular file" "$TMP/err"; } || FAIL "a FIFO as a model: exit $rc, $(cat "$TMP/err")"
+printf 'v 1e38 0 -5\nv 0 1 -5\nv 1 0 -5\nf 1 2 3\n' > "$TMP/huge.obj"
+bad "a vertex past float range" "not finite" "mesh: huge.obj scale 10"
 [ $fail -eq 0 ] && echo "models: ok"
 exit $fail

@@ -2,10 +2,14 @@
  * other formats Assimp reads): the scene format's `mesh:` line, and
  * `raytrace MODEL`, which frames a model with a default camera, lights and
  * material (docs/scene-format.md, "Models"). */
+#include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "config.h"
 #include "rt.h"
@@ -71,12 +75,18 @@ static int usable_normals(const struct aiMesh *m, const unsigned *ix)
     return 1;
 }
 
-/* One mesh's vertices, normals and triangles into the scene. */
-static void append_mesh(const struct aiMesh *m, const float *xf, const float *nm, uint32_t material, RtScene *s)
+/* One mesh's vertices, normals and triangles into the scene; -1 for a
+ * vertex that is not finite (after the transform) or a face index past the
+ * mesh's vertices. */
+static int append_mesh(const struct aiMesh *m, const float *xf, const float *nm, uint32_t material, RtScene *s)
 {
     const uint32_t v0 = s->nvertices, n0 = s->nnormals;
-    for (unsigned k = 0; k < m->mNumVertices; k++)
-        s->vertices[s->nvertices++] = apply(xf, 4, &m->mVertices[k], 1);
+    for (unsigned k = 0; k < m->mNumVertices; k++) {
+        const RtVec3 v = apply(xf, 4, &m->mVertices[k], 1);
+        if (!isfinite(v.x) || !isfinite(v.y) || !isfinite(v.z))
+            return -1;
+        s->vertices[s->nvertices++] = v;
+    }
     if (m->mNormals)
         for (unsigned k = 0; k < m->mNumVertices; k++)
             s->normals[s->nnormals++] = apply(nm, 3, &m->mNormals[k], 0);
@@ -84,6 +94,9 @@ static void append_mesh(const struct aiMesh *m, const float *xf, const float *nm
         const struct aiFace *fc = &m->mFaces[f];
         if (fc->mNumIndices != 3)
             continue; /* points and lines (aiProcess_SortByPType keeps them apart) */
+        if (fc->mIndices[0] >= m->mNumVertices || fc->mIndices[1] >= m->mNumVertices ||
+            fc->mIndices[2] >= m->mNumVertices)
+            return -1;
         RtTriangle *t = &s->triangles[s->ntriangles++];
         const int smooth = m->mNormals && usable_normals(m, fc->mIndices);
         for (int k = 0; k < 3; k++) {
@@ -92,12 +105,23 @@ static void append_mesh(const struct aiMesh *m, const float *xf, const float *nm
         }
         t->material = material;
     }
+    return 0;
 }
 
 int rt_model_append(const char *file, const float xf[12], uint32_t material, RtScene *s, RtError *err)
 {
+    /* A regular file only: Assimp would wait on a FIFO forever. */
+    struct stat st;
+    const int fd = open(file, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0)
+        return rt_fail(err, "%s: cannot open: %s", file, strerror(errno));
+    const int regular = fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
+    close(fd);
+    if (!regular)
+        return rt_fail(err, "%s: not a regular file", file);
     const struct aiScene *sc = aiImportFile(file, aiProcess_Triangulate | aiProcess_PreTransformVertices |
-                                                      aiProcess_JoinIdenticalVertices | aiProcess_SortByPType);
+                                                      aiProcess_JoinIdenticalVertices | aiProcess_SortByPType |
+                                                      aiProcess_ValidateDataStructure);
     if (!sc) {
         char msg[400];
         one_line(msg, sizeof msg, aiGetErrorString());
@@ -121,8 +145,10 @@ int rt_model_append(const char *file, const float xf[12], uint32_t material, RtS
     } else {
         float nm[9];
         normal_matrix(xf, nm);
-        for (unsigned i = 0; i < sc->mNumMeshes; i++)
-            append_mesh(sc->mMeshes[i], xf, nm, material, s);
+        for (unsigned i = 0; i < sc->mNumMeshes && rc == 0; i++)
+            if (append_mesh(sc->mMeshes[i], xf, nm, material, s) != 0)
+                rc = rt_fail(err, "%s: a vertex that is not finite (after the transform) or a face index out of range",
+                             file);
     }
     aiReleaseImport(sc);
     return rc;

@@ -68,8 +68,10 @@ static XXH128_hash_t hash_big(const void *data, size_t len)
     return h;
 }
 
-/* The whole of a regular file, mapped read-only (*len 0: empty, no map). */
-static void *map_file(const char *path, size_t *len, int *fd_out)
+/* The whole of a regular, non-empty file in a private mapping (writable:
+ * copy on write, so the loaded arrays are the very bytes that were checked);
+ * NULL otherwise. */
+static void *map_file(const char *path, size_t *len)
 {
     int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
     struct stat st;
@@ -80,11 +82,8 @@ static void *map_file(const char *path, size_t *len, int *fd_out)
         return NULL;
     }
     *len = (size_t)st.st_size;
-    void *m = mmap(NULL, *len, PROT_READ, MAP_PRIVATE, fd, 0);
-    if (fd_out)
-        *fd_out = fd;
-    else
-        close(fd);
+    void *m = mmap(NULL, *len, PROT_READ | PROT_WRITE, MAP_PRIVATE, fd, 0);
+    close(fd);
     return m == MAP_FAILED ? NULL : m;
 }
 
@@ -93,13 +92,17 @@ static void *map_file(const char *path, size_t *len, int *fd_out)
 static int cache_key(const char *scene_path, RtAccelKind kind, char *hex, RtError *err)
 {
     size_t slen = 0, elen = 0;
-    void *s = map_file(scene_path, &slen, NULL);
-    if (!s)
-        return rt_fail(err, "%s: cannot read for the scene cache: %s", scene_path, strerror(errno));
+    struct stat st;
+    if (stat(scene_path, &st) != 0 || !S_ISREG(st.st_mode))
+        return rt_fail(err, "%s: not a regular file", scene_path); /* (the load says why) */
+    void *s = st.st_size > 0 ? map_file(scene_path, &slen) : NULL;
+    if (st.st_size > 0 && !s)
+        return rt_fail(err, "%s: cannot read for the scene cache", scene_path);
     XXH128_hash_t h[3];
-    h[0] = hash_big(s, slen);
-    munmap(s, slen);
-    void *exe = map_file("/proc/self/exe", &elen, NULL);
+    h[0] = s ? hash_big(s, slen) : XXH3_128bits("", 0);
+    if (s)
+        munmap(s, slen);
+    void *exe = map_file("/proc/self/exe", &elen);
     h[1] = exe ? hash_big(exe, elen) : XXH3_128bits(RT_BUILD_FLAGS, sizeof RT_BUILD_FLAGS);
     if (exe)
         munmap(exe, elen);
@@ -129,13 +132,17 @@ static void arrays(const RtScene *s, const RtAccel *a, const void **p, uint64_t 
     }
 }
 
-/* The payload's hash: of the scene struct's and every array's hash. */
-static uint64_t payload_hash(const void *scene_struct, const void **p, const uint64_t *bytes)
+/* The entry's hash: of the header (its own hash field zeroed), the scene
+ * struct and every array. */
+static uint64_t payload_hash(const CacheHeader *hdr, const void *scene_struct, const void **p, const uint64_t *bytes)
 {
-    XXH128_hash_t h[1 + A_COUNT];
-    h[0] = XXH3_128bits(scene_struct, sizeof(RtScene));
+    CacheHeader h0 = *hdr;
+    h0.payload_hash = 0;
+    XXH128_hash_t h[2 + A_COUNT];
+    h[0] = XXH3_128bits(&h0, sizeof h0);
+    h[1] = XXH3_128bits(scene_struct, sizeof(RtScene));
     for (int i = 0; i < A_COUNT; i++)
-        h[1 + i] = hash_big(p[i], (size_t)bytes[i]);
+        h[2 + i] = hash_big(p[i], (size_t)bytes[i]);
     return XXH3_64bits(h, sizeof h);
 }
 
@@ -160,11 +167,12 @@ int rt_cache_load(const char *dir, const char *scene_path, RtAccelKind kind, RtS
     char path[4200];
     cache_path(path, sizeof path, dir, key);
     size_t len = 0;
-    void *m = map_file(path, &len, NULL);
+    void *m = map_file(path, &len);
     if (!m)
         return 0; /* a miss */
     const CacheHeader *h = m;
-    int ok = header_ok(h, len) && len >= sizeof(CacheHeader) + sizeof(RtScene);
+    int ok = header_ok(h, len) && len >= sizeof(CacheHeader) + sizeof(RtScene) && h->kind == (int32_t)kind &&
+             memcmp(h->key, key, sizeof h->key) == 0;
     if (ok) {
         const void *p[A_COUNT];
         uint64_t bytes[A_COUNT];
@@ -172,28 +180,24 @@ int rt_cache_load(const char *dir, const char *scene_path, RtAccelKind kind, RtS
             p[i] = (const char *)m + h->offset[i];
             bytes[i] = (uint64_t)h->counts[i] * elem[i];
         }
-        ok = payload_hash((const char *)m + sizeof *h, p, bytes) == h->payload_hash;
+        ok = payload_hash(h, (const char *)m + sizeof *h, p, bytes) == h->payload_hash;
+    }
+    char *base = m;
+    if (ok) { /* the settings the renderer relies on, in range */
+        const RtScene *fs = (const RtScene *)(base + sizeof *h);
+        ok = fs->max_depth >= 0 && fs->max_depth <= RT_MAX_DEPTH && h->nsplit <= h->counts[A_PRIMS];
     }
     if (!ok) {
         munmap(m, len);
         unlink(path); /* stale or corrupt: never trusted, built again */
         return 0;
     }
-    /* copy-on-write: the arrays are the map's, the structs are ours */
-    munmap(m, len);
-    m = NULL;
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd >= 0) {
-        m = mmap(NULL, len, PROT_READ | PROT_WRITE, MAP_PRIVATE, fd, 0);
-        close(fd);
-    }
-    if (!m || m == MAP_FAILED)
-        return 0;
-    h = m;
-    char *base = m;
     memcpy(scene, base + sizeof *h, sizeof *scene);
     rt_scene_name(scene, scene_path);
     scene->output[sizeof scene->output - 1] = '\0';
+    scene->models = 0;
+    if (rt_model_supported(scene_path)) /* raytrace MODEL: the image is named after this file */
+        snprintf(scene->output, sizeof scene->output, "%s.png", scene->name);
     /* the pools as the header (checked against the file) has them */
     void **sp[6] = {(void **)&scene->vertices, (void **)&scene->normals,   (void **)&scene->spheres,
                     (void **)&scene->triangles, (void **)&scene->materials, (void **)&scene->lights};
@@ -261,7 +265,7 @@ int rt_cache_store(const char *dir, const char *key, const RtScene *scene, const
     h.leaves = accel->leaves;
     h.sah_cost = accel->sah_cost;
     memcpy(h.key, key, sizeof h.key); /* (the first half of the hex: a check only) */
-    h.payload_hash = payload_hash(scene, p, bytes);
+    h.payload_hash = payload_hash(&h, scene, p, bytes);
     char path[4200], tmp[4300];
     cache_path(path, sizeof path, dir, key);
     snprintf(tmp, sizeof tmp, "%s.tmp.XXXXXX", path);

@@ -498,6 +498,9 @@ static int mesh_transform(Parser *p, const char *s, float *m)
         }
         xf_then(m, op);
     }
+    s = skip_ws(s);
+    if (*s) /* (mesh_token stops at a word of 64 bytes or more, or an open quote) */
+        return perr(p, "mesh: cannot read the transform at '%.40s'", s);
     return 0;
 }
 
@@ -521,6 +524,7 @@ static int cmd_mesh(Parser *p, const char *v)
     RtError e;
     if (rt_model_append(path, m, p->material, p->s, &e) != 0)
         return perr(p, "mesh: %s", e.msg);
+    p->s->models++;
     return 0;
 }
 
