@@ -257,6 +257,11 @@ static inline void rt_tile_rect(int w, int h, int tw, int th, int index, int *x0
  * integer in lo..hi, and WxH with 1 <= W,H <= maxside. 0, or -1 (out untouched). */
 int rt_parse_int(const char *s, long lo, long hi, int *out);
 int rt_parse_wxh(const char *s, int maxside, int *w, int *h);
+/* Opens a file for reading if it is a regular file; a FIFO or a directory is
+ * refused at once instead of blocking. The descriptor (st filled), or -1
+ * with "path: cannot open: ..." or "path: not a regular file". */
+struct stat;
+int rt_open_regular(const char *path, struct stat *st, RtError *err);
 /* The threads a loading step runs on when `asked` for (0: as many as
  * OpenMP gives, one per allowed CPU; 1 in a build without OpenMP). */
 int rt_thread_count(int asked);

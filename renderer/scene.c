@@ -1,13 +1,16 @@
 /* scene.c - camera set-up, the shading view, and small shared helpers. */
 #define _GNU_SOURCE
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <sched.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
+#include <unistd.h>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -186,6 +189,20 @@ double rt_calibrate_ms(void)
     volatile float sink = acc;
     (void)sink;
     return rt_now_ms() - t0;
+}
+
+int rt_open_regular(const char *path, struct stat *st, RtError *err)
+{
+    /* O_NONBLOCK: opening a FIFO for reading would wait for a writer forever;
+     * opened this way it is refused below like any other non-regular file. */
+    const int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0)
+        return rt_fail(err, "%s: cannot open: %s", path, strerror(errno));
+    if (fstat(fd, st) != 0 || !S_ISREG(st->st_mode)) {
+        close(fd);
+        return rt_fail(err, "%s: not a regular file", path);
+    }
+    return fd;
 }
 
 int rt_parse_int(const char *s, long lo, long hi, int *out)

@@ -2,8 +2,6 @@
  * other formats Assimp reads): the scene format's `mesh:` line, and
  * `raytrace MODEL`, which frames a model with a default camera, lights and
  * material (docs/scene-format.md, "Models"). */
-#include <errno.h>
-#include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -112,13 +110,10 @@ int rt_model_append(const char *file, const float xf[12], uint32_t material, RtS
 {
     /* A regular file only: Assimp would wait on a FIFO forever. */
     struct stat st;
-    const int fd = open(file, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    const int fd = rt_open_regular(file, &st, err);
     if (fd < 0)
-        return rt_fail(err, "%s: cannot open: %s", file, strerror(errno));
-    const int regular = fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
+        return -1;
     close(fd);
-    if (!regular)
-        return rt_fail(err, "%s: not a regular file", file);
     const struct aiScene *sc = aiImportFile(file, aiProcess_Triangulate | aiProcess_PreTransformVertices |
                                                       aiProcess_JoinIdenticalVertices | aiProcess_SortByPType |
                                                       aiProcess_ValidateDataStructure);

@@ -12,7 +12,6 @@
  * the scene is built again. A store writes a
  * temporary file and renames it, so a reader never sees half a file. */
 #include <errno.h>
-#include <fcntl.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -73,11 +72,12 @@ static XXH128_hash_t hash_big(const void *data, size_t len)
  * NULL otherwise. */
 static void *map_file(const char *path, size_t *len)
 {
-    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
     struct stat st;
+    RtError ignored;
+    const int fd = rt_open_regular(path, &st, &ignored);
     if (fd < 0)
         return NULL;
-    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode) || st.st_size <= 0) {
+    if (st.st_size <= 0) {
         close(fd);
         return NULL;
     }

@@ -14,7 +14,6 @@
  * serial parser's, byte for byte (tests/unit/test_parse_threads.c). */
 #include <ctype.h>
 #include <errno.h>
-#include <fcntl.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -363,38 +362,51 @@ static int cmd_light(Parser *p, const char *cmd, const char *v)
  * -1 (rt_fail), so the value cannot be mistaken for one. */
 #define NOT_MINE 1
 
-static int cmd_triangle(Parser *p, const char *cmd, const char *v)
+/* A triangle with the current material, its indices (normal indices in
+ * ix[3..5] when `normals`) checked against the nv vertices and nn normals
+ * defined before its line: for the serial parser and the chunks' pass 2. */
+static int add_triangle(Parser *p, const char *cmd, const int64_t *ix, int normals, uint32_t nv, uint32_t nn)
 {
     RtScene *sc = p->s;
-    int64_t ix[6];
-    int nt = cmd[0] == 'n';
-    if (get_indices(p, cmd, v, ix, nt ? 6 : 3) != 0)
-        return -1;
     for (int i = 0; i < 3; i++)
-        if (check_index(p, cmd, ix[i], sc->nvertices, "vertex") != 0)
+        if (check_index(p, cmd, ix[i], nv, "vertex") != 0)
             return -1;
-    if (nt)
-        for (int i = 3; i < 6; i++)
-            if (check_index(p, cmd, ix[i], sc->nnormals, "normal") != 0)
-                return -1;
+    for (int i = 3; i < 6 && normals; i++)
+        if (check_index(p, cmd, ix[i], nn, "normal") != 0)
+            return -1;
     if (GROW(p, triangles, "triangles") != 0)
         return -1;
     RtTriangle *t = &sc->triangles[sc->ntriangles++];
     for (int i = 0; i < 3; i++) {
         t->v[i] = (uint32_t)ix[i];
-        t->n[i] = nt ? (int32_t)ix[3 + i] : -1;
+        t->n[i] = normals ? (int32_t)ix[3 + i] : -1;
     }
     t->material = p->material;
     return 0;
 }
 
-static int cmd_sphere(Parser *p, const char *v)
+static int cmd_triangle(Parser *p, const char *cmd, const char *v)
 {
-    float f[4];
+    int64_t ix[6];
+    const int nt = cmd[0] == 'n';
+    if (get_indices(p, cmd, v, ix, nt ? 6 : 3) != 0)
+        return -1;
+    return add_triangle(p, cmd, ix, nt, p->s->nvertices, p->s->nnormals);
+}
+
+/* A sphere line's centre and radius (positive). */
+static int sphere_values(Parser *p, const char *v, float *f)
+{
     if (get_floats(p, "sphere", v, f, 4) != 0)
         return -1;
     if (!(f[3] > 0.0f))
         return perr(p, "sphere: radius must be positive, got %g", (double)f[3]);
+    return 0;
+}
+
+/* A sphere with the current material. */
+static int add_sphere(Parser *p, const float *f)
+{
     if (GROW(p, spheres, "spheres") != 0)
         return -1;
     RtSphere *sp = &p->s->spheres[p->s->nspheres++];
@@ -402,6 +414,12 @@ static int cmd_sphere(Parser *p, const char *v)
     sp->r = f[3];
     sp->material = p->material;
     return 0;
+}
+
+static int cmd_sphere(Parser *p, const char *v)
+{
+    float f[4];
+    return sphere_values(p, v, f) != 0 ? -1 : add_sphere(p, f);
 }
 
 /* max_vertices / max_normals: a capacity hint only; reserve up to a sane
@@ -819,20 +837,8 @@ typedef struct Chunk {
     RtError err;
 } Chunk;
 
-/* Appends one element to a chunk's array; -1 out of memory. */
-static int chunk_push(void **arr, uint32_t *n, uint32_t *cap, size_t elem)
-{
-    if (*n < *cap)
-        return 0;
-    const uint32_t nc = *cap ? *cap * 2 : 1024;
-    void *na = nc > *cap ? realloc(*arr, (size_t)nc * elem) : NULL;
-    if (!na)
-        return -1;
-    *arr = na;
-    *cap = nc;
-    return 0;
-}
-#define CHUNK_PUSH(c, arr, n, cap) chunk_push((void **)&(c)->arr, &(c)->n, &(c)->cap, sizeof *(c)->arr)
+/* Room for one more element in a chunk's array (grow, with its limits and messages). */
+#define CHUNK_GROW(c, arr, n, cap, what) grow(p, (void **)&(c)->arr, &(c)->cap, (c)->n, sizeof *(c)->arr, (what))
 
 /* One line of pass 1; -1 stops the chunk (p->err holds the message). */
 static int chunk_line(Parser *p, Chunk *c, char *line, size_t at)
@@ -845,8 +851,8 @@ static int chunk_line(Parser *p, Chunk *c, char *line, size_t at)
     if (strcmp(cmd, "vertex") == 0 || strcmp(cmd, "normal") == 0) {
         if (get_floats(p, cmd, v, f, 3) != 0)
             return -1;
-        if (cmd[0] == 'v' ? CHUNK_PUSH(c, verts, nv, cap_v) : CHUNK_PUSH(c, norms, nn, cap_n))
-            return perr(p, "out of memory");
+        if (cmd[0] == 'v' ? CHUNK_GROW(c, verts, nv, cap_v, "vertices") : CHUNK_GROW(c, norms, nn, cap_n, "normals"))
+            return -1;
         if (cmd[0] == 'v')
             c->verts[c->nv++] = v3f(f);
         else
@@ -856,8 +862,8 @@ static int chunk_line(Parser *p, Chunk *c, char *line, size_t at)
         const int nt = cmd[0] == 'n';
         if (get_indices(p, cmd, v, ix, nt ? 6 : 3) != 0)
             return -1;
-        if (CHUNK_PUSH(c, tris, nt, cap_t))
-            return perr(p, "out of memory");
+        if (CHUNK_GROW(c, tris, nt, cap_t, "triangles"))
+            return -1;
         TriRec *t = &c->tris[c->nt++];
         for (int i = 0; i < 3; i++) {
             t->v[i] = (uint32_t)ix[i];
@@ -868,18 +874,14 @@ static int chunk_line(Parser *p, Chunk *c, char *line, size_t at)
         t->deferred = c->nd;
         t->line = nt ? -p->line : p->line;
     } else if (strcmp(cmd, "sphere") == 0) {
-        if (get_floats(p, "sphere", v, f, 4) != 0)
+        if (sphere_values(p, v, f) != 0 || CHUNK_GROW(c, sphs, ns, cap_s, "spheres"))
             return -1;
-        if (!(f[3] > 0.0f))
-            return perr(p, "sphere: radius must be positive, got %g", (double)f[3]);
-        if (CHUNK_PUSH(c, sphs, ns, cap_s))
-            return perr(p, "out of memory");
         memcpy(c->sphs[c->ns].f, f, sizeof f);
         c->sphs[c->ns++].deferred = c->nd;
     } else {
         c->has_mesh |= strcmp(cmd, "mesh") == 0;
-        if (CHUNK_PUSH(c, defs, nd, cap_d))
-            return perr(p, "out of memory");
+        if (CHUNK_GROW(c, defs, nd, cap_d, "lines"))
+            return -1;
         c->defs[c->nd].pos = at;
         c->defs[c->nd++].line = p->line;
     }
@@ -910,31 +912,17 @@ static void chunk_parse(const Parser *p0, Chunk *c, const char *buf)
 /* Pass 2 for a chunk's triangles and spheres before its deferred line j. */
 static int chunk_prims(Parser *p, const Chunk *c, uint32_t j, uint32_t *ti, uint32_t *si, uint32_t nv0, uint32_t nn0)
 {
-    RtScene *sc = p->s;
     for (; *ti < c->nt && c->tris[*ti].deferred == j; (*ti)++) {
         const TriRec *t = &c->tris[*ti];
         const int normals = t->line < 0;
-        const char *cmd = normals ? "normal_triangle" : "triangle";
+        const int64_t ix[6] = {t->v[0], t->v[1], t->v[2], t->n[0], t->n[1], t->n[2]};
         p->line = normals ? -t->line : t->line;
-        for (int i = 0; i < 3; i++)
-            if (check_index(p, cmd, t->v[i], nv0 + t->nv, "vertex") != 0)
-                return -1;
-        for (int i = 0; i < 3 && normals; i++)
-            if (check_index(p, cmd, t->n[i], nn0 + t->nn, "normal") != 0)
-                return -1;
-        RtTriangle *o = &sc->triangles[sc->ntriangles++];
-        for (int i = 0; i < 3; i++) {
-            o->v[i] = t->v[i];
-            o->n[i] = normals ? (int32_t)t->n[i] : -1;
-        }
-        o->material = p->material;
+        if (add_triangle(p, normals ? "normal_triangle" : "triangle", ix, normals, nv0 + t->nv, nn0 + t->nn) != 0)
+            return -1;
     }
-    for (; *si < c->ns && c->sphs[*si].deferred == j; (*si)++) {
-        RtSphere *o = &sc->spheres[sc->nspheres++];
-        memcpy(o->c, c->sphs[*si].f, 3 * sizeof(float));
-        o->r = c->sphs[*si].f[3];
-        o->material = p->material;
-    }
+    for (; *si < c->ns && c->sphs[*si].deferred == j; (*si)++)
+        if (add_sphere(p, c->sphs[*si].f) != 0)
+            return -1;
     return 0;
 }
 
@@ -1089,16 +1077,10 @@ int rt_scene_load_threads(const char *path, int threads, RtScene *scene, RtWarnF
                           RtError *err)
 {
     memset(scene, 0, sizeof *scene);
-    /* O_NONBLOCK: opening a FIFO for reading would wait for a writer forever;
-     * opened this way it is refused below like any other non-regular file. */
-    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-    if (fd < 0)
-        return rt_fail(err, "%s: cannot open: %s", path, strerror(errno));
     struct stat st;
-    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-        close(fd);
-        return rt_fail(err, "%s: not a regular file", path);
-    }
+    const int fd = rt_open_regular(path, &st, err);
+    if (fd < 0)
+        return -1;
     if (rt_model_supported(path)) { /* raytrace MODEL: Assimp reads it */
         close(fd);
         return rt_model_scene(path, scene, err);
