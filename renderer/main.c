@@ -518,25 +518,12 @@ static void poison(float *rgbf, size_t n)
 static int warmup_due(const Run *r, int done, double t0)
 {
     const Options *o = r->o;
-    int due = o->warmup_runs >= 0 ? done < o->warmup_runs
-                                  : o->warmup_ms >= 0.0 && (done == 0 || rt_now_ms() - t0 < o->warmup_ms);
+    int due = rt_warmup_due(o->warmup_runs, o->warmup_ms, done, rt_now_ms() - t0);
     if (r->col && o->warmup_runs < 0 && o->warmup_ms >= 0.0) {
         RtError scratch;
         due = r->col->agree(r->is_root && due, &scratch) != 0;
     }
     return due;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    const double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : (x > y ? 1 : 0);
-}
-
-static double median(double *v, int n)
-{
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 /* --warmup and --runs for a backend that renders once per call: the last
@@ -559,9 +546,9 @@ static int render_runs(Run *r, const RtRenderJob *job, RtError *err)
         }
     }
     if (rc == 0 && r->out.is_root) {
-        r->out.render_ms = median(ms, runs);
+        r->out.render_ms = rt_median(ms, runs);
         r->out.render_ms_best = ms[0];
-        r->out.render_ms_min = median(ms + runs, runs);
+        r->out.render_ms_min = rt_median(ms + runs, runs);
         r->out.runs = runs;
         r->out.warmups = warm;
     }

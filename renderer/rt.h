@@ -262,6 +262,12 @@ int rt_parse_wxh(const char *s, int maxside, int *w, int *h);
  * with "path: cannot open: ..." or "path: not a regular file". */
 struct stat;
 int rt_open_regular(const char *path, struct stat *st, RtError *err);
+/* The median of v[0..n), n >= 1 (v is sorted in place: v[0] is the least). */
+double rt_median(double *v, int n);
+/* Whether another untimed warm-up render is due after `done` of them, the
+ * first begun elapsed_ms ago: warmup_runs >= 0 counts them; else
+ * warmup_ms >= 0 is a time, with at least one render; else none (--warmup). */
+int rt_warmup_due(int warmup_runs, double warmup_ms, int done, double elapsed_ms);
 /* The threads a loading step runs on when `asked` for (0: as many as
  * OpenMP gives, one per allowed CPU; 1 in a build without OpenMP). */
 int rt_thread_count(int asked);

@@ -191,6 +191,25 @@ double rt_calibrate_ms(void)
     return rt_now_ms() - t0;
 }
 
+static int cmp_double(const void *a, const void *b)
+{
+    const double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : (x > y ? 1 : 0);
+}
+
+double rt_median(double *v, int n)
+{
+    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+int rt_warmup_due(int warmup_runs, double warmup_ms, int done, double elapsed_ms)
+{
+    if (warmup_runs >= 0)
+        return done < warmup_runs;
+    return warmup_ms >= 0.0 && (done == 0 || elapsed_ms < warmup_ms);
+}
+
 int rt_open_regular(const char *path, struct stat *st, RtError *err)
 {
     /* O_NONBLOCK: opening a FIFO for reading would wait for a writer forever;

@@ -301,8 +301,7 @@ static int cuda_launch(CudaRun *c, RtError *err)
             if (job->progress)
                 job->progress(job->progress_ctx, 1, (uint64_t)max_runs + 1);
         }
-        const int warm = c->runs == 0 && (job->warmup_runs >= 0 ? launch < job->warmup_runs
-                                                                : launch == 0 || rt_now_ms() - t0 < warm_ms);
+        const int warm = c->runs == 0 && rt_warmup_due(job->warmup_runs, warm_ms, launch, rt_now_ms() - t0);
         if (warm) {
             c->warmups++;
             continue;
@@ -318,12 +317,6 @@ fail:
     return -1;
 }
 
-static int cuda_cmp_double(const void *a, const void *b)
-{
-    const double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : (x > y ? 1 : 0);
-}
-
 /* The image and counters down; render_ms the median of the timed launches. */
 static int cuda_finish(CudaRun *c, RtRenderOut *out, RtError *err)
 {
@@ -333,8 +326,7 @@ static int cuda_finish(CudaRun *c, RtRenderOut *out, RtError *err)
                              cudaMemcpyDeviceToHost));
     c->download_ms = rt_now_ms() - t0;
     RT_CUDA_CHECK(cudaMemcpy(hcnt, c->arena + c->parts[P_COUNTERS].offset, sizeof hcnt, cudaMemcpyDeviceToHost));
-    qsort(c->times, (size_t)c->runs, sizeof c->times[0], cuda_cmp_double);
-    out->render_ms = c->runs % 2 ? c->times[c->runs / 2] : 0.5 * (c->times[c->runs / 2 - 1] + c->times[c->runs / 2]);
+    out->render_ms = rt_median(c->times, c->runs); /* (sorts: times[0] is the fastest) */
     out->render_ms_min = out->render_ms;
     out->render_ms_best = c->times[0];
     out->runs = c->runs;
