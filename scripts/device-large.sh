@@ -6,7 +6,7 @@
 #          4M triangles, every core (CSV and table under $OUT)
 #   ab     the 3,567,202-triangle scene (gen-scenes.sh large-4m) loaded and
 #          rendered by the older commit in .devcarry/old.tar.gz (`git archive
-#          OLD | gzip`) and by this tree, interleaved, 3 rounds: parse, build,
+#          OLD | gzip`) and by this tree, interleaved, 5 rounds: parse, build,
 #          render, node visits and image (the same tree gives the same visits)
 # .devcarry/include/xxhash.h stands in for libxxhash-dev where the machine
 # lacks it (the scene cache needs only the header).
@@ -32,7 +32,7 @@ for step in "${@:-bench ab}"; do
         SCENEGEN=build-large/renderer/scenegen scripts/gen-scenes.sh large-4m > /dev/null
         s=scenes/generated/large-4m.txt
         echo "round,build,parse_ms,build_ms,render_ms,node_visits,image_fnv1a,sah_cost" > "$OUT/large-4m-ab.csv"
-        for r in 1 2 3; do
+        for r in 1 2 3 4 5; do
             for b in old new; do
                 rt=build-large/renderer/raytrace; [ $b = old ] && rt=/tmp/build-old/renderer/raytrace
                 rec=$("$rt" -q --backend cuda -r 1920x1080 -o /tmp/ab.ppm "$s")

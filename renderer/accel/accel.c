@@ -15,8 +15,10 @@
  * The build runs on all the threads it is given and makes the same tree on
  * any number of them, so every backend's images and counters stay
  * bit-identical. Large subtrees are OpenMP tasks, each writing its nodes and
- * leaf order into arrays of its own, appended in depth-first order once both
- * children are done; the spatial-split budget is shared between a task's
+ * leaf order into arrays of its own; its parent leaves a hole of its size,
+ * and once the tree is done every subtree is copied into its hole, in
+ * parallel, so the nodes land in depth-first order, each moved once. The
+ * spatial-split budget is shared between a task's
  * children in proportion to their references, fixed by the counts alone. In
  * large nodes the binning, the bounds and the object partition run over
  * fixed chunks of references in parallel: bins and bounds merge by min, max
@@ -208,6 +210,12 @@ typedef struct Builder {
     uint32_t spatial_min; /* the smallest node that tries spatial splits */
     uint32_t max_depth, leaves;
     int oom;
+    /* Subtrees built by tasks, not yet copied: each holds a hole of its size
+     * in this builder's arrays at (at_node, at_order), filled once at the
+     * end (place_all), so every node is copied once, not once per level. */
+    struct Builder *segs;
+    uint32_t nsegs, capsegs;
+    uint32_t at_node, at_order;
 } Builder;
 
 /* Chunks of RT_BVH_CHUNK references: 1 below two chunks (then serial). */
@@ -766,32 +774,80 @@ static int sub_init(Builder *s, const Builder *p, uint32_t count, uint32_t budge
     return -1;
 }
 
-/* Appends subtree s to p: node and record indices shifted by where they
- * land; a large subtree is copied over chunks in parallel. */
+/* Frees a subtree's arrays and those of the subtrees in its holes. */
+static void sub_free(Builder *s)
+{
+    for (uint32_t k = 0; k < s->nsegs; k++)
+        sub_free(&s->segs[k]);
+    free(s->segs);
+    free(s->nodes);
+    free(s->order);
+}
+
+/* Appends subtree s to p: a hole of s's size in p's arrays, s kept for
+ * place_all. (p's arrays reserve their full capacity up front, and a hole
+ * is never written until then, so its pages cost nothing meanwhile.) */
 static void sub_append(Builder *p, Builder *s)
 {
-    const uint32_t nn = s->nnodes, no = p->norder, nb = p->nnodes;
-    const int nc = nchunks(nn);
-#pragma omp taskloop grainsize(1) if (nc > 1)
-    for (int c = 0; c < nc; c++) {
-        uint32_t i0 = 0, i1 = nn;
-        if (nc > 1)
-            chunk_range(nn, c, &i0, &i1);
-        for (uint32_t i = i0; i < i1; i++) {
-            RtBvhNode n = s->nodes[i];
-            n.index += (n.meta & 0xffu) ? no : nb;
-            p->nodes[nb + i] = n;
+    if (p->nsegs == p->capsegs) {
+        const uint32_t cap = p->capsegs ? 2 * p->capsegs : 2;
+        Builder *g = realloc(p->segs, cap * sizeof *g);
+        if (!g) {
+            p->oom = 1;
+            sub_free(s);
+            return;
         }
+        p->segs = g;
+        p->capsegs = cap;
     }
-    memcpy(p->order + p->norder, s->order, (size_t)s->norder * sizeof *s->order);
+    s->at_node = p->nnodes;
+    s->at_order = p->norder;
+    p->segs[p->nsegs++] = *s;
     p->nnodes += s->nnodes;
     p->norder += s->norder;
     p->refs_left += s->refs_left;
     p->leaves += s->leaves;
     p->max_depth = s->max_depth > p->max_depth ? s->max_depth : p->max_depth;
     p->oom |= s->oom;
-    free(s->nodes);
-    free(s->order);
+}
+
+/* Copies s's own nodes and records in [n0, n1) and [o0, o1) to their final
+ * places at node_off and order_off, indices shifted by the same. */
+static void place_range(const Builder *s, RtBvhNode *nodes, uint32_t *order, uint32_t node_off,
+                        uint32_t order_off, uint32_t n0, uint32_t n1, uint32_t o0, uint32_t o1)
+{
+    for (uint32_t i = n0; i < n1; i++) {
+        RtBvhNode n = s->nodes[i];
+        n.index += (n.meta & 0xffu) ? order_off : node_off;
+        nodes[node_off + i] = n;
+    }
+    memcpy(order + order_off + o0, s->order + o0, (size_t)(o1 - o0) * sizeof *order);
+}
+
+/* Places subtree s (and those in its holes, as tasks) into the final arrays
+ * at node_off and order_off, and frees it. The root builder's own nodes are
+ * in place already (own = 0). */
+static void place_all(Builder *s, RtBvhNode *nodes, uint32_t *order, uint32_t node_off, uint32_t order_off,
+                      int own)
+{
+    uint32_t n0 = 0, o0 = 0;
+    for (uint32_t k = 0; k < s->nsegs; k++) {
+        Builder *c = &s->segs[k];
+        if (own)
+            place_range(s, nodes, order, node_off, order_off, n0, c->at_node, o0, c->at_order);
+#pragma omp task firstprivate(c)
+        place_all(c, nodes, order, node_off + c->at_node, order_off + c->at_order, 1);
+        n0 = c->at_node + c->nnodes;
+        o0 = c->at_order + c->norder;
+    }
+    if (own)
+        place_range(s, nodes, order, node_off, order_off, n0, s->nnodes, o0, s->norder);
+#pragma omp taskwait
+    free(s->segs); /* (the subtrees in it freed themselves) */
+    if (own) {
+        free(s->nodes);
+        free(s->order);
+    }
 }
 
 /* The two children of a large node, the left one as a task (see the file's
@@ -806,8 +862,7 @@ static uint32_t build_pair(Builder *b, Ref *left, uint32_t nl, Ref *right, uint3
         return build(b, right, nr, depth);
     }
     if (sub_init(&sb[1], b, nr, b->refs_left - bl) != 0) {
-        free(sb[0].nodes);
-        free(sb[0].order);
+        sub_free(&sb[0]);
         build(b, left, nl, depth);
         return build(b, right, nr, depth);
     }
@@ -982,15 +1037,22 @@ static int widen_children_tasks(Widen *w, const uint32_t *cand, int nc, uint32_t
     }
 #pragma omp taskwait
     for (k = 0; k < nc; k++) {
-        const uint32_t off = w->n;
-        for (uint32_t i = 0; i < sw[k].n; i++) {
-            RtBvh4Node o = sw[k].wide[i];
-            for (int c = 0; c < 4; c++)
-                o.child[c] += (o.child[c] & RT_WIDE_LEAF) ? 0u : off;
-            w->wide[off + i] = o;
+        const uint32_t off = w->n, nn = sw[k].n;
+        const int nch = nchunks(nn);
+#pragma omp taskloop grainsize(1) if (nch > 1)
+        for (int ch = 0; ch < nch; ch++) {
+            uint32_t i0 = 0, i1 = nn;
+            if (nch > 1)
+                chunk_range(nn, ch, &i0, &i1);
+            for (uint32_t i = i0; i < i1; i++) {
+                RtBvh4Node o = sw[k].wide[i];
+                for (int c = 0; c < 4; c++)
+                    o.child[c] += (o.child[c] & RT_WIDE_LEAF) ? 0u : off;
+                w->wide[off + i] = o;
+            }
         }
         refs[k] = (r[k] & RT_WIDE_LEAF) ? r[k] : r[k] + off;
-        w->n += sw[k].n;
+        w->n += nn;
         free(sw[k].wide);
     }
     return 0;
@@ -1118,16 +1180,31 @@ static int widen(RtAccel *a, int nt)
 
 /* The tree's SAH cost (traversal and intersection cost 1, as the build
  * weighs them): the expected work of a ray that meets the root's box. */
-static double sah_cost(const RtBvhNode *nodes, uint32_t nnodes)
+static double sah_cost(const RtBvhNode *nodes, uint32_t nnodes, int nt)
 {
     const double root = node_area(&nodes[0]);
     if (!(root > 0.0))
         return 0.0;
-    double c = 0.0;
-    for (uint32_t i = 0; i < nnodes; i++) {
-        const uint32_t count = nodes[i].meta & 0xffu;
-        c += node_area(&nodes[i]) * (count ? (double)count : 1.0);
+    /* (fixed chunks summed in order: the same value on any thread count) */
+    const int nc = (int)((nnodes + RT_BVH_CHUNK - 1) / RT_BVH_CHUNK);
+    double *part = malloc((size_t)nc * sizeof *part), c = 0.0;
+    if (!part)
+        return 0.0;
+    (void)nt;
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (int k = 0; k < nc; k++) {
+        uint32_t i0, i1;
+        chunk_range(nnodes, k, &i0, &i1);
+        double sum = 0.0;
+        for (uint32_t i = i0; i < i1; i++) {
+            const uint32_t count = nodes[i].meta & 0xffu;
+            sum += node_area(&nodes[i]) * (count ? (double)count : 1.0);
+        }
+        part[k] = sum;
     }
+    for (int k = 0; k < nc; k++)
+        c += part[k];
+    free(part);
     return c / root;
 }
 
@@ -1186,9 +1263,11 @@ int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAc
     {
         a->build_threads = omp_get_num_threads();
         build(&b, refs, n, 0);
+        place_all(&b, nodes, order, 0, 0, 0);
     }
 #else
     build(&b, refs, n, 0);
+    place_all(&b, nodes, order, 0, 0, 0);
 #endif
     free(verts);
     RtPrim *ordered = b.oom ? NULL : malloc((size_t)b.norder * sizeof *ordered);
@@ -1212,7 +1291,7 @@ int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAc
     a->nsplit = b.norder - n;
     a->depth = b.max_depth;
     a->leaves = b.leaves;
-    a->sah_cost = sah_cost(a->nodes, a->nnodes);
+    a->sah_cost = sah_cost(a->nodes, a->nnodes, nt);
     widen(a, nt); /* optional: without it the GPU traverses the binary tree */
     return 0;
 }
