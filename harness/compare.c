@@ -244,7 +244,7 @@ static void judge_time(const HxGroup *n, const HxGroup *b, const Rule *rule, Ver
         fast = ratio < 1.0 / rule->factor && rmin < 1.0 / rule->factor;
         snprintf(how, sizeof how, "min ratio %.2f, n=%zu/%zu (too few for a test)", rmin, n->nt, b->nt);
     }
-    hx_buf_printf(&r, "median %.3f -> %.3f %s, ratio %.2f (%s)%s", b->median, n->median, rule->unit, ratio, how,
+    hx_buf_printf(&r, "median %.3f -> %.3f%s%s, ratio %.3f (%s)%s", b->median, n->median, *rule->unit ? " " : "", rule->unit, ratio, how,
                   (slow || fast) && rule->fp_differs ? " [different machines]" : "");
     Verdict *v = push_verdict(vs, b, slow ? "REGRESSION" : fast ? "IMPROVEMENT" : "ok", r.s, n);
     v->base_median = b->median;
@@ -422,7 +422,9 @@ int hx_cmd_compare(int argc, char **argv)
         for (size_t i = 0; i < fpn.n; i++)
             printf("  new:  %s\n", fpn.v[i]);
     }
-    Rule rule = {factor, alpha, min_ms, strchr(metric, '/') ? "x calib" : "ms", fp_differs};
+    size_t ml = strlen(metric);
+    const char *unit = strchr(metric, '/') ? "x calib" : (ml > 3 && !strcmp(metric + ml - 3, "_ms") ? "ms" : "");
+    Rule rule = {factor, alpha, min_ms, unit, fp_differs};
     Verdicts v = {0};
     for (size_t i = 0; i < base.ng; i++)
         judge(&nw, &base, &base.g[i], &rule, &v);

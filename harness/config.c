@@ -263,7 +263,7 @@ static int dim_of_key(const char *key)
 
 static const char *const scalar_keys[] = {
     "study", "scene_dir", "repeats", "warmup", "timeout", "oversubscribe",
-    "baseline", "raytrace", "mpirun", "launcher", "scene_cache", NULL};
+    "baseline", "raytrace", "mpirun", "launcher", "scene_cache", "instructions", NULL};
 
 int hx_launcher_parse(const char *name, HxLauncher *out)
 {
@@ -440,6 +440,12 @@ int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
             cfg->mpirun = hx_strdup(v);
         } else if (strcmp(key, "scene_cache") == 0) {
             cfg->scene_cache = hx_strdup(v);
+        } else if (strcmp(key, "instructions") == 0) {
+            if (strcmp(v, "on") == 0 || strcmp(v, "off") == 0)
+                cfg->instructions = strcmp(v, "on") == 0;
+            else
+                rc = set_err(err, errlen, path, lineno, "instructions: expected on|off, got '%s'", v);
+            cfg->instructions_line = lineno;
         } else if (strcmp(key, "launcher") == 0) {
             if (hx_launcher_parse(v, &cfg->launcher))
                 rc = set_err(err, errlen, path, lineno,
@@ -463,6 +469,12 @@ int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
             n -= 5;
         cfg->study = hx_strndup(base, n);
     }
+    /* threads waiting in a barrier spin: only one thread counts exactly */
+    for (size_t i = 0; cfg->instructions && i < cfg->dim[HX_DIM_BACKEND].n; i++)
+        if (strcmp(cfg->dim[HX_DIM_BACKEND].v[i], "serial") != 0)
+            return set_err(err, errlen, path, cfg->instructions_line,
+                           "instructions: on counts serial runs only, but backends has '%s'",
+                           cfg->dim[HX_DIM_BACKEND].v[i]);
     if (!cfg->baseline)
         cfg->baseline = hx_strdup("backend=serial");
     if (!cfg->mpirun)

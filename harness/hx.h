@@ -122,6 +122,8 @@ typedef struct {
     HxLauncher launcher;
     HxStrList extra_args;       /* passed verbatim to raytrace */
     char *scene_cache;          /* raytrace --cache DIR; "off": none; NULL: the user's cache directory */
+    int instructions;           /* each run under cachegrind: record key instructions */
+    int instructions_line;
 } HxConfig;
 
 typedef struct {
@@ -259,6 +261,30 @@ typedef struct {
 HxAmdahl hx_amdahl_fit(const double *p, const double *t, size_t n);
 double hx_mann_whitney_p(const double *x, size_t nx, const double *y, size_t ny);
 
+/* ---- gnuplot files (plot.c) ---- */
+/* A plot is PREFIX-KIND.png and .svg, drawn by PREFIX-KIND.gp from
+ * PREFIX-KIND.dat, both kept beside the images. */
+typedef struct {
+    const char *who;      /* the command, for messages */
+    char *dir;            /* folder of PREFIX (owned) */
+    const char *base;     /* file name part of PREFIX */
+    const char *term_png; /* pngcairo or png */
+    int failures, made;
+} HxPlot;
+/* Checks PREFIX (its folder exists, no control character); 0 or -1 with
+ * one line on stderr. hx_plot_done frees it. */
+int hx_plot_init(HxPlot *c, const char *who, const char *prefix);
+void hx_plot_done(HxPlot *c);
+FILE *hx_plot_open(const HxPlot *c, const char *kind, FILE **dat);
+void hx_plot_head(FILE *gp, const HxPlot *c, const char *kind, const char *title);
+void hx_plot_tail(FILE *gp, const HxPlot *c, const char *kind);
+/* Closes both files and runs gnuplot; counts made and failures. */
+void hx_plot_finish(HxPlot *c, const char *kind, FILE *gp, FILE *dat);
+/* fprintf of fmt with one %s: s (or "BASE-KIND.EXT") quoted for gnuplot */
+void hx_plot_put(FILE *gp, const char *fmt, const char *s);
+void hx_plot_file(FILE *gp, const char *fmt, const char *base, const char *kind, const char *ext);
+/* A label for a .dat column header: quotes and control characters blanked. */
+void hx_plot_clean_label(char *dst, size_t n, const char *src);
 /* ---- commands ---- */
 int hx_cmd_run(int argc, char **argv);
 int hx_cmd_table(int argc, char **argv);
@@ -266,6 +292,9 @@ int hx_cmd_plot(int argc, char **argv);
 int hx_cmd_compare(int argc, char **argv);
 int hx_cmd_topo(int argc, char **argv);
 int hx_cmd_slurm(int argc, char **argv);
+int hx_cmd_history(int argc, char **argv);
+/* Stores study CSVs in the history database (history.c); 0, or 1 on failure. */
+int hx_history_add(const char *db, char **csvs, int n, int allow_dirty);
 
 /* ---- shared analysis helpers (table.c) ---- */
 /* One configuration of one scene, with its ok samples. */

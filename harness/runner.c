@@ -387,6 +387,17 @@ static void build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *
     } else {
         c->bind = pinned;
     }
+    if (cfg->instructions) {
+        /* cachegrind without its cache model: the exact instruction count
+         * (docs/harness.md, "CI and the baseline") */
+        HxBuf f = {0};
+        hx_buf_printf(&f, "--cachegrind-out-file=%s.cg", image);
+        hx_strlist_push(&c->argv, "valgrind");
+        hx_strlist_push(&c->argv, "--tool=cachegrind");
+        hx_strlist_push(&c->argv, "--cache-sim=no");
+        hx_strlist_push(&c->argv, f.s);
+        hx_buf_free(&f);
+    }
     hx_strlist_push(&c->argv, raytrace);
     hx_strlist_push(&c->argv, "--backend");
     hx_strlist_push(&c->argv, be);
@@ -687,6 +698,8 @@ static void config_hash(const HxConfig *cfg, const HxPlan *plan, char out[20])
 {
     HxBuf b = {0};
     hx_buf_printf(&b, "%s|%d|%d|%.17g", cfg->study, cfg->repeats, cfg->warmup, cfg->timeout_s);
+    if (cfg->instructions) /* (studies without it keep their hash) */
+        hx_buf_put(&b, "|instructions");
     for (size_t i = 0; i < cfg->extra_args.n; i++)
         hx_buf_printf(&b, "|%s", cfg->extra_args.v[i]);
     for (size_t i = 0; i < plan->n; i++)
@@ -845,6 +858,27 @@ static char *error_detail(const ChildResult *res)
     return b.s;
 }
 
+/* The record with the instruction count of cachegrind's IMAGE.cg (its
+ * "summary:" line) added as key `instructions`, into vals; 0 or -1. */
+static int add_instructions(const char *image, const char *rec, char **vals)
+{
+    HxBuf path = {0}, text = {0};
+    hx_buf_printf(&path, "%s.cg", image);
+    int rc = hx_read_file(path.s, &text);
+    unlink(path.s);
+    hx_buf_free(&path);
+    const char *sum = rc == 0 && text.s ? strstr(text.s, "\nsummary: ") : NULL;
+    long long ir = sum ? atoll(sum + 10) : 0;
+    hx_buf_free(&text);
+    if (ir <= 0)
+        return -1;
+    HxBuf r = {0};
+    hx_buf_printf(&r, "%s instructions=%lld", rec, ir);
+    hx_record_to_row(r.s, vals);
+    hx_buf_free(&r);
+    return 0;
+}
+
 /* The status of a run whose child has ended (vals gets the record). */
 static const char *outcome(Study *st, const HxRun *r, ChildResult *res, char **vals, char **detail)
 {
@@ -879,7 +913,12 @@ static const char *outcome(Study *st, const HxRun *r, ChildResult *res, char **v
             hx_strlist_push(&st->deterministic, r->config_id);
         return "error";
     }
-    hx_record_to_row(rec, vals);
+    if (st->cfg.instructions && add_instructions(st->image, rec, vals) != 0) {
+        *detail = hx_strdup("no instruction count from cachegrind (is valgrind installed?)");
+        return "error";
+    }
+    if (!st->cfg.instructions)
+        hx_record_to_row(rec, vals);
     char *key = image_key(r->scene_path, r->v[HX_DIM_RESOLUTION], r->v[HX_DIM_MAX_DEPTH]);
     const char *status = gate(&st->refs, key, r->v[HX_DIM_BACKEND], vals[hx_column_index("image_fnv1a")],
                               r->run_id, detail);

@@ -105,9 +105,30 @@ static char *row_label(const HxCsv *csv, size_t r, int with_workers, const int *
 /* The metric of row r: a numeric column, or "COLUMN/calib": the column
  * divided by the row's calib_ms (raytrace --calibrate, kept in `extra`), a
  * time in units of the machine's speed at that moment. */
+/* The value of KEY in the row's `extra` (k1=v1;k2=v2), or NULL; the
+ * number is copied into num. */
+static const char *extra_value(const HxCsv *csv, size_t r, const char *key, char *num, size_t n)
+{
+    const char *extra = hx_csv_get(csv, r, "extra");
+    size_t kl = strlen(key);
+    for (const char *k = extra; (k = strstr(k, key)) != NULL; k += kl) {
+        if ((k != extra && k[-1] != ';') || k[kl] != '=')
+            continue;
+        size_t m = 0;
+        for (k += kl + 1; *k && *k != ';' && m + 1 < n; k++)
+            num[m++] = *k;
+        num[m] = '\0';
+        return num;
+    }
+    return NULL;
+}
+
 static int row_metric(const HxCsv *csv, size_t r, const char *metric, double *out)
 {
     const char *slash = strchr(metric, '/');
+    char num[32];
+    if (!slash && hx_csv_col(csv, metric) < 0) /* a record key kept in `extra` */
+        return extra_value(csv, r, metric, num, sizeof num) ? hx_parse_double(num, out) : -1;
     if (!slash)
         return hx_parse_double(hx_csv_get(csv, r, metric), out);
     char col[64];
@@ -117,15 +138,8 @@ static int row_metric(const HxCsv *csv, size_t r, const char *metric, double *ou
     memcpy(col, metric, n);
     col[n] = '\0';
     double v, c;
-    const char *extra = hx_csv_get(csv, r, "extra");
-    const char *k = strstr(extra, "calib_ms=");
-    if (hx_parse_double(hx_csv_get(csv, r, col), &v) != 0 || !k)
+    if (hx_parse_double(hx_csv_get(csv, r, col), &v) != 0 || !extra_value(csv, r, "calib_ms", num, sizeof num))
         return -1;
-    char num[32];
-    size_t m = 0;
-    for (k += 9; *k && *k != ';' && m + 1 < sizeof num; k++)
-        num[m++] = *k;
-    num[m] = '\0';
     if (hx_parse_double(num, &c) != 0 || !(c > 0.0))
         return -1;
     *out = v / c;
@@ -164,8 +178,13 @@ int hx_study_build(const char *path, const char *metric, HxStudy *s, char *err, 
             return -1;
         }
     const char *slash = strchr(metric, '/');
-    if (slash ? (strcmp(slash, "/calib") != 0 || hx_csv_col(csv, "extra") < 0) : hx_csv_col(csv, metric) < 0) {
-        snprintf(err, errlen, "%s: no column '%s' for --metric (a column, or COLUMN/calib)", path, metric);
+    int found = slash ? strcmp(slash, "/calib") == 0 && hx_csv_col(csv, "extra") >= 0 : hx_csv_col(csv, metric) >= 0;
+    char num[32];
+    for (size_t r = 0; !found && !slash && hx_csv_col(csv, "extra") >= 0 && r < csv->nrows; r++)
+        found = extra_value(csv, r, metric, num, sizeof num) != NULL;
+    if (!found) {
+        snprintf(err, errlen, "%s: no column or record key '%s' for --metric (a column, a key of extra, or COLUMN/calib)",
+                 path, metric);
         hx_csv_free(&s->csv);
         return -1;
     }

@@ -3,10 +3,15 @@
 # Idempotent: packages already present are skipped, so a second run is quick.
 # The CUDA toolkit is not in Debian 12's main archive under the same version on
 # every machine; when nvcc is missing the CUDA backend is simply not built.
+# slurm-wlm, slurm-client and munge are for tests/harness/test-slurm-real.sh,
+# which starts its own single-node cluster (installing them starts no daemon
+# that it uses); libpmix2 is the PMIx that srun --mpi=pmix starts Open MPI's
+# ranks with. libsqlite3-dev is the harness's history database; valgrind
+# (cachegrind) counts the instructions of the CI performance check.
 set -euo pipefail
 pkgs=(meson ninja-build gcc pkg-config libpng-dev libhwloc-dev hwloc
       libopenmpi-dev openmpi-bin gnuplot-nox libxxhash-dev libassimp-dev assimp-testmodels
-      libembree-dev)
+      libembree-dev slurm-wlm slurm-client munge libpmix2 libsqlite3-dev valgrind)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -2,7 +2,8 @@
 # Slurm support without Slurm: `run --launcher srun` command lines (dry run),
 # a real study launched through a fake srun on PATH, and `harness slurm`'s
 # sbatch script (#SBATCH sizing, option errors, bash -n, and the script itself
-# run with a fake job environment).
+# run with a fake job environment, twice: the second continues the CSV), and
+# --submit's following and reporting against a fake sbatch/squeue.
 # usage: test-slurm.sh HARNESS FAKE_RAYTRACE FAKE_SRUN
 set -u
 abs() { (cd "$(dirname "$1")" && echo "$(pwd)/$(basename "$1")"); }
@@ -89,8 +90,8 @@ CONF
 for l in '#!/bin/bash' '#SBATCH --job-name=hyb' '#SBATCH --nodes=1' '#SBATCH --ntasks=4' \
          '#SBATCH --cpus-per-task=2' '#SBATCH --exclusive' '#SBATCH --hint=nomultithread' \
          '#SBATCH --time=01:00:00' '#SBATCH --output=slurm-%j.out' 'cd "$SLURM_SUBMIT_DIR"' \
-         "build/harness/harness run $T/hyb.conf --launcher srun -o results/hyb-slurm-\${SLURM_JOB_ID}.csv" \
-         'build/harness/harness table results/hyb-slurm-${SLURM_JOB_ID}.csv'; do
+         "build/harness/harness run $T/hyb.conf --launcher srun -o results/hyb-slurm.csv --resume" \
+         'build/harness/harness table results/hyb-slurm.csv' 'export SLURM_MPI_TYPE=pmix'; do
   grep -q -x -F -- "$l" "$T/job.sh" || grep -q -F -- "$l " "$T/job.sh" || { cat "$T/job.sh"; fail "script lacks: $l"; }
 done
 [ "$(grep -c '^#SBATCH' "$T/job.sh")" -eq 8 ] || fail "expected 8 #SBATCH lines"
@@ -138,8 +139,64 @@ sed 's/^threads: 1 2/threads: 1/; s/^ranks: 1 2 4/ranks: 1/' "$T/hyb.conf" > "$T
 (cd / && SLURM_SUBMIT_DIR=$T/repo SLURM_JOB_ID=42 SLURM_JOB_NUM_NODES=1 SLURM_JOB_NODELIST=node1 \
   FAKE_SRUN_LOG=$T/job-srun.log PATH="$T/bin:$PATH" bash "$T/repo/job.sh") > "$T/joblog" 2>&1 \
   || { cat "$T/joblog"; fail "the generated script failed"; }
-[ "$(grep -c ',ok,,0,' "$T/repo/results/hyb-slurm-42.csv")" -eq 3 ] || { cat "$T/joblog"; fail "job CSV"; }
+[ "$(grep -c ',ok,,0,' "$T/repo/results/hyb-slurm.csv")" -eq 3 ] || { cat "$T/joblog"; fail "job CSV"; }
 grep -q -- '--launcher srun' "$T/job-srun.log" && fail "harness options leaked to srun"
 grep -q '^args: --ntasks=1 ' "$T/job-srun.log" || fail "job did not launch MPI through srun"
 has "$T/joblog" "### Per configuration"
+# a resubmission (another job id) continues the same CSV: nothing runs twice
+(cd / && SLURM_SUBMIT_DIR=$T/repo SLURM_JOB_ID=43 SLURM_JOB_NUM_NODES=1 SLURM_JOB_NODELIST=node1 \
+  FAKE_SRUN_LOG=$T/job-srun.log PATH="$T/bin:$PATH" bash "$T/repo/job.sh") > "$T/joblog2" 2>&1 \
+  || { cat "$T/joblog2"; fail "the resubmitted script failed"; }
+[ "$(grep -c ',ok,,0,' "$T/repo/results/hyb-slurm.csv")" -eq 3 ] || fail "the resubmission added rows"
+has "$T/joblog2" "3 skipped (resume)"
+
+# ---- sizes and the MPI plugin from the options ----
+"$H" slurm "$T/hyb.conf" --ntasks 2 --cpus-per-task 1 --mpi site > "$T/job3.sh" || fail "sizes from options"
+grep -q -x -- '#SBATCH --ntasks=2' "$T/job3.sh" && grep -q -x -- '#SBATCH --cpus-per-task=1' "$T/job3.sh" \
+  || fail "--ntasks/--cpus-per-task ignored"
+grep -q SLURM_MPI_TYPE "$T/job3.sh" && fail "--mpi site still sets SLURM_MPI_TYPE"
+"$H" slurm "$T/hyb.conf" --mpi pmi2 | grep -q -x 'export SLURM_MPI_TYPE=pmi2' || fail "--mpi pmi2"
+bad "harness slurm: --mpi: expected a name" "$T/hyb.conf" --mpi 'pmix;id'
+bad "harness slurm: --ntasks: expected an integer >= 1, got 'x'" "$T/hyb.conf" --ntasks x
+bad "harness slurm: --cpus-per-task: expected an integer >= 1" "$T/hyb.conf" --cpus-per-task 0
+bad "harness slurm: --max-wait: expected HH:MM:SS" "$T/hyb.conf" --max-wait 5
+
+# ---- --submit against fake sbatch/squeue (the real cluster: test-slurm-real.sh) ----
+mkdir "$T/sbin" "$T/nosb"
+printf '#!/bin/sh\necho "$*" >> "$FAKE_SLURM/sbatch.args"\n[ -f "$FAKE_SLURM/sbatch-fails" ] && { echo "sbatch: error: Batch job submission failed" >&2; exit 1; }\necho "4242;cluster"\n' > "$T/sbin/sbatch"
+printf '#!/bin/sh\ncat "$FAKE_SLURM/state"\n' > "$T/sbin/squeue"
+printf '#!/bin/sh\nexit 1\n' > "$T/sbin/sacct"
+printf '#!/bin/sh\nexit 1\n' > "$T/sbin/scontrol"
+chmod +x "$T/sbin/"*
+sub() { (cd "$T/repo" && FAKE_SLURM=$T PATH="$T/sbin:$PATH" timeout 30 "$H" slurm small.conf --submit "$@"); }
+# no sbatch at all: one line, exit 1
+out=$(cd "$T/nosb" && PATH=$T/nosb "$H" slurm "$T/repo/small.conf" --submit 2>&1) && fail "--submit without sbatch"
+[ "$(printf '%s\n' "$out" | wc -l)" -eq 1 ] && echo "$out" | grep -q "cannot run sbatch" || fail "no-sbatch error: $out"
+touch "$T/sbatch-fails"
+out=$(sub 2>&1) && fail "a failing sbatch was not an error"
+echo "$out" | grep -q "^harness slurm: --submit: sbatch results/hyb-slurm.sbatch failed (exit 1)$" || fail "sbatch failure: $out"
+rm "$T/sbatch-fails"
+has "$T/sbatch.args" "--parsable results/hyb-slurm.sbatch"
+cmp -s "$T/repo/results/hyb-slurm.sbatch" "$T/repo/job.sh" || fail "--submit wrote another script than -o"
+echo 'COMPLETED|None|0:05|node1' > "$T/state"
+sub > "$T/sub.out" 2> "$T/sub.err" || { cat "$T/sub.err"; fail "--submit of a completed job"; }
+has "$T/sub.err" "harness slurm: submitted results/hyb-slurm.sbatch as job 4242 "
+has "$T/sub.err" "harness slurm: job 4242 COMPLETED: 3/3 rows in results/hyb-slurm.csv, log slurm-4242.out"
+has "$T/sub.out" "### Per configuration"
+echo 'FAILED|NonZeroExitCode|0:03|node1' > "$T/state"
+printf 'job 4242: 1 node(s): node1\nharness run: --resume: boom\n' > "$T/repo/slurm-4242.out"
+sub -o job4.sh > /dev/null 2> "$T/sub.err" && fail "a failed job exited 0"
+has "$T/sub.err" "harness slurm: job 4242 ended FAILED: 3/3 rows in results/hyb-slurm.csv; log slurm-4242.out ends: 'harness run: --resume: boom'; once fixed, --submit again continues the CSV"
+has "$T/sbatch.args" "--parsable job4.sh"
+# a job that can never start: said at once, not after --max-wait
+printf 'PENDING|PartitionConfig|0:00|\n' > "$T/state"
+sub > /dev/null 2> "$T/sub.err" && fail "a job that cannot start exited 0"
+has "$T/sub.err" "harness slurm: job 4242 cannot start as submitted (PENDING: PartitionConfig)"
+# a job that never ends: --max-wait stops following (the job is left alone)
+printf 'PENDING|Priority|0:00|\n' > "$T/state"
+start=$(date +%s)
+sub --max-wait 00:00:02 > /dev/null 2> "$T/sub.err" && fail "--max-wait did not fail"
+[ $(( $(date +%s) - start )) -le 6 ] || fail "--max-wait 2 s took longer than 6 s"
+has "$T/sub.err" "harness slurm: job 4242 PENDING (Priority)"
+has "$T/sub.err" "harness slurm: stopped following job 4242 after 2 s (--max-wait)"
 echo "slurm test passed"

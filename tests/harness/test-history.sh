@@ -1,0 +1,75 @@
+#!/bin/bash
+# harness history against a real SQLite database:
+#   - twelve studies of twelve commits go in; the same CSV twice is stored once;
+#   - a 10% step of one configuration at the seventh commit is found there,
+#     with 2% noise around it, and the flat configuration raises nothing;
+#   - an exact metric (the same value at every repeat) steps on any change
+#     over the threshold;
+#   - a dirty tree's rows, a corrupt database and a missing one get one line
+#     and exit 1, the database unchanged;
+#   - plot writes the PNG (gnuplot) from the stored rows.
+# usage: test-history.sh HARNESS FAKE_RAYTRACE
+set -u
+. "$(dirname "$0")/common.sh"
+test_setup history "$1" "$2"
+if "$H" history show --db none.db 2>&1 | grep -q "no SQLite"; then
+    echo "SKIP: this harness was built without SQLite (libsqlite3-dev)"; exit 77
+fi
+echo "# dummy" > oka.txt
+echo "# dummy" > okb.txt
+printf 'study: h\nscene_dir: .\nscenes: oka okb\nrepeats: 5\npin: none\nraytrace: %s\n' "$FAKE" > h.conf
+"$H" run h.conf -o one.csv -q 2> /dev/null || fail "the study"
+# commit k (1..12): render_ms of oka 10 (11 from commit 7 on), of okb 10,
+# times 1 + uniform noise of +-2%; instructions exact (oka +4% from commit 9)
+for k in $(seq 1 12); do
+    sha=$(printf 'c0ffee%02d' "$k")
+    awk -F, -v OFS=, -v k="$k" -v sha="$sha" -v seed="$k" '
+        NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; srand(seed); print; next }
+        { step = ($c["scene"] == "oka" && k >= 7) ? 1.1 : 1.0
+          $c["render_ms"] = sprintf("%.4f", 10 * step * (1 + 0.04 * (rand() - 0.5)))
+          $c["git_commit"] = sha
+          $c["utc"] = sprintf("2026-11-%02dT10:00:00Z", k)
+          ir = ($c["scene"] == "oka" && k >= 9) ? 1040000 : 1000000
+          $c["extra"] = $c["extra"] ";instructions=" ir
+          print }' one.csv > "c$k.csv"
+done
+"$H" history add --db h.db c{1..12}.csv > add.out || { cat add.out; fail "add"; }
+[ "$(grep -c 'stored as study' add.out)" -eq 12 ] || { cat add.out; fail "not 12 studies stored"; }
+"$H" history add --db h.db c3.csv | grep -q "c3.csv: already stored as study 3" || fail "the same CSV stored twice"
+"$H" history show --db h.db > show.out || fail "show"
+grep -q "^12 studies in h.db" show.out || { cat show.out; fail "show: study count"; }
+grep -q "c0ffee07" show.out || fail "show: commit missing"
+
+"$H" history check --db h.db > check.out && { cat check.out; fail "a 10% step passed check"; }
+grep -q "^STEP scene=oka .*: render_ms at commit c0ffee07 (after c0ffee06): +" check.out ||
+    { cat check.out; fail "the step is not at commit 7"; }
+grep -q "^STEP scene=okb" check.out && { cat check.out; fail "the flat configuration was flagged"; }
+[ "$(grep -c '^STEP' check.out)" -eq 1 ] || { cat check.out; fail "one step expected"; }
+"$H" history check --db h.db --scene okb > flat.out || { cat flat.out; fail "the flat configuration failed check"; }
+grep -q "1 series, 0 slowdown" flat.out || { cat flat.out; fail "flat: summary"; }
+"$H" history check --db h.db --metric instructions --threshold 0.03 --scene oka > ir.out && fail "an exact 4% step passed"
+grep -q "at commit c0ffee09 (after c0ffee08): +4.0%, p=0" ir.out || { cat ir.out; fail "the exact step"; }
+"$H" history check --db h.db --metric instructions --threshold 0.05 > ir5.out || { cat ir5.out; fail "a 4% step over a 5% threshold"; }
+
+# bad input: one line, exit 1, nothing stored
+sed 's/c0ffee01/c0ffee01-dirty/' c1.csv > dirty.csv
+"$H" history add --db h.db dirty.csv 2> dirty.err && fail "a dirty tree's rows were stored"
+grep -q "dirty.csv:2: commit 'c0ffee01-dirty'" dirty.err || { cat dirty.err; fail "dirty: message"; }
+[ "$(wc -l < dirty.err)" -eq 1 ] || { cat dirty.err; fail "dirty: more than one line"; }
+"$H" history show --db h.db | grep -q "^12 studies" || fail "the refused CSV changed the database"
+head -c 3000 /dev/urandom > junk.db
+"$H" history add --db junk.db c1.csv 2> junk.err && fail "a corrupt database accepted rows"
+grep -q "junk.db: file is not a database" junk.err || { cat junk.err; fail "corrupt: message"; }
+"$H" history show --db missing.db 2> missing.err && fail "show of a missing database"
+grep -q "missing.db: no such database" missing.err || { cat missing.err; fail "missing: message"; }
+"$H" history add --db h.db nothere.csv 2> nocsv.err && fail "a missing CSV"
+grep -q "nothere.csv" nocsv.err || { cat nocsv.err; fail "missing CSV: message"; }
+"$H" history check --db h.db --window 0 2> w.err && fail "--window 0 accepted"
+grep -q -- "--window" w.err || fail "--window: message"
+
+if command -v gnuplot > /dev/null; then
+    "$H" history plot render_ms --db h.db -o hist > plot.out 2>&1 || { cat plot.out; fail "plot"; }
+    [ -s hist-history.png ] && [ -s hist-history.svg ] || fail "no PNG/SVG"
+    [ "$(grep -c '^[0-9]' hist-history.dat)" -eq 24 ] || { cat hist-history.dat; fail "plot data: 12 commits x 2 series"; }
+fi
+echo "history: ok"
