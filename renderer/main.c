@@ -40,6 +40,7 @@ typedef struct Options {
     int calibrate;
     const char *mpi_scene; /* NULL: the mpi backend's default */
     const char *cache;     /* scene cache directory; NULL: none */
+    const char *isa;       /* CPU traversal's instruction set; NULL: the best this CPU runs */
 } Options;
 
 static const char *prog = "raytrace";
@@ -74,6 +75,8 @@ static void usage(FILE *fp)
             "      --verify             check the BVH's invariants, poison the image first and fail unless\n"
             "                           every pixel is written\n"
             "      --calibrate          time a fixed CPU workload before rendering (record key calib_ms)\n"
+            "      --isa NAME           CPU traversal: c, sse2 or avx2 (default: the best this CPU runs;\n"
+            "                           the same images and counters with any; record key isa)\n"
             "  -q, --quiet              no progress output (warnings and errors still go to stderr)\n"
             "  -h, --help               this text\n"
             "  -V, --version            version and the backends in this build\n\n"
@@ -107,7 +110,7 @@ static int opt_error(const char *opt, const char *val, const char *why)
 }
 
 enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE,
-       OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE };
+       OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE, OPT_ISA };
 
 static void print_version(void)
 {
@@ -144,6 +147,18 @@ static int parse_load_timing(int c, const char *arg, Options *o)
     }
 }
 
+/* --isa: a name in the CPU traversal's table that this CPU runs. */
+static int parse_isa(const char *arg, Options *o)
+{
+    RtError e;
+    if (rt_cpu_isa_select(arg, &e) != 0) {
+        fprintf(stderr, "%s: %s\n", prog, e.msg);
+        return -1;
+    }
+    o->isa = arg;
+    return 0;
+}
+
 static int parse_options(int argc, char **argv, Options *o)
 {
     static const struct option longopts[] = {
@@ -157,6 +172,7 @@ static int parse_options(int argc, char **argv, Options *o)
         {"runs", required_argument, NULL, OPT_RUNS},  {"warmup", required_argument, NULL, OPT_WARMUP},
         {"build-threads", required_argument, NULL, OPT_BUILD_THREADS}, {"cache", required_argument, NULL, OPT_CACHE},
         {"verify", no_argument, NULL, OPT_VERIFY},    {"calibrate", no_argument, NULL, OPT_CALIBRATE},    {"quiet", no_argument, NULL, 'q'},
+        {"isa", required_argument, NULL, OPT_ISA},
         {"help", no_argument, NULL, 'h'},             {"version", no_argument, NULL, 'V'},
         {NULL, 0, NULL, 0}};
     memset(o, 0, sizeof *o);
@@ -222,6 +238,10 @@ static int parse_options(int argc, char **argv, Options *o)
             break;
         case OPT_VERIFY: o->verify = 1; break;
         case OPT_CALIBRATE: o->calibrate = 1; break;
+        case OPT_ISA:
+            if (parse_isa(optarg, o) != 0)
+                return -1;
+            break;
         case 'q': o->quiet = 1; break;
         case 'h': usage(stdout); exit(0);
         case 'V': print_version(); exit(0);
@@ -586,13 +606,20 @@ static int render(Run *r, RtError *err)
         job.progress = progress_cb;
         job.progress_ctx = &prog_state;
     }
+    /* The CPU traversal: its instruction set, chosen once before any thread
+     * runs, and the copy of the records its leaf tests load. */
+    if (rt_cpu_isa_select(o->isa, err) != 0)
+        return -1;
+    float *soa = strcmp(r->be->name, "cuda") != 0 ? rt_cpu_soa(&job.view) : NULL;
     /* Right before the render, on the same core: the machine's speed now. */
     r->calib_ms = o->calibrate ? rt_calibrate_ms() : 0.0;
     memset(&r->out, 0, sizeof r->out);
     r->out.rgb = r->rgbf;
     r->out.is_root = 1;
     poison(r->rgbf, r->npix * 3);
-    if (r->be->times_runs ? r->be->render(&job, &r->out, err) != 0 : render_runs(r, &job, err) != 0)
+    const int rc = r->be->times_runs ? r->be->render(&job, &r->out, err) : render_runs(r, &job, err);
+    free(soa);
+    if (rc != 0)
         return -1;
     if (r->out.is_root && o->verify)
         for (size_t i = 0; i < r->npix * 3; i++)
@@ -623,7 +650,9 @@ static void print_record(const Run *r)
     uint64_t rays = rt_counters_rays(&out->counters);
     int tw = o->tile_w ? o->tile_w : (strcmp(r->be->name, "serial") == 0 ? 32 : 16);
     int th = o->tile_h ? o->tile_h : tw;
-    char calib_key[48] = "", min_key[48] = "";
+    char calib_key[48] = "", min_key[48] = "", isa_key[32] = "";
+    if (strcmp(r->be->name, "cuda") != 0) /* the CPU traversal's instruction set */
+        snprintf(isa_key, sizeof isa_key, " isa=%s", rt_cpu_isa_name());
     if (r->col) /* several processes: the fastest rank's time shows the imbalance */
         snprintf(min_key, sizeof min_key, " render_ms_min=%.3f", out->render_ms_min);
     if (o->calibrate)
@@ -631,7 +660,7 @@ static void print_record(const Run *r)
     printf("record: scene=%s width=%d height=%d backend=%s accel=%s threads=%d ranks=%d parse_ms=%.3f "
            "build_ms=%.3f render_ms=%.3f write_ms=%.3f total_ms=%.3f rays=%llu primary_rays=%llu "
            "shadow_rays=%llu secondary_rays=%llu node_visits=%llu prim_tests=%llu mrays_per_s=%.3f "
-           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u runs=%d warmups=%d render_ms_best=%.3f build_threads=%d sah_cost=%.4f cache=%s%s%s%s\n",
+           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u runs=%d warmups=%d render_ms_best=%.3f build_threads=%d sah_cost=%.4f cache=%s%s%s%s%s\n",
            r->scene.name, r->cam.width, r->cam.height, r->be->name, rt_accel_name(o->accel), out->threads_used,
            out->ranks_used, r->parse_ms, r->build_ms, out->render_ms, r->write_ms, total_ms,
            (unsigned long long)rays, (unsigned long long)out->counters.primary_rays,
@@ -639,8 +668,8 @@ static void print_record(const Run *r)
            (unsigned long long)out->counters.node_visits, (unsigned long long)out->counters.prim_tests,
            out->render_ms > 0.0 ? (double)rays / (out->render_ms * 1000.0) : 0.0, (unsigned long long)r->hash, tw,
            th, out->cores[0] ? out->cores : "unknown", r->accel.nprims - r->accel.nsplit, r->accel.nnodes, out->runs,
-           out->warmups, out->render_ms_best, r->accel.build_threads, r->accel.sah_cost, r->cache, min_key, out->extra,
-           calib_key);
+           out->warmups, out->render_ms_best, r->accel.build_threads, r->accel.sah_cost, r->cache, min_key, isa_key,
+           out->extra, calib_key);
     fflush(stdout);
 }
 

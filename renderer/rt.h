@@ -154,6 +154,19 @@ int rt_image_read(const char *path, uint8_t **rgb, int *width, int *height, RtEr
 void rt_image_quantize(const float *rgbf, uint8_t *rgb, size_t npixels);
 uint64_t rt_fnv1a64(const uint8_t *data, size_t len);
 
+/* ---------------------------------------------------------------- CPU traversal */
+
+/* Chooses the CPU backends' traversal by instruction set (backends/cpu_trace.c):
+ * name NULL, the best this CPU runs. 0, or -1 with "--isa: ..." in err. */
+int rt_cpu_isa_select(const char *name, RtError *err);
+/* The chosen one's name ("c", "sse2", "avx2"). */
+const char *rt_cpu_isa_name(void);
+/* Sets v->soa to a new copy of the primitive records in nine arrays (the
+ * leaves' SIMD tests read it) and returns it for free(); NULL, and v->soa
+ * NULL, for brute force or out of memory (the leaves are then tested one
+ * record at a time: the same results). */
+float *rt_cpu_soa(RtSceneView *v);
+
 /* ---------------------------------------------------------------- backends */
 
 typedef enum RtSchedule { RT_SCHED_TILES = 0, RT_SCHED_PIXELS = 1 } RtSchedule;

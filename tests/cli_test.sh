@@ -36,6 +36,18 @@ printf 'sphere: 0 0 -5 1\nfilm_resolution: 16 12\n' > "$tmp/noname.txt"
 out=$("$rt" -q -r 40x30 -d 1 -o "$tmp/small.png" "$src/scenes/demo.txt") || fail "overrides"
 echo "$out" | grep -q "width=40 height=30" || fail "--resolution ignored"
 echo "$out" | grep -q "secondary_rays=0 " || fail "--max-depth 1 still traced secondary rays"
+# --isa: a bad name is one line naming the option, exit 1; every entry this
+# CPU runs gives the same image and counters (tests/unit/test_cpu_trace.c
+# checks them ray by ray)
+"$rt" -q --isa mmx -o "$tmp/isa.png" "$src/scenes/demo.txt" > /dev/null 2> "$tmp/isa.err" && fail "--isa mmx accepted"
+grep -q "^raytrace: --isa: unknown instruction set 'mmx'" "$tmp/isa.err" && [ "$(wc -l < "$tmp/isa.err")" -eq 1 ] ||
+    fail "--isa mmx: $(cat "$tmp/isa.err")"
+ref=$("$rt" -q --isa c -r 40x30 -o "$tmp/isa.png" "$src/scenes/glass.txt" | tr ' ' '\n' | grep -E '^(image_fnv1a|node_visits|prim_tests)=')
+for isa in sse2 avx2; do
+    out=$("$rt" -q --isa $isa -r 40x30 -o "$tmp/isa.png" "$src/scenes/glass.txt" 2> /dev/null) || continue # (not this CPU's)
+    [ "$(echo "$out" | tr ' ' '\n' | grep -E '^(image_fnv1a|node_visits|prim_tests)=')" = "$ref" ] || fail "--isa $isa differs from c"
+    echo "$out" | grep -q " isa=$isa" || fail "--isa $isa: the record says otherwise"
+done
 "$rt" -q --calibrate -r 16x12 -o "$tmp/cal.png" "$src/scenes/demo.txt" | grep -q ' calib_ms=[0-9.]*$' || fail "--calibrate adds no calib_ms"
 "$rt" --version | grep -q "raybench" || fail "--version"
 "$rt" --help | grep -q -- "--accel" || fail "--help"

@@ -18,6 +18,7 @@
 #include <string.h>
 
 #include "rt.h"
+#include "cpu_trace.h" /* before rt_shade.h: the traversal it traces with */
 #include "core/rt_shade.h" /* the CPU backends render tiles with the shared shading code */
 #ifdef _OPENMP
 #include <omp.h>

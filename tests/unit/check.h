@@ -4,6 +4,8 @@
 #define RT_CHECK_H
 
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
 static int check_failures = 0;
 static int check_count = 0;
@@ -36,6 +38,20 @@ static inline unsigned long long check_rand(unsigned long long *s)
 static inline float check_randf(unsigned long long *s, float lo, float hi)
 {
     return lo + (hi - lo) * (float)((check_rand(s) >> 40) * (1.0 / 16777216.0));
+}
+
+/* A scene argument: course:PATH is the course folder's PATH (as
+ * tests/course.sh resolves it: RAYBENCH_COURSE_DIR, else
+ * RAYBENCH_COURSE_DEFAULT), anything else a path as it is. */
+static inline const char *check_scene_path(const char *arg, char *buf, size_t size)
+{
+    if (strncmp(arg, "course:", 7) != 0)
+        return arg;
+    const char *dir = getenv("RAYBENCH_COURSE_DIR");
+    if (!dir || !*dir)
+        dir = getenv("RAYBENCH_COURSE_DEFAULT");
+    snprintf(buf, size, "%s/%s", dir && *dir ? dir : "../shared/scenes/course", arg + 7);
+    return buf;
 }
 
 #endif

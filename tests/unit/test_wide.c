@@ -84,29 +84,17 @@ static void check_scene(const char *path)
     rt_scene_free(&s);
 }
 
-/* course:PATH -> the course folder's PATH (as tests/course.sh resolves it) */
-static const char *scene_path(const char *arg, char *buf, size_t size)
-{
-    if (strncmp(arg, "course:", 7) != 0)
-        return arg;
-    const char *dir = getenv("RAYBENCH_COURSE_DIR");
-    if (!dir || !*dir)
-        dir = getenv("RAYBENCH_COURSE_DEFAULT");
-    snprintf(buf, size, "%s/%s", dir && *dir ? dir : "../shared/scenes/course", arg + 7);
-    return buf;
-}
-
 int main(int argc, char **argv)
 {
     char buf[4096];
     for (int k = 1; k < argc; k++) {
-        const char *path = scene_path(argv[k], buf, sizeof buf);
+        const char *path = check_scene_path(argv[k], buf, sizeof buf);
         if (access(path, R_OK) != 0) {
             printf("SKIP: %s not found (the course scenes: set RAYBENCH_COURSE_DIR)\n", path);
             return 77;
         }
     }
     for (int k = 1; k < argc; k++)
-        check_scene(scene_path(argv[k], buf, sizeof buf));
+        check_scene(check_scene_path(argv[k], buf, sizeof buf));
     return check_report("test_wide");
 }

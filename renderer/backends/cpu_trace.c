@@ -1,0 +1,307 @@
+/* cpu_trace.c - the CPU ray query on the 4-wide tree, one traversal with
+ * its node and leaf tests in several instruction sets, picked at run time
+ * (dav1d's checkasm pattern: a C reference and faster versions, each tested
+ * against it exactly).
+ *
+ * The traversal (Wald et al. 2008, "Getting rid of packets", and Dammertz
+ * et al. 2008, "Shallow bounding volume hierarchies"): one visit tests a
+ * node's four child boxes with the binary traversal's slab test
+ * (rt_slab_enter: the same operations in the same order, so each child is
+ * entered exactly when the binary traversal would enter it), goes on with
+ * the nearest and stacks the others with their entry distances, farthest
+ * first (ties in slot order). A leaf's primitives are tested in order and
+ * taken as rt_leaf_take takes them, so the closest hit, its ties to the
+ * lower index and the shadow rays' answers are those of rt_trace_ray. The
+ * SIMD versions compute every lane with the IEEE operations of the scalar
+ * code, in its order (no fused multiply-add: -ffp-contract=off), so their
+ * numbers, and with them the traversal's path and counters, are the
+ * reference's. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "cpu_trace.h"
+
+#define CPU_STACK (3 * RT_BVH_MAX_DEPTH + 4)
+/* The traversal is one function body for every instruction set: inlined
+ * into each entry with that entry's node and leaf tests, so no call through
+ * a pointer is left inside the loop. */
+#define CPU_INLINE static inline __attribute__((always_inline))
+
+/* The entered children of node n (bit k: child k) and their entry
+ * distances t[k], against the closest hit so far tmax. */
+typedef int (*NodeFn)(const RtBvh4Node *n, const RtRayBox *rb, float tmax, float t[4]);
+/* A leaf's primitives [first, first + count): rt_leaf_hits' contract. */
+typedef int (*LeafFn)(const RtSceneView *s, uint32_t first, uint32_t count, RtVec3 o, RtVec3 d, int any,
+                      RtHit *hit, int *found, uint32_t *tests);
+
+/* ---- the C reference -------------------------------------------------- */
+
+CPU_INLINE int node_c(const RtBvh4Node *n, const RtRayBox *rb, float tmax, float t[4])
+{
+    int mask = 0;
+    for (uint32_t k = 0; k < n->count; k++) {
+        t[k] = rt_slab_enter(n->lo_x[k], n->lo_y[k], n->lo_z[k], n->hi_x[k], n->hi_y[k], n->hi_z[k], rb, 0.0f,
+                             tmax);
+        mask |= (t[k] != RT_INF) << k;
+    }
+    return mask;
+}
+
+CPU_INLINE int leaf_c(const RtSceneView *s, uint32_t first, uint32_t count, RtVec3 o, RtVec3 d, int any, RtHit *hit,
+                  int *found, uint32_t *tests)
+{
+    for (uint32_t k = 0; k < count; k++) {
+        const RtPrim *p = &s->prims[first + k];
+        float u, v;
+        const float t = rt_prim_intersect(p, o, d, &u, &v);
+        if (rt_leaf_take(p, t, u, v, any, hit, found, tests))
+            return 1;
+    }
+    return 0;
+}
+
+/* ---- the traversal, shared ------------------------------------------- */
+
+/* Stacks the entered children of n (mask) but the nearest, farthest first,
+ * and returns the nearest; ties keep slot order. */
+CPU_INLINE uint32_t order_children(const RtBvh4Node *n, int mask, const float t[4], uint32_t *sn, float *st,
+                                      int *sp)
+{
+    int ks[4], m = 0;
+    for (int k = 0; k < 4; k++)
+        if (mask >> k & 1) {
+            int i = m++;
+            for (; i > 0 && t[ks[i - 1]] > t[k]; i--)
+                ks[i] = ks[i - 1];
+            ks[i] = k;
+        }
+    for (int i = m - 1; i > 0; i--) {
+        sn[*sp] = n->child[ks[i]];
+        st[*sp] = t[ks[i]];
+        (*sp)++;
+    }
+    return n->child[ks[0]];
+}
+
+CPU_INLINE int trace_wide(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit,
+                             RtCounters *cnt, NodeFn node, LeafFn leaf)
+{
+    hit->t = tmax;
+    hit->u = hit->v = 0.0f;
+    hit->id = 0xffffffffu;
+    const RtRayBox rb = rt_raybox(o, d);
+    uint32_t sn[CPU_STACK], ref = 0, visits = 0, tests = 0;
+    float st[CPU_STACK];
+    int sp = 0, found = 0;
+    for (;;) {
+        visits++;
+        if (ref & RT_WIDE_LEAF) {
+            if (leaf(s, (ref & ~RT_WIDE_LEAF) >> 3, (ref & 7u) + 1u, o, d, any, hit, &found, &tests))
+                break;
+        } else {
+            const RtBvh4Node *n = &s->wide[ref];
+            float t[4];
+            const int mask = node(n, &rb, hit->t, t);
+            if (mask) {
+                ref = order_children(n, mask, t, sn, st, &sp);
+                continue;
+            }
+        }
+        /* Pop, skipping what is entered beyond the closest hit (widened, as
+         * the binary traversal: ties are still visited). */
+        while (sp > 0 && !(st[sp - 1] <= hit->t * RT_BOX_WIDEN))
+            sp--;
+        if (sp == 0)
+            break;
+        ref = sn[--sp];
+    }
+    cnt->node_visits += visits;
+    cnt->prim_tests += tests;
+    return found;
+}
+
+static int trace_c(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit, RtCounters *cnt)
+{
+    return trace_wide(s, o, d, tmax, any, hit, cnt, node_c, leaf_c);
+}
+
+static int always(void) { return 1; }
+
+/* ---- SSE2 (every x86-64) --------------------------------------------- */
+#if RT_SSE
+CPU_INLINE int node_sse2(const RtBvh4Node *n, const RtRayBox *rb, float tmax, float t[4])
+{
+    const __m128 ox = _mm_set1_ps(rb->o.x), oy = _mm_set1_ps(rb->o.y), oz = _mm_set1_ps(rb->o.z);
+    const __m128 ix = _mm_set1_ps(rb->inv.x), iy = _mm_set1_ps(rb->inv.y), iz = _mm_set1_ps(rb->inv.z);
+    const __m128 x0 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->lo_x), ox), ix);
+    const __m128 x1 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->hi_x), ox), ix);
+    const __m128 y0 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->lo_y), oy), iy);
+    const __m128 y1 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->hi_y), oy), iy);
+    const __m128 z0 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->lo_z), oz), iz);
+    const __m128 z1 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->hi_z), oz), iz);
+    /* rt_slab_enter's expressions; _mm_min_ps(a, b) is a < b ? a : b and
+     * _mm_max_ps(a, b) is a > b ? a : b, as rt_minf and rt_maxf */
+    const __m128 t0 = _mm_max_ps(_mm_max_ps(_mm_min_ps(x0, x1), _mm_min_ps(y0, y1)),
+                                 _mm_max_ps(_mm_min_ps(z0, z1), _mm_setzero_ps()));
+    const __m128 t1 = _mm_min_ps(_mm_min_ps(_mm_max_ps(x0, x1), _mm_max_ps(y0, y1)),
+                                 _mm_min_ps(_mm_max_ps(z0, z1), _mm_set1_ps(tmax)));
+    _mm_storeu_ps(t, t0);
+    const int in = _mm_movemask_ps(_mm_cmple_ps(t0, _mm_mul_ps(t1, _mm_set1_ps(RT_BOX_WIDEN))));
+    return in & ((1 << n->count) - 1); /* (an empty slot's inside-out box is no child) */
+}
+
+/* rt_prim_intersect of the four records from `at` of the nine arrays:
+ * t (RT_INF on a miss), u, v. */
+CPU_INLINE void tri4_sse2(const float *soa, uint32_t stride, uint32_t at, RtVec3 o, RtVec3 d, float *t, float *u,
+                          float *v)
+{
+    __m128 f[9];
+    for (int k = 0; k < 9; k++)
+        f[k] = _mm_loadu_ps(soa + (size_t)k * stride + at);
+    const __m128 *p0 = f, *e1 = f + 3, *e2 = f + 6;
+    const __m128 dx = _mm_set1_ps(d.x), dy = _mm_set1_ps(d.y), dz = _mm_set1_ps(d.z);
+    const __m128 pvx = _mm_sub_ps(_mm_mul_ps(dy, e2[2]), _mm_mul_ps(dz, e2[1]));
+    const __m128 pvy = _mm_sub_ps(_mm_mul_ps(dz, e2[0]), _mm_mul_ps(dx, e2[2]));
+    const __m128 pvz = _mm_sub_ps(_mm_mul_ps(dx, e2[1]), _mm_mul_ps(dy, e2[0]));
+#define DOT(ax, ay, az, bx, by, bz) _mm_add_ps(_mm_add_ps(_mm_mul_ps(ax, bx), _mm_mul_ps(ay, by)), _mm_mul_ps(az, bz))
+    const __m128 det = DOT(e1[0], e1[1], e1[2], pvx, pvy, pvz);
+    const __m128 inv = _mm_div_ps(_mm_set1_ps(1.0f), det);
+    const __m128 tx = _mm_sub_ps(_mm_set1_ps(o.x), p0[0]);
+    const __m128 ty = _mm_sub_ps(_mm_set1_ps(o.y), p0[1]);
+    const __m128 tz = _mm_sub_ps(_mm_set1_ps(o.z), p0[2]);
+    const __m128 uu = _mm_mul_ps(DOT(tx, ty, tz, pvx, pvy, pvz), inv);
+    const __m128 qx = _mm_sub_ps(_mm_mul_ps(ty, e1[2]), _mm_mul_ps(tz, e1[1]));
+    const __m128 qy = _mm_sub_ps(_mm_mul_ps(tz, e1[0]), _mm_mul_ps(tx, e1[2]));
+    const __m128 qz = _mm_sub_ps(_mm_mul_ps(tx, e1[1]), _mm_mul_ps(ty, e1[0]));
+    const __m128 vv = _mm_mul_ps(DOT(dx, dy, dz, qx, qy, qz), inv);
+    const __m128 tt = _mm_mul_ps(DOT(e2[0], e2[1], e2[2], qx, qy, qz), inv);
+#undef DOT
+    const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+    __m128 ok = _mm_and_ps(_mm_cmpneq_ps(det, zero), _mm_cmpnlt_ps(uu, zero));
+    ok = _mm_and_ps(ok, _mm_and_ps(_mm_cmpngt_ps(uu, one), _mm_cmpnlt_ps(vv, zero)));
+    ok = _mm_and_ps(ok, _mm_and_ps(_mm_cmpngt_ps(_mm_add_ps(uu, vv), one), _mm_cmpgt_ps(tt, _mm_set1_ps(RT_T_MIN))));
+    _mm_storeu_ps(t, _mm_or_ps(_mm_and_ps(ok, tt), _mm_andnot_ps(ok, _mm_set1_ps(RT_INF))));
+    _mm_storeu_ps(u, uu);
+    _mm_storeu_ps(v, vv);
+}
+
+/* A leaf four records at a time from the nine arrays (a group with a
+ * sphere one at a time); the results taken in order, as leaf_c takes them.
+ * (A short group computes lanes past the leaf and ignores them: the arrays
+ * are padded.) */
+CPU_INLINE int leaf_sse2(const RtSceneView *s, uint32_t first, uint32_t count, RtVec3 o, RtVec3 d, int any,
+                         RtHit *hit, int *found, uint32_t *tests)
+{
+    if (!s->soa)
+        return leaf_c(s, first, count, o, d, any, hit, found, tests);
+    for (uint32_t k = 0; k < count; k += 4) {
+        const uint32_t m = count - k < 4 ? count - k : 4;
+        const RtPrim *p = &s->prims[first + k];
+        uint32_t spheres = 0;
+        for (uint32_t i = 0; i < m; i++)
+            spheres |= p[i].id & RT_PRIM_SPHERE_BIT;
+        float t[4], u[4], v[4];
+        if (spheres) {
+            for (uint32_t i = 0; i < m; i++)
+                t[i] = rt_prim_intersect(&p[i], o, d, &u[i], &v[i]);
+        } else {
+            tri4_sse2(s->soa, s->soa_stride, first + k, o, d, t, u, v);
+        }
+        for (uint32_t i = 0; i < m; i++)
+            if (rt_leaf_take(&p[i], t[i], u[i], v[i], any, hit, found, tests))
+                return 1;
+    }
+    return 0;
+}
+
+static int trace_sse2(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit, RtCounters *cnt)
+{
+    return trace_wide(s, o, d, tmax, any, hit, cnt, node_sse2, leaf_sse2);
+}
+
+/* The same code with AVX2's encoding (three-operand VEX forms, fewer moves);
+ * the same operations, so the same numbers. */
+__attribute__((target("avx2"))) static int trace_avx2(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax,
+                                                      int any, RtHit *hit, RtCounters *cnt)
+{
+    return trace_wide(s, o, d, tmax, any, hit, cnt, node_sse2, leaf_sse2);
+}
+
+static int have_avx2(void)
+{
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2");
+}
+#endif
+
+float *rt_cpu_soa(RtSceneView *v)
+{
+    v->soa = NULL;
+    v->soa_stride = 0;
+    if (!v->wide || v->nnodes == 0)
+        return NULL;
+    const size_t stride = (size_t)v->nprims + 4; /* (+4: a leaf's last group reads past it) */
+    float *m = calloc(9 * stride, sizeof *m);
+    if (!m)
+        return NULL;
+    for (uint32_t i = 0; i < v->nprims; i++)
+        for (int k = 0; k < 3; k++) {
+            m[(size_t)k * stride + i] = v->prims[i].p0[k];
+            m[(size_t)(3 + k) * stride + i] = v->prims[i].e1[k];
+            m[(size_t)(6 + k) * stride + i] = v->prims[i].e2[k];
+        }
+    v->soa = m;
+    v->soa_stride = (uint32_t)stride;
+    return m;
+}
+
+/* ---- the table and the choice ----------------------------------------- */
+
+static const RtCpuIsa table[] = {
+    {"c", trace_c, always},
+#if RT_SSE
+    {"sse2", trace_sse2, always},
+    {"avx2", trace_avx2, have_avx2},
+#endif
+};
+
+static const RtCpuIsa *selected;
+
+const RtCpuIsa *rt_cpu_isa_table(int *n)
+{
+    *n = (int)(sizeof table / sizeof table[0]);
+    return table;
+}
+
+int rt_cpu_isa_select(const char *name, RtError *err)
+{
+    const int n = (int)(sizeof table / sizeof table[0]);
+    selected = NULL;
+    for (int i = n - 1; i >= 0 && !selected; i--) /* the last supported: the fastest */
+        if (name ? strcmp(name, table[i].name) == 0 : table[i].supported())
+            selected = &table[i];
+    if (!selected && name)
+        return rt_fail(err, "--isa: unknown instruction set '%s' (c, sse2, avx2 on x86-64)", name);
+    if (!selected->supported()) {
+        rt_fail(err, "--isa: this CPU cannot run %s", name);
+        selected = NULL;
+        return -1;
+    }
+    return 0;
+}
+
+const char *rt_cpu_isa_name(void)
+{
+    if (!selected)
+        rt_cpu_isa_select(NULL, NULL);
+    return selected->name;
+}
+
+int rt_cpu_trace(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit, RtCounters *cnt)
+{
+    if (!s->wide || s->nnodes == 0)
+        return rt_trace_ray(s, o, d, tmax, any, hit, cnt);
+    if (!selected)
+        rt_cpu_isa_select(NULL, NULL);
+    return selected->trace(s, o, d, tmax, any, hit, cnt);
+}

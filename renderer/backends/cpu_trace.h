@@ -1,0 +1,39 @@
+/* cpu_trace.h - the CPU backends' ray query, chosen at run time for the
+ * machine's instruction set (docs/cpu-backends.md, "Traversal and dispatch").
+ *
+ * Each entry of the table traces one ray on the 4-wide tree (RtBvh4Node):
+ * "c" is the reference, plain C; the others test a node's four boxes and a
+ * leaf's triangles four at a time with SIMD. Every entry finds the same hits
+ * and counts the same work as "c", bit for bit (tests/unit/test_cpu_trace.c
+ * checks each one this machine runs against it), so the choice changes
+ * speed only: images and counters stay those of every other CPU run. */
+#ifndef RT_CPU_TRACE_H
+#define RT_CPU_TRACE_H
+
+#include "rt.h"
+#include "core/rt_traverse.h"
+
+typedef int (*RtCpuTraceFn)(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit,
+                            RtCounters *cnt);
+
+typedef struct RtCpuIsa {
+    const char *name;     /* as --isa and the record's isa= say it */
+    RtCpuTraceFn trace;
+    int (*supported)(void);
+} RtCpuIsa;
+
+/* The table, reference first; n receives its length. */
+const RtCpuIsa *rt_cpu_isa_table(int *n);
+
+/* The query every CPU backend's shading calls (RT_PATH_TRACE): the selected
+ * entry (rt_cpu_isa_select) on scenes with a 4-wide tree; brute force, and a
+ * tree too large for the wide copy, through rt_trace_ray. */
+int rt_cpu_trace(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit, RtCounters *cnt);
+
+/* The shading of the CPU backends (core/rt_shade.h, included after this)
+ * traces through it. */
+#ifndef RT_PATH_TRACE
+#define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) rt_cpu_trace(s, o, d, tmax, any, hit, cnt)
+#endif
+
+#endif
