@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 static int check_failures = 0;
 static int check_count = 0;
@@ -52,6 +53,21 @@ static inline const char *check_scene_path(const char *arg, char *buf, size_t si
         dir = getenv("RAYBENCH_COURSE_DEFAULT");
     snprintf(buf, size, "%s/%s", dir && *dir ? dir : "../shared/scenes/course", arg + 7);
     return buf;
+}
+
+/* 77 (meson's skip) with a line saying which, when a scene argument
+ * (argv[1..argc)) is missing; else 0. */
+static inline int check_scenes_present(int argc, char **argv)
+{
+    char buf[4096];
+    for (int k = 1; k < argc; k++) {
+        const char *path = check_scene_path(argv[k], buf, sizeof buf);
+        if (access(path, R_OK) != 0) {
+            printf("SKIP: %s not found (the course scenes: set RAYBENCH_COURSE_DIR)\n", path);
+            return 77;
+        }
+    }
+    return 0;
 }
 
 #endif

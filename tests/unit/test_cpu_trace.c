@@ -11,16 +11,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "backends/cpu_trace.h"
 #include "check.h"
 #include "core/rt_shade.h"
-
-static int same(int fa, const RtHit *a, int fb, const RtHit *b)
-{
-    return fa == fb && (!fa || (a->t == b->t && a->id == b->id && a->u == b->u && a->v == b->v));
-}
+#include "scene_fixture.h"
 
 static void poison(RtHit *h)
 {
@@ -50,12 +45,12 @@ static void query(Ctx *c, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *ref_hi
     const uint64_t v0 = c->cnt[0].node_visits - c0.node_visits, t0 = c->cnt[0].prim_tests - c0.prim_tests;
     c->rays++;
     /* (an any-hit query may stop at another blocker than the binary one's) */
-    c->bad_ref += any ? fb != f0 : !same(fb, &hb, f0, &h0);
+    c->bad_ref += any ? fb != f0 : !fixture_same(fb, &hb, f0, &h0);
     for (int i = 1; i < c->nisa; i++) {
         const RtCounters before = c->cnt[i];
         poison(&h);
         const int f = c->isa[i].trace(c->v, o, d, tmax, any, &h, &c->cnt[i]);
-        c->bad_isa[i] += !same(f0, &h0, f, &h) || c->cnt[i].node_visits - before.node_visits != v0 ||
+        c->bad_isa[i] += !fixture_same(f0, &h0, f, &h) || c->cnt[i].node_visits - before.node_visits != v0 ||
                          c->cnt[i].prim_tests - before.prim_tests != t0;
     }
     *ref_hit = hb;
@@ -114,15 +109,9 @@ static void check_scene(const char *path, const RtCpuIsa *isa, int nisa)
     RtScene s;
     RtAccel a;
     RtCamera cam;
-    RtError e;
-    if (rt_scene_load(path, &s, NULL, NULL, &e) != 0) {
-        CHECK(0, "%s", e.msg);
+    RtSceneView v;
+    if (fixture_load(path, &s, &a, &cam, &v) != 0)
         return;
-    }
-    CHECK(rt_scene_camera(&s, &cam, &e) == 0, "%s", e.msg);
-    CHECK(rt_accel_build(&s, RT_ACCEL_BVH, &a, &e) == 0, "%s", e.msg);
-    RtSceneView v = rt_scene_view(&s, &a, &cam);
-    CHECK(v.wide != NULL, "%s: no wide tree", path);
     float *soa = rt_cpu_soa(&v);
     CHECK(soa != NULL && v.soa == soa, "%s: no copy for the leaves' SIMD tests", path);
     Ctx c;
@@ -151,13 +140,8 @@ static void check_scene(const char *path, const RtCpuIsa *isa, int nisa)
 int main(int argc, char **argv)
 {
     char buf[4096];
-    for (int k = 1; k < argc; k++) {
-        const char *path = check_scene_path(argv[k], buf, sizeof buf);
-        if (access(path, R_OK) != 0) {
-            printf("SKIP: %s not found (the course scenes: set RAYBENCH_COURSE_DIR)\n", path);
-            return 77;
-        }
-    }
+    if (check_scenes_present(argc, argv) != 0)
+        return 77;
     int n, nrun = 0;
     const RtCpuIsa *table = rt_cpu_isa_table(&n), *run[8];
     CHECK(n >= 1 && strcmp(table[0].name, "c") == 0, "the table starts with the C reference");

@@ -9,31 +9,20 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "check.h"
 #include "core/rt_shade.h"
 #include "rt.h"
-
-static int same(int fa, const RtHit *a, int fb, const RtHit *b)
-{
-    return fa == fb && (!fa || (a->t == b->t && a->id == b->id && a->u == b->u && a->v == b->v));
-}
+#include "scene_fixture.h"
 
 static void check_scene(const char *path)
 {
     RtScene s;
     RtAccel a;
     RtCamera cam;
-    RtError e;
-    if (rt_scene_load(path, &s, NULL, NULL, &e) != 0) {
-        CHECK(0, "%s", e.msg);
+    RtSceneView v;
+    if (fixture_load(path, &s, &a, &cam, &v) != 0)
         return;
-    }
-    CHECK(rt_scene_camera(&s, &cam, &e) == 0, "%s", e.msg);
-    CHECK(rt_accel_build(&s, RT_ACCEL_BVH, &a, &e) == 0, "%s", e.msg);
-    RtSceneView v = rt_scene_view(&s, &a, &cam);
-    CHECK(v.wide != NULL, "%s: no wide tree", path);
     RtCounters cb, cw, cs; /* binary, wide, wide shadow rays in slot order */
     memset(&cb, 0, sizeof cb);
     memset(&cw, 0, sizeof cw);
@@ -46,7 +35,7 @@ static void check_scene(const char *path)
             int fb = rt_trace_ray(&v, r.o, r.d, RT_INF, 0, &hb, &cb);
             int fw = rt_trace_ray_wide(&v, r.o, r.d, RT_INF, 0, &hw, &cw);
             rays++;
-            bad += !same(fb, &hb, fw, &hw);
+            bad += !fixture_same(fb, &hb, fw, &hw);
             if (!fb)
                 continue;
             RtSurface sf = rt_surface(&v, r.o, r.d, &hb);
@@ -70,7 +59,7 @@ static void check_scene(const char *path)
             fb = rt_trace_ray(&v, ro, R, RT_INF, 0, &hb, &cb);
             fw = rt_trace_ray_wide(&v, ro, R, RT_INF, 0, &hw, &cw);
             rays++;
-            bad += !same(fb, &hb, fw, &hw);
+            bad += !fixture_same(fb, &hb, fw, &hw);
         }
     CHECK(bad == 0, "%s: %ld of %ld rays differ between the wide and the binary tree", path, bad, rays);
     CHECK(bad_slot == 0, "%s: %ld of %ld shadow rays in slot order differ between the wide and the binary tree", path,
@@ -87,13 +76,8 @@ static void check_scene(const char *path)
 int main(int argc, char **argv)
 {
     char buf[4096];
-    for (int k = 1; k < argc; k++) {
-        const char *path = check_scene_path(argv[k], buf, sizeof buf);
-        if (access(path, R_OK) != 0) {
-            printf("SKIP: %s not found (the course scenes: set RAYBENCH_COURSE_DIR)\n", path);
-            return 77;
-        }
-    }
+    if (check_scenes_present(argc, argv) != 0)
+        return 77;
     for (int k = 1; k < argc; k++)
         check_scene(check_scene_path(argv[k], buf, sizeof buf));
     return check_report("test_wide");
