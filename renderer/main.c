@@ -705,6 +705,8 @@ int main(int argc, char **argv)
         fprintf(stderr, "%s: %s\n", prog, err.msg);
         return 1;
     }
+    if (be->prewarm) /* (the GPU's context while the scene loads) */
+        be->prewarm(o.device);
     Run r;
     memset(&r, 0, sizeof r);
     r.o = &o;

@@ -224,6 +224,10 @@ typedef struct RtBackend {
     /* 1: render() does the job's warm-up and timed runs itself (CUDA: the
      * scene stays on the device); 0: one render per call */
     int times_runs;
+    /* optional: starts set-up that takes long and needs no scene (the CUDA
+     * context on --device) in the background, before the scene is loaded;
+     * render() waits for it */
+    void (*prewarm)(int device);
 } RtBackend;
 
 /* What main.c needs from a backend that runs as several processes, so that

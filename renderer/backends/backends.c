@@ -20,15 +20,15 @@ extern const RtBackend rt_backend_cuda;
 
 #if !HAVE_OPENMP
 static const RtBackend openmp_missing = {"openmp", "this build has no OpenMP backend (configure with -Dopenmp=enabled)",
-                                         NULL, NULL, NULL, NULL, 0};
+                                         NULL, NULL, NULL, NULL, 0, NULL};
 #endif
 #if !HAVE_MPI
 static const RtBackend mpi_missing = {"mpi", "this build has no MPI backend (configure with -Dmpi=enabled)", NULL,
-                                      NULL, NULL, NULL, 0};
+                                      NULL, NULL, NULL, 0, NULL};
 #endif
 #if !HAVE_CUDA
 static const RtBackend cuda_missing = {"cuda", "this build has no CUDA backend (configure with -Dcuda=enabled; needs nvcc)",
-                                       NULL, NULL, NULL, NULL, 0};
+                                       NULL, NULL, NULL, NULL, 0, NULL};
 #endif
 
 static const RtBackend *const backends[] = {

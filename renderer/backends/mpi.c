@@ -400,4 +400,4 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 
 static const RtCollective mpi_collective = {mpi_is_root, mpi_agree, mpi_scene_load};
 
-const RtBackend rt_backend_mpi = {"mpi", NULL, mpi_init, render_mpi, mpi_finalize, &mpi_collective, 0};
+const RtBackend rt_backend_mpi = {"mpi", NULL, mpi_init, render_mpi, mpi_finalize, &mpi_collective, 0, NULL};
