@@ -647,7 +647,7 @@ static char *find_raytrace(const HxConfig *cfg, const char *opt)
 static void usage_run(FILE *f)
 {
     fputs("usage: harness run CONFIG [-o FILE.csv] [--resume | --overwrite] [--dry-run]\n"
-          "                  [--raytrace PATH] [--launcher mpirun|srun] [--quiet]\n"
+          "                  [--raytrace PATH] [--launcher mpirun|srun] [--history DB] [--quiet]\n"
           "Expands CONFIG into runs and executes them, appending one CSV row per run.\n"
           "  -o, --output FILE   CSV to append to (default: results/STUDY.csv if results/\n"
           "                      exists, else STUDY.csv)\n"
@@ -658,6 +658,8 @@ static void usage_run(FILE *f)
           "                      or ../renderer/raytrace next to the harness)\n"
           "      --launcher NAME how MPI runs start: mpirun, or srun inside a Slurm\n"
           "                      allocation (overrides the config's 'launcher:')\n"
+          "      --history DB    then store the CSV in the history database DB\n"
+          "                      (harness history add: a clean tree's rows only)\n"
           "  -q, --quiet         no progress lines\n"
           "  -h, --help          this text\n", f);
 }
@@ -1196,9 +1198,9 @@ int hx_cmd_run(int argc, char **argv)
         {"output", required_argument, NULL, 'o'}, {"resume", no_argument, NULL, 'r'},
         {"overwrite", no_argument, NULL, 'w'}, {"dry-run", no_argument, NULL, 'n'},
         {"raytrace", required_argument, NULL, 't'}, {"quiet", no_argument, NULL, 'q'},
-        {"launcher", required_argument, NULL, 'l'},
+        {"launcher", required_argument, NULL, 'l'}, {"history", required_argument, NULL, 'H'},
         {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
-    const char *out_path = NULL, *rt_opt = NULL;
+    const char *out_path = NULL, *rt_opt = NULL, *history = NULL;
     HxLauncher launcher = HX_LAUNCHER_MPIRUN;
     int launcher_set = 0, resume = 0, overwrite = 0, dry = 0, quiet = 0, c;
     while ((c = getopt_long(argc, argv, "o:qh", lo, NULL)) != -1) {
@@ -1216,6 +1218,7 @@ int hx_cmd_run(int argc, char **argv)
             launcher_set = 1;
             break;
         case 'q': quiet = 1; break;
+        case 'H': history = optarg; break;
         case 'h': usage_run(stdout); return 0;
         default: usage_run(stderr); return 1;
         }
@@ -1263,6 +1266,9 @@ int hx_cmd_run(int argc, char **argv)
         }
     }
     study_close(&st);
+    /* the finished CSV into the history (docs/harness.md, "History") */
+    if (history && st.t0 > 0.0 && hx_history_add(history, (char **)&st.out_path, 1, 0) != 0)
+        rc = 1;
     hx_buf_free(&defout);
     return rc;
 }

@@ -7,6 +7,7 @@
 #     over the threshold;
 #   - a dirty tree's rows, a corrupt database and a missing one get one line
 #     and exit 1, the database unchanged;
+#   - run --history stores the study it ran;
 #   - plot writes the PNG (gnuplot) from the stored rows.
 # usage: test-history.sh HARNESS FAKE_RAYTRACE
 set -u
@@ -66,6 +67,18 @@ grep -q "missing.db: no such database" missing.err || { cat missing.err; fail "m
 grep -q "nothere.csv" nocsv.err || { cat nocsv.err; fail "missing CSV: message"; }
 "$H" history check --db h.db --window 0 2> w.err && fail "--window 0 accepted"
 grep -q -- "--window" w.err || fail "--window: message"
+
+# run --history: the finished study goes in (or, from a dirty tree, is refused
+# with the CSV's line and the run exits 1, its CSV written)
+"$H" run h.conf -o runh.csv --history runh.db -q > runh.out 2> runh.err
+rc=$?
+commit=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "git_commit") c = i; next } { print $c; exit }' runh.csv)
+if echo "$commit" | grep -Eq '^[0-9a-f]{4,40}$'; then
+    [ $rc -eq 0 ] && grep -q "runh.csv: stored as study 1 (10 runs)" runh.out || { cat runh.out runh.err; fail "run --history"; }
+else
+    [ $rc -ne 0 ] && grep -q "runh.csv:2: commit '$commit'" runh.err || { cat runh.err; fail "run --history, dirty tree"; }
+fi
+[ "$(grep -c . runh.csv)" -eq 11 ] || fail "run --history: the CSV"
 
 if command -v gnuplot > /dev/null; then
     "$H" history plot render_ms --db h.db -o hist > plot.out 2>&1 || { cat plot.out; fail "plot"; }
