@@ -25,6 +25,10 @@ while [ $# -gt 0 ]; do
     esac
 done
 [ -x "$h" ] && [ -x "$new" ] || { echo "ci-perf-check: build first ($h, $new)" >&2; exit 2; }
+# below 4 samples a side harness compare has no rank test and the ratios
+# alone decide: one slow phase of the machine would fail the check
+[[ "$rounds" =~ ^[0-9]+$ ]] && [ "$rounds" -ge 5 ] ||
+    { echo "ci-perf-check: --rounds: expected an integer of at least 5, got '$rounds'" >&2; exit 2; }
 if [ -z "$out" ]; then out=$(mktemp -d); trap 'rm -rf "$out"' EXIT; fi
 mkdir -p "$out"
 
