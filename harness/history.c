@@ -435,8 +435,12 @@ static int load_series(sqlite3 *db, const char *dbpath, const char *metric, cons
 {
     char num[64];
     const char *den;
+    if (hx_has_ctrl(metric)) { /* (it would break the message, and the plot's title) */
+        fprintf(stderr, "harness history: the metric holds a control character (a newline?)\n");
+        return -1;
+    }
     if (metric_keys(metric, num, sizeof num, &den) != 0) {
-        fprintf(stderr, "harness history: metric '%s': a column, or COLUMN/calib\n", metric);
+        fprintf(stderr, "harness history: metric '%s': a column, a record key, or COLUMN/calib\n", metric);
         return -1;
     }
     sqlite3_stmt *st = db_prep(db, dbpath,
@@ -671,7 +675,8 @@ static void usage_history(FILE *f)
           "           and config hash; a CSV stored before is skipped; rows of a dirty tree\n"
           "           are refused unless --allow-dirty\n"
           "  show     the stored studies\n"
-          "  plot     METRIC (a column, or COLUMN/calib) over commits, one line per\n"
+          "  plot     METRIC (a column, a record key such as instructions, or COLUMN/calib)\n"
+          "           over commits, one line per\n"
           "           configuration and machine: PREFIX-history.png/.svg (gnuplot)\n"
           "  check    the commit where a series stepped: medians of the N commits before and\n"
           "           from it differ by more than T and Mann-Whitney p < A (exact values:\n"

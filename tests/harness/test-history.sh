@@ -65,6 +65,8 @@ grep -q "junk.db: file is not a database" junk.err || { cat junk.err; fail "corr
 grep -q "missing.db: no such database" missing.err || { cat missing.err; fail "missing: message"; }
 "$H" history add --db h.db nothere.csv 2> nocsv.err && fail "a missing CSV"
 grep -q "nothere.csv" nocsv.err || { cat nocsv.err; fail "missing CSV: message"; }
+"$H" history plot "$(printf 'a\nb')" --db h.db -o x 2> nl.err && fail "a metric with a newline accepted"
+[ "$(wc -l < nl.err)" -eq 1 ] || { cat nl.err; fail "a metric with a newline: not one line"; }
 "$H" history check --db h.db --window 0 2> w.err && fail "--window 0 accepted"
 grep -q -- "--window" w.err || fail "--window: message"
 
