@@ -443,8 +443,6 @@ typedef struct {
     RtRenderOut out;
 } Run;
 
-/* The scene loaded with the overrides applied, the camera checked, the
- * output checked, the accelerator built and the image buffers allocated. */
 /* The scene and its accelerator from --cache, if every process finds them
  * there (MPI: a rank that missed would wait in the others' broadcast).
  * 1: loaded; 0: parse and build (an unreadable scene is reported there). */
@@ -475,6 +473,8 @@ static void cache_store(const Run *r, const RtScene *parsed)
         fprintf(stderr, "%s: warning: %s\n", prog, cerr.msg); /* the run goes on */
 }
 
+/* The scene loaded with the overrides applied, the camera checked, the
+ * output checked, the accelerator built and the image buffers allocated. */
 static int prepare(Run *r, RtError *err)
 {
     const Options *o = r->o;
@@ -606,9 +606,10 @@ static int render(Run *r, RtError *err)
         job.progress = progress_cb;
         job.progress_ctx = &prog_state;
     }
-    /* The CPU traversal: its instruction set, chosen once before any thread
-     * runs, and the copy of the records its leaf tests load. */
-    if (rt_cpu_isa_select(o->isa, err) != 0)
+    /* The CPU traversal: its instruction set (--isa chose it already;
+     * else the best this CPU runs, chosen before any thread runs) and the
+     * copy of the records its leaf tests load. */
+    if (!o->isa && rt_cpu_isa_select(NULL, err) != 0)
         return -1;
     float *soa = strcmp(r->be->name, "cuda") != 0 ? rt_cpu_soa(&job.view) : NULL;
     /* Right before the render, on the same core: the machine's speed now. */

@@ -998,8 +998,6 @@ static float node_area(const RtBvhNode *n)
 
 static uint32_t widen_ref(Widen *w, uint32_t bi);
 
-/* Fills wide node wi with the binary nodes cand[0..nc), in that order. (The
- * CUDA backend reorders the slots for its shadow rays: its schedule.c.) */
 /* The records under binary node bi (a subtree's leaves are contiguous). */
 static uint32_t records_under(const RtBvhNode *bin, uint32_t bi)
 {
@@ -1058,6 +1056,9 @@ static int widen_children_tasks(Widen *w, const uint32_t *cand, int nc, uint32_t
     return 0;
 }
 
+/* Fills wide node wi with the binary nodes cand[0..nc), in that order (the
+ * children of a large node as tasks). (The CUDA backend reorders the slots
+ * for its shadow rays: its schedule.c.) */
 static void widen_fill(Widen *w, uint32_t wi, const uint32_t *cand, int nc)
 {
     uint32_t refs[4];
