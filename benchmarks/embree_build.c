@@ -13,9 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <embree3/rtcore.h>
-
-#include "rt.h"
+#include "embree_scene.h"
 
 static int fail(const char *msg)
 {
@@ -28,26 +26,11 @@ static double build_once(RTCDevice dev, const RtScene *sc)
 {
     RTCScene scene = rtcNewScene(dev);
     rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
-    RTCGeometry g = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
-    rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
-    float *v = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                                       sc->nvertices);
-    unsigned *ix = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
-                                           sc->ntriangles);
-    if (!v || !ix) {
-        rtcReleaseGeometry(g);
+    RTCGeometry g = embree_triangles(dev, sc);
+    if (!g) {
         rtcReleaseScene(scene);
         return -1.0;
     }
-    for (uint32_t i = 0; i < sc->nvertices; i++) {
-        v[3 * i] = sc->vertices[i].x;
-        v[3 * i + 1] = sc->vertices[i].y;
-        v[3 * i + 2] = sc->vertices[i].z;
-    }
-    for (uint32_t i = 0; i < sc->ntriangles; i++)
-        for (int k = 0; k < 3; k++)
-            ix[3 * i + k] = (unsigned)sc->triangles[i].v[k];
-    rtcCommitGeometry(g);
     rtcAttachGeometry(scene, g);
     rtcReleaseGeometry(g);
     const double t0 = rt_now_ms();

@@ -18,9 +18,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <embree3/rtcore.h>
-
-#include "rt.h"
+#include "embree_scene.h"
 #include "core/rt_traverse.h" /* RtHit, RT_T_MIN */
 
 static RTCScene g_scene; /* the query target of embree_trace (one thread) */
@@ -62,27 +60,6 @@ static int fail(const char *msg)
 {
     fprintf(stderr, "embree-render: %s\n", msg);
     return 1;
-}
-
-static void add_triangles(RTCDevice dev, RTCScene scene, const RtScene *sc)
-{
-    RTCGeometry g = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
-    float *v = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                                       sc->nvertices ? sc->nvertices : 1);
-    unsigned *ix = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
-                                           sc->ntriangles);
-    for (uint32_t i = 0; v && i < sc->nvertices; i++) {
-        v[3 * i] = sc->vertices[i].x;
-        v[3 * i + 1] = sc->vertices[i].y;
-        v[3 * i + 2] = sc->vertices[i].z;
-    }
-    for (uint32_t i = 0; ix && i < sc->ntriangles; i++)
-        for (int k = 0; k < 3; k++)
-            ix[3 * i + k] = (unsigned)sc->triangles[i].v[k];
-    rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
-    rtcCommitGeometry(g);
-    rtcAttachGeometryByID(scene, g, 0);
-    rtcReleaseGeometry(g);
 }
 
 static void add_spheres(RTCDevice dev, RTCScene scene, const RtScene *sc)
@@ -154,8 +131,11 @@ static int render_all(const Args *a, RtScene *sc, RtError *err)
     RTCDevice dev = rtcNewDevice("threads=1");
     g_scene = rtcNewScene(dev);
     rtcSetSceneBuildQuality(g_scene, RTC_BUILD_QUALITY_HIGH);
-    if (sc->ntriangles)
-        add_triangles(dev, g_scene, sc);
+    RTCGeometry tris = sc->ntriangles ? embree_triangles(dev, sc) : NULL;
+    if (tris) {
+        rtcAttachGeometryByID(g_scene, tris, 0);
+        rtcReleaseGeometry(tris);
+    }
     if (sc->nspheres)
         add_spheres(dev, g_scene, sc);
     rtcCommitScene(g_scene);
