@@ -23,6 +23,13 @@ static inline int fixture_load(const char *path, RtScene *s, RtAccel *a, RtCamer
     return 0;
 }
 
+/* Frees what fixture_load made. */
+static inline void fixture_free(RtScene *s, RtAccel *a)
+{
+    rt_accel_free(a);
+    rt_scene_free(s);
+}
+
 /* The same answer: both found nothing, or the same t, u, v and primitive. */
 static inline int fixture_same(int fa, const RtHit *a, int fb, const RtHit *b)
 {

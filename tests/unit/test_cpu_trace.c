@@ -133,8 +133,7 @@ static void check_scene(const char *path, const RtCpuIsa *isa, int nisa)
     }
     printf("%s: %ld rays through %d instruction sets\n", path, c.rays, nisa);
     free(soa);
-    rt_accel_free(&a);
-    rt_scene_free(&s);
+    fixture_free(&s, &a);
 }
 
 int main(int argc, char **argv)

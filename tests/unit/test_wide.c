@@ -69,8 +69,7 @@ static void check_scene(const char *path)
            (double)cb.prim_tests / (double)rays, (double)cw.prim_tests / (double)rays);
     printf("%s: %ld shadow rays in slot order, visits %.2f per ray\n", path, shadows,
            shadows ? (double)cs.node_visits / (double)shadows : 0.0);
-    rt_accel_free(&a);
-    rt_scene_free(&s);
+    fixture_free(&s, &a);
 }
 
 int main(int argc, char **argv)
