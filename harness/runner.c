@@ -291,33 +291,34 @@ typedef struct {
     int bind;        /* bind the child with hwloc before exec */
 } Command;
 
-/* raytrace's --cache directory (docs/harness.md, "Scene cache"): the
- * config's scene_cache, none for "off", else the user's cache directory
- * ($XDG_CACHE_HOME or ~/.cache, then raybench; created here). */
-static const char *scene_cache_dir(const HxConfig *cfg, char *buf, size_t size)
+/* Resolves cfg->scene_cache once per study (docs/harness.md, "Scene
+ * cache"): kept as the config gives it (a directory, or "off"), else the
+ * user's cache directory ($XDG_CACHE_HOME or ~/.cache, then raybench;
+ * created here), so build_command only reads it. */
+static void resolve_scene_cache(HxConfig *cfg)
 {
     if (cfg->scene_cache)
-        return strcmp(cfg->scene_cache, "off") == 0 ? NULL : cfg->scene_cache;
+        return;
+    char buf[4096];
     const char *x = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
     if (x && x[0] == '/') {
-        snprintf(buf, size, "%s/raybench", x);
+        snprintf(buf, sizeof buf, "%s/raybench", x);
         mkdir(x, 0755); /* (raytrace warns if the cache cannot be written) */
     } else if (home && home[0] == '/') {
-        snprintf(buf, size, "%s/.cache", home);
+        snprintf(buf, sizeof buf, "%s/.cache", home);
         mkdir(buf, 0755);
-        snprintf(buf, size, "%s/.cache/raybench", home);
+        snprintf(buf, sizeof buf, "%s/.cache/raybench", home);
     } else {
-        snprintf(buf, size, "/tmp/raybench-cache-%u", (unsigned)getuid());
+        snprintf(buf, sizeof buf, "/tmp/raybench-cache-%u", (unsigned)getuid());
     }
-    return buf;
+    cfg->scene_cache = hx_strdup(buf);
 }
 
 static void build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r,
                           const char *raytrace, const char *image, Command *c)
 {
     memset(c, 0, sizeof *c);
-    char cache_buf[4096];
-    const char *cache_dir = scene_cache_dir(cfg, cache_buf, sizeof cache_buf);
+    const char *cache_dir = strcmp(cfg->scene_cache, "off") == 0 ? NULL : cfg->scene_cache;
     const char *be = r->v[HX_DIM_BACKEND];
     int is_mpi = strcmp(be, "mpi") == 0;
     int pinned = strcmp(r->v[HX_DIM_PIN], "none") != 0;
@@ -915,12 +916,12 @@ static const char *outcome(Study *st, const HxRun *r, ChildResult *res, char **v
             hx_strlist_push(&st->deterministic, r->config_id);
         return "error";
     }
-    if (st->cfg.instructions && add_instructions(st->image, rec, vals) != 0) {
+    if (!st->cfg.instructions) {
+        hx_record_to_row(rec, vals);
+    } else if (add_instructions(st->image, rec, vals) != 0) {
         *detail = hx_strdup("no instruction count from cachegrind (is valgrind installed?)");
         return "error";
     }
-    if (!st->cfg.instructions)
-        hx_record_to_row(rec, vals);
     char *key = image_key(r->scene_path, r->v[HX_DIM_RESOLUTION], r->v[HX_DIM_MAX_DEPTH]);
     const char *status = gate(&st->refs, key, r->v[HX_DIM_BACKEND], vals[hx_column_index("image_fnv1a")],
                               r->run_id, detail);
@@ -1237,6 +1238,7 @@ int hx_cmd_run(int argc, char **argv)
     st.quiet = quiet;
     if (hx_config_open(argv[optind], &st.cfg))
         return 1;
+    resolve_scene_cache(&st.cfg);
     /* the command line wins: the same config runs on a workstation with
      * mpirun and in a Slurm job (harness slurm) with srun */
     if (launcher_set)

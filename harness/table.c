@@ -102,9 +102,6 @@ static char *row_label(const HxCsv *csv, size_t r, int with_workers, const int *
     return b.s;
 }
 
-/* The metric of row r: a numeric column, or "COLUMN/calib": the column
- * divided by the row's calib_ms (raytrace --calibrate, kept in `extra`), a
- * time in units of the machine's speed at that moment. */
 /* The value of KEY in the row's `extra` (k1=v1;k2=v2), or NULL; the
  * number is copied into num. */
 static const char *extra_value(const HxCsv *csv, size_t r, const char *key, char *num, size_t n)
@@ -123,6 +120,9 @@ static const char *extra_value(const HxCsv *csv, size_t r, const char *key, char
     return NULL;
 }
 
+/* The metric of row r: a numeric column, a record key kept in `extra`, or
+ * "COLUMN/calib": the column divided by the row's calib_ms (raytrace
+ * --calibrate), a time in units of the machine's speed at that moment. */
 static int row_metric(const HxCsv *csv, size_t r, const char *metric, double *out)
 {
     const char *slash = strchr(metric, '/');
