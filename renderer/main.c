@@ -32,6 +32,7 @@ typedef struct Options {
     RtMpiSchedule mpi_schedule;
     int block_x, block_y;
     int device;
+    int share_gpu;      /* mpi-cuda: ranks may share a GPU */
     int runs;           /* 0: the backend's default */
     int warmup_runs;    /* -1: unset */
     double warmup_ms;   /* -1: unset */
@@ -52,7 +53,7 @@ static void usage(FILE *fp)
             "Renders a scene file (docs/scene-format.md) with Whitted ray tracing; a model file (OBJ,\n"
             "PLY, STL, glTF, ...) alone with a camera that frames it.\n\n"
             "  -o, --output FILE        image to write (.png, .bmp, .ppm); default: the scene's output_image\n"
-            "  -b, --backend NAME       serial (default), openmp, mpi, cuda\n"
+            "  -b, --backend NAME       serial (default), openmp, mpi, cuda, mpi-cuda (a GPU per rank)\n"
             "  -a, --accel NAME         bvh (default) or none (every ray against every primitive)\n"
             "  -r, --resolution WxH     override film_resolution\n"
             "  -d, --max-depth N        override max_depth (0..%d)\n"
@@ -65,7 +66,10 @@ static void usage(FILE *fp)
             "      --mpi-scene HOW      mpi: every (each rank parses, as the report) or bcast (rank 0 parses\n"
             "                           and broadcasts the arrays); default in docs/cpu-backends.md\n"
             "      --block BXxBY        cuda: thread block shape (default chosen by measurement)\n"
-            "      --device N           cuda: device index (default 0)\n"
+            "      --device N           cuda: device index (default 0); mpi-cuda: the first rank's on each\n"
+            "                           node, the next rank's N+1, ...\n"
+            "      --share-gpu          mpi-cuda: let a node's ranks share its GPUs when it has fewer GPUs\n"
+            "                           than ranks (default: that is an error)\n"
             "      --runs N             timed renders, render_ms their median (default 1; cuda 21 launches,\n"
             "                           fewer past 4 s of kernel time)\n"
             "      --warmup N|Tms       untimed renders first: N of them, or as many as take T ms, at least\n"
@@ -110,7 +114,7 @@ static int opt_error(const char *opt, const char *val, const char *why)
 }
 
 enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE,
-       OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE, OPT_ISA };
+       OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE, OPT_ISA, OPT_SHARE_GPU };
 
 static void print_version(void)
 {
@@ -172,7 +176,7 @@ static int parse_options(int argc, char **argv, Options *o)
         {"runs", required_argument, NULL, OPT_RUNS},  {"warmup", required_argument, NULL, OPT_WARMUP},
         {"build-threads", required_argument, NULL, OPT_BUILD_THREADS}, {"cache", required_argument, NULL, OPT_CACHE},
         {"verify", no_argument, NULL, OPT_VERIFY},    {"calibrate", no_argument, NULL, OPT_CALIBRATE},    {"quiet", no_argument, NULL, 'q'},
-        {"isa", required_argument, NULL, OPT_ISA},
+        {"isa", required_argument, NULL, OPT_ISA},    {"share-gpu", no_argument, NULL, OPT_SHARE_GPU},
         {"help", no_argument, NULL, 'h'},             {"version", no_argument, NULL, 'V'},
         {NULL, 0, NULL, 0}};
     memset(o, 0, sizeof *o);
@@ -237,6 +241,7 @@ static int parse_options(int argc, char **argv, Options *o)
                 return -1;
             break;
         case OPT_VERIFY: o->verify = 1; break;
+        case OPT_SHARE_GPU: o->share_gpu = 1; break;
         case OPT_CALIBRATE: o->calibrate = 1; break;
         case OPT_ISA:
             if (parse_isa(optarg, o) != 0)
@@ -597,6 +602,7 @@ static int render(Run *r, RtError *err)
     job.block_x = o->block_x;
     job.block_y = o->block_y;
     job.device = o->device;
+    job.share_gpu = o->share_gpu;
     job.runs = o->runs;
     job.warmup_runs = o->warmup_runs;
     job.warmup_ms = o->warmup_ms;
@@ -611,7 +617,7 @@ static int render(Run *r, RtError *err)
      * copy of the records its leaf tests load. */
     if (!o->isa && rt_cpu_isa_select(NULL, err) != 0)
         return -1;
-    float *soa = strcmp(r->be->name, "cuda") != 0 ? rt_cpu_soa(&job.view) : NULL;
+    float *soa = !r->be->gpu ? rt_cpu_soa(&job.view) : NULL;
     /* Right before the render, on the same core: the machine's speed now. */
     r->calib_ms = o->calibrate ? rt_calibrate_ms() : 0.0;
     memset(&r->out, 0, sizeof r->out);
@@ -652,7 +658,7 @@ static void print_record(const Run *r)
     int tw = o->tile_w ? o->tile_w : (strcmp(r->be->name, "serial") == 0 ? 32 : 16);
     int th = o->tile_h ? o->tile_h : tw;
     char calib_key[48] = "", min_key[48] = "", isa_key[32] = "";
-    if (strcmp(r->be->name, "cuda") != 0) /* the CPU traversal's instruction set */
+    if (!r->be->gpu) /* the CPU traversal's instruction set */
         snprintf(isa_key, sizeof isa_key, " isa=%s", rt_cpu_isa_name());
     if (r->col) /* several processes: the fastest rank's time shows the imbalance */
         snprintf(min_key, sizeof min_key, " render_ms_min=%.3f", out->render_ms_min);

@@ -183,7 +183,8 @@ typedef struct RtRenderJob {
     RtSchedule schedule;
     RtMpiSchedule mpi_schedule;
     int block_x, block_y; /* CUDA block shape; 0: default */
-    int device;           /* CUDA device */
+    int device;           /* CUDA device (mpi-cuda: the first of the node's ranks) */
+    int share_gpu;        /* mpi-cuda: a node's ranks may share its GPUs */
     /* Timing (--runs, --warmup; the backend's default where unset): runs
      * timed renders, render_ms their median, after warm-up renders that are
      * not timed: warmup_runs of them, or as many as take warmup_ms (at least
@@ -207,7 +208,7 @@ typedef struct RtRenderOut {
     int ranks_used;
     int is_root;          /* 0 on MPI ranks other than 0: they print and write nothing */
     char cores[512];      /* CPUs the workers ran on, "0,1" */
-    char extra[512];      /* extra record keys, " key=value ..." */
+    char extra[1024];     /* extra record keys, " key=value ..." */
 } RtRenderOut;
 
 typedef struct RtBackend {
@@ -228,6 +229,7 @@ typedef struct RtBackend {
      * context on --device) in the background, before the scene is loaded;
      * render() waits for it */
     void (*prewarm)(int device);
+    int gpu;              /* 1: renders on GPUs (no CPU traversal, no isa key) */
 } RtBackend;
 
 /* What main.c needs from a backend that runs as several processes, so that

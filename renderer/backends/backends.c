@@ -17,18 +17,26 @@ extern const RtBackend rt_backend_mpi;
 #if HAVE_CUDA
 extern const RtBackend rt_backend_cuda;
 #endif
+#if HAVE_MPI && HAVE_CUDA
+extern const RtBackend rt_backend_mpi_cuda;
+#endif
 
 #if !HAVE_OPENMP
 static const RtBackend openmp_missing = {"openmp", "this build has no OpenMP backend (configure with -Dopenmp=enabled)",
-                                         NULL, NULL, NULL, NULL, 0, NULL};
+                                         NULL, NULL, NULL, NULL, 0, NULL, 0};
 #endif
 #if !HAVE_MPI
 static const RtBackend mpi_missing = {"mpi", "this build has no MPI backend (configure with -Dmpi=enabled)", NULL,
-                                      NULL, NULL, NULL, 0, NULL};
+                                      NULL, NULL, NULL, 0, NULL, 0};
 #endif
 #if !HAVE_CUDA
 static const RtBackend cuda_missing = {"cuda", "this build has no CUDA backend (configure with -Dcuda=enabled; needs nvcc)",
-                                       NULL, NULL, NULL, NULL, 0, NULL};
+                                       NULL, NULL, NULL, NULL, 0, NULL, 0};
+#endif
+
+#if !(HAVE_MPI && HAVE_CUDA)
+static const RtBackend mpi_cuda_missing = {"mpi-cuda", "this build has no mpi-cuda backend (it needs both MPI and CUDA)",
+                                           NULL, NULL, NULL, NULL, 0, NULL, 0};
 #endif
 
 static const RtBackend *const backends[] = {
@@ -47,6 +55,11 @@ static const RtBackend *const backends[] = {
     &rt_backend_cuda,
 #else
     &cuda_missing,
+#endif
+#if HAVE_MPI && HAVE_CUDA
+    &rt_backend_mpi_cuda,
+#else
+    &mpi_cuda_missing,
 #endif
     NULL,
 };

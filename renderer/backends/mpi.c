@@ -22,7 +22,7 @@
  *
  * Errors: every MPI call goes through RT_MPI_CHECK (file, line, MPI's error
  * string, then MPI_Abort, which ends all ranks: never a hang). Failures
- * before rendering are agreed on with MPI_Allreduce (mpi_agree) so that
+ * before rendering are agreed on with MPI_Allreduce (rt_mpi_agree) so that
  * exactly one rank, rank 0, prints exactly one message. */
 #include <mpi.h>
 #include <stdio.h>
@@ -32,6 +32,7 @@
 
 #include "config.h"
 #include "cpu_tiles.h"
+#include "mpi_common.h"
 #include "rt.h"
 
 /* rank 0 parses and broadcasts: it wins at 16 ranks and on clusters, where P
@@ -41,43 +42,35 @@
 #define RT_MPI_TILE 16
 enum { RT_TAG_ERROR = 1 };
 
-static int g_rank, g_size = 1, g_inited, g_provided;
+int rt_mpi_rank, rt_mpi_size = 1;
+static int g_inited, g_provided;
 static double g_load_ms;                      /* this rank's time in mpi_scene_load */
 static const char *g_scene_how = "every";     /* how the scene reached the ranks (every when P = 1) */
 
-static void rt_mpi_die(const char *file, int line, const char *call, int code)
+void rt_mpi_die(const char *file, int line, const char *call, int code)
 {
     char s[MPI_MAX_ERROR_STRING];
     int n = 0;
     if (MPI_Error_string(code, s, &n) != MPI_SUCCESS)
         snprintf(s, sizeof s, "error %d", code);
-    fprintf(stderr, "raytrace: rank %d: %s:%d: %s failed: %s\n", g_rank, file, line, call, s);
+    fprintf(stderr, "raytrace: rank %d: %s:%d: %s failed: %s\n", rt_mpi_rank, file, line, call, s);
     fflush(stderr);
     MPI_Abort(MPI_COMM_WORLD, 1);
 }
 
-/* MPI_ERRORS_RETURN is set on the communicator and the window, so errors come
- * back here and are named, instead of Open MPI's generic abort text. */
-#define RT_MPI_CHECK(call)                                                                                            \
-    do {                                                                                                              \
-        int rc_ = (call);                                                                                             \
-        if (rc_ != MPI_SUCCESS)                                                                                       \
-            rt_mpi_die(__FILE__, __LINE__, #call, rc_);                                                               \
-    } while (0)
-
-static int mpi_init(int *argc, char ***argv, RtError *err)
+int rt_mpi_init(int *argc, char ***argv, RtError *err)
 {
     /* FUNNELED: OpenMP threads render, only the main thread calls MPI. */
     if (MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &g_provided) != MPI_SUCCESS)
         return rt_fail(err, "MPI_Init_thread failed");
     g_inited = 1;
     MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN);
-    RT_MPI_CHECK(MPI_Comm_rank(MPI_COMM_WORLD, &g_rank));
-    RT_MPI_CHECK(MPI_Comm_size(MPI_COMM_WORLD, &g_size));
+    RT_MPI_CHECK(MPI_Comm_rank(MPI_COMM_WORLD, &rt_mpi_rank));
+    RT_MPI_CHECK(MPI_Comm_size(MPI_COMM_WORLD, &rt_mpi_size));
     return 0;
 }
 
-static void mpi_finalize(void)
+void rt_mpi_finalize(void)
 {
     if (!g_inited)
         return;
@@ -92,19 +85,19 @@ static void mpi_finalize(void)
     MPI_Finalize();
 }
 
-static int mpi_is_root(void) { return g_rank == 0; }
+static int mpi_is_root(void) { return rt_mpi_rank == 0; }
 
-static int mpi_agree(int failed, RtError *err)
+int rt_mpi_agree(int failed, RtError *err)
 {
-    int mine = failed ? g_rank : g_size, first;
+    int mine = failed ? rt_mpi_rank : rt_mpi_size, first;
     RT_MPI_CHECK(MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD));
-    if (first == g_size)
+    if (first == rt_mpi_size)
         return 0;
     if (first != 0) { /* the lowest failing rank tells rank 0 what went wrong */
-        if (g_rank == first) {
+        if (rt_mpi_rank == first) {
             err->msg[sizeof err->msg - 1] = '\0';
             RT_MPI_CHECK(MPI_Send(err->msg, (int)sizeof err->msg, MPI_CHAR, 0, RT_TAG_ERROR, MPI_COMM_WORLD));
-        } else if (g_rank == 0) {
+        } else if (rt_mpi_rank == 0) {
             char msg[sizeof err->msg];
             RT_MPI_CHECK(MPI_Recv(msg, (int)sizeof msg, MPI_CHAR, first, RT_TAG_ERROR, MPI_COMM_WORLD,
                                   MPI_STATUS_IGNORE));
@@ -128,11 +121,11 @@ static void bcast_bytes(void *p, size_t n)
 static int scene_load_bcast(const char *path, RtScene *scene, RtWarnFn warn, void *warn_ctx, RtError *err)
 {
     int st = 0;
-    if (g_rank == 0)
+    if (rt_mpi_rank == 0)
         st = rt_scene_load(path, scene, warn, warn_ctx, err);
     RT_MPI_CHECK(MPI_Bcast(&st, 1, MPI_INT, 0, MPI_COMM_WORLD));
     if (st != 0) /* rank 0 has the parser's message and will print it */
-        return g_rank == 0 ? -1 : rt_fail(err, "%s: rank 0 could not load the scene", path);
+        return rt_mpi_rank == 0 ? -1 : rt_fail(err, "%s: rank 0 could not load the scene", path);
     /* The struct first (counts, camera, names), then the six flat arrays;
      * receivers replace rank 0's pointers by their own copies. */
     bcast_bytes(scene, sizeof *scene);
@@ -146,7 +139,7 @@ static int scene_load_bcast(const char *path, RtScene *scene, RtWarnFn warn, voi
     };
     const int na = (int)(sizeof a / sizeof a[0]);
     int nomem = 0;
-    if (g_rank != 0)
+    if (rt_mpi_rank != 0)
         for (int i = 0; i < na; i++) {
             *a[i].p = malloc(a[i].n ? (size_t)a[i].n * a[i].size : 1);
             *a[i].cap = a[i].n;
@@ -165,7 +158,7 @@ static int mpi_scene_load(const char *path, const char *how, RtScene *scene, RtW
                           RtError *err)
 {
     double t0 = rt_now_ms();
-    int bcast = strcmp(how ? how : RT_MPI_SCENE_DEFAULT, "bcast") == 0 && g_size > 1;
+    int bcast = strcmp(how ? how : RT_MPI_SCENE_DEFAULT, "bcast") == 0 && rt_mpi_size > 1;
     g_scene_how = bcast ? "bcast" : "every";
     int rc = bcast ? scene_load_bcast(path, scene, warn, warn_ctx, err) : rt_scene_load(path, scene, warn, warn_ctx, err);
     g_load_ms = rt_now_ms() - t0;
@@ -177,7 +170,7 @@ static int mpi_scene_load(const char *path, const char *how, RtScene *scene, RtW
 static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th, float *rgb)
 {
     const RtSceneView *v = &job->view;
-    int w = v->cam.width, h = v->cam.height, P = g_size;
+    int w = v->cam.width, h = v->cam.height, P = rt_mpi_size;
     int base = h / P, rem = h % P;
     int *counts = malloc(2 * sizeof(int) * (size_t)P);
     if (!counts)
@@ -188,25 +181,87 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
         counts[r] = rows * w * 3; /* <= 3 * 2^28 floats: fits an int */
         displs[r] = y0 * w * 3;
     }
-    int y0 = displs[g_rank] / (w * 3), y1 = y0 + counts[g_rank] / (w * 3);
+    int y0 = displs[rt_mpi_rank] / (w * 3), y1 = y0 + counts[rt_mpi_rank] / (w * 3);
     if (y1 > y0) {
         if (job->schedule == RT_SCHED_PIXELS)
             rt_cpu_render_pixels(pool, v, 0, y0, w, y1, rgb);
         else
             rt_cpu_render_tiles(pool, v, 0, y0, w, y1, tw, th, 0, rt_tile_count(w, y1 - y0, tw, th), rgb, NULL, NULL);
     }
-    if (g_rank == 0)
+    if (rt_mpi_rank == 0)
         RT_MPI_CHECK(MPI_Gatherv(MPI_IN_PLACE, 0, MPI_FLOAT, rgb, counts, displs, MPI_FLOAT, 0, MPI_COMM_WORLD));
     else
-        RT_MPI_CHECK(MPI_Gatherv(rgb + displs[g_rank], counts[g_rank], MPI_FLOAT, NULL, NULL, NULL, MPI_FLOAT, 0,
+        RT_MPI_CHECK(MPI_Gatherv(rgb + displs[rt_mpi_rank], counts[rt_mpi_rank], MPI_FLOAT, NULL, NULL, NULL, MPI_FLOAT, 0,
                                  MPI_COMM_WORLD));
     free(counts);
 }
 
 /* ---------------------------------------------------------------- dynamic */
 
-/* Window layout on rank 0 (disp_unit 1): the tile counter, then the image. */
+/* Window layout on rank 0 (disp_unit 1): the claim counter, then the image. */
 #define RT_WIN_IMAGE 8 /* byte offset of the float RGB image */
+
+void rt_mpi_image_open(RtMpiImage *m, size_t npix, const float *rgb)
+{
+    memset(m, 0, sizeof *m);
+    m->npix = npix;
+    MPI_Aint bytes = rt_mpi_rank == 0 ? (MPI_Aint)(RT_WIN_IMAGE + npix * 3 * sizeof(float)) : 0;
+    RT_MPI_CHECK(MPI_Win_allocate(bytes, 1, MPI_INFO_NULL, MPI_COMM_WORLD, &m->base, &m->win));
+    MPI_Win_set_errhandler(m->win, MPI_ERRORS_RETURN);
+    int *model = NULL, flag = 0;
+    RT_MPI_CHECK(MPI_Win_get_attr(m->win, MPI_WIN_MODEL, &model, &flag));
+    /* In the unified memory model (osc/sm, osc/rdma) rank 0 can render into
+     * the window directly; in the separate model it MPI_Puts to itself. */
+    m->direct = rt_mpi_rank == 0 && flag && *model == MPI_WIN_UNIFIED;
+    if (rt_mpi_rank == 0) {
+        m->img0 = (float *)(void *)((char *)m->base + RT_WIN_IMAGE);
+        memcpy(m->img0, rgb, npix * 3 * sizeof(float)); /* carry main's NaN poison for --verify */
+    }
+    RT_MPI_CHECK(MPI_Win_lock_all(MPI_MODE_NOCHECK, m->win));
+}
+
+void rt_mpi_frame_start(RtMpiImage *m)
+{
+    if (rt_mpi_rank == 0)
+        *(int64_t *)m->base = 0;
+    RT_MPI_CHECK(MPI_Win_sync(m->win));
+    RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD));
+}
+
+int64_t rt_mpi_claim(RtMpiImage *m, int64_t total, int64_t min_claim, int64_t *seen, int64_t *first)
+{
+    int64_t claim = (total - *seen) / (4 * (int64_t)rt_mpi_size);
+    if (claim < min_claim)
+        claim = min_claim;
+    RT_MPI_CHECK(MPI_Fetch_and_op(&claim, first, MPI_INT64_T, 0, 0, MPI_SUM, m->win));
+    RT_MPI_CHECK(MPI_Win_flush(0, m->win));
+    if (*first >= total)
+        return 0;
+    *seen = *first + claim;
+    return total - *first < claim ? total - *first : claim;
+}
+
+void rt_mpi_put(RtMpiImage *m, const float *src, size_t off, size_t n)
+{
+    RT_MPI_CHECK(MPI_Put(src + off, (int)n, MPI_FLOAT, 0, (MPI_Aint)(RT_WIN_IMAGE + off * sizeof(float)), (int)n,
+                         MPI_FLOAT, m->win));
+}
+
+void rt_mpi_frame_end(RtMpiImage *m)
+{
+    RT_MPI_CHECK(MPI_Win_flush(0, m->win));    /* this rank's pixels are in rank 0's memory */
+    RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD)); /* ... and everyone's */
+    if (rt_mpi_rank == 0)
+        RT_MPI_CHECK(MPI_Win_sync(m->win));
+}
+
+void rt_mpi_image_close(RtMpiImage *m, float *rgb)
+{
+    if (rt_mpi_rank == 0)
+        memcpy(rgb, m->img0, m->npix * 3 * sizeof(float));
+    RT_MPI_CHECK(MPI_Win_unlock_all(m->win));
+    RT_MPI_CHECK(MPI_Win_free(&m->win));
+}
 
 typedef struct TileTypes {
     int n;
@@ -231,78 +286,39 @@ static MPI_Datatype tile_type(TileTypes *tt, int cw, int ch, int w)
 /* The smallest claim: one tile for a single-threaded rank (finest balance at
  * the end of the frame). With T threads per rank, 4*T tiles, so the rank's
  * threads share out a batch dynamically and the batch's last tile does not
- * leave them idle for long. Earlier claims are larger (guided, below). */
+ * leave them idle for long. Earlier claims are larger (rt_mpi_claim). */
 static int64_t tiles_per_claim(int threads) { return threads > 1 ? 4 * (int64_t)threads : 1; }
 
 static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int th, float *rgb, double *t_start)
 {
     const RtSceneView *v = &job->view;
     int w = v->cam.width, h = v->cam.height;
-    size_t npix = (size_t)w * (size_t)h;
     int64_t ntiles = rt_tile_count(w, h, tw, th);
-    MPI_Win win;
-    void *base = NULL;
-    MPI_Aint bytes = g_rank == 0 ? (MPI_Aint)(RT_WIN_IMAGE + npix * 3 * sizeof(float)) : 0;
-    RT_MPI_CHECK(MPI_Win_allocate(bytes, 1, MPI_INFO_NULL, MPI_COMM_WORLD, &base, &win));
-    MPI_Win_set_errhandler(win, MPI_ERRORS_RETURN);
-    int *model = NULL, flag = 0;
-    RT_MPI_CHECK(MPI_Win_get_attr(win, MPI_WIN_MODEL, &model, &flag));
-    /* In the unified memory model (osc/sm, osc/rdma) rank 0 can render into
-     * the window directly; in the separate model it MPI_Puts to itself. */
-    int direct = flag && *model == MPI_WIN_UNIFIED;
-    float *img0 = NULL;
-    if (g_rank == 0) {
-        *(int64_t *)base = 0;
-        img0 = (float *)(void *)((char *)base + RT_WIN_IMAGE);
-        memcpy(img0, rgb, npix * 3 * sizeof(float)); /* carry main's NaN poison for --verify */
-    }
-    RT_MPI_CHECK(MPI_Win_lock_all(MPI_MODE_NOCHECK, win));
-    RT_MPI_CHECK(MPI_Win_sync(win));
-    RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD));
+    RtMpiImage m;
+    rt_mpi_image_open(&m, (size_t)w * (size_t)h, rgb);
+    rt_mpi_frame_start(&m);
     *t_start = rt_now_ms();
 
-    float *dst = g_rank == 0 && direct ? img0 : rgb;
-    int put = !(g_rank == 0 && direct);
+    float *dst = m.direct ? m.img0 : rgb;
     const int64_t min_claim = tiles_per_claim(pool->nthreads);
-    int64_t seen = 0; /* the counter as this rank last saw it */
+    int64_t seen = 0, first, count; /* seen: the counter as this rank last saw it */
     TileTypes tt;
     tt.n = 0;
-    for (;;) {
-        /* Guided self-scheduling (Polychronopoulos & Kuck 1987): claim a
-         * share of what remained at the last look, 1/(4P), never less than
-         * min_claim. Early claims are large, so the counter on rank 0 is hit
-         * a few dozen times instead of once per tile; the last claims are
-         * single tiles, so the ranks still finish together. Which rank
-         * renders a tile never changes the image. */
-        int64_t claim = (ntiles - seen) / (4 * (int64_t)g_size);
-        if (claim < min_claim)
-            claim = min_claim;
-        int64_t first;
-        RT_MPI_CHECK(MPI_Fetch_and_op(&claim, &first, MPI_INT64_T, 0, 0, MPI_SUM, win));
-        RT_MPI_CHECK(MPI_Win_flush(0, win));
-        if (first >= ntiles)
-            break;
-        seen = first + claim;
-        int count = (int)(ntiles - first < claim ? ntiles - first : claim);
-        rt_cpu_render_tiles(pool, v, 0, 0, w, h, tw, th, (int)first, count, dst, NULL, NULL);
-        for (int t = (int)first; put && t < first + count; t++) {
+    /* Which rank renders a tile never changes the image. */
+    while ((count = rt_mpi_claim(&m, ntiles, min_claim, &seen, &first)) > 0) {
+        rt_cpu_render_tiles(pool, v, 0, 0, w, h, tw, th, (int)first, (int)count, dst, NULL, NULL);
+        for (int t = (int)first; !m.direct && t < first + count; t++) {
             int x0, y0, x1, y1;
             rt_tile_rect(w, h, tw, th, t, &x0, &y0, &x1, &y1);
             MPI_Datatype ty = tile_type(&tt, x1 - x0, y1 - y0, w);
             size_t off = ((size_t)y0 * (size_t)w + (size_t)x0) * 3;
-            RT_MPI_CHECK(MPI_Put(rgb + off, 1, ty, 0, (MPI_Aint)(RT_WIN_IMAGE + off * sizeof(float)), 1, ty, win));
+            RT_MPI_CHECK(MPI_Put(rgb + off, 1, ty, 0, (MPI_Aint)(RT_WIN_IMAGE + off * sizeof(float)), 1, ty, m.win));
         }
     }
-    RT_MPI_CHECK(MPI_Win_flush(0, win)); /* this rank's tiles are in rank 0's memory */
-    RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD)); /* ... and everyone's */
-    if (g_rank == 0) {
-        RT_MPI_CHECK(MPI_Win_sync(win));
-        memcpy(rgb, img0, npix * 3 * sizeof(float));
-    }
-    RT_MPI_CHECK(MPI_Win_unlock_all(win));
+    rt_mpi_frame_end(&m);
+    rt_mpi_image_close(&m, rgb);
     for (int i = 0; i < tt.n; i++)
         MPI_Type_free(&tt.t[i]);
-    RT_MPI_CHECK(MPI_Win_free(&win));
 }
 
 /* ---------------------------------------------------------------- render */
@@ -324,11 +340,11 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     /* only in tests/cpu's raytrace-testhooks (mpi_fail.sh): an error on one
      * rank only */
     const char *inject = getenv("RT_MPI_TEST_FAIL_RANK");
-    if (!failed && inject && atoi(inject) == g_rank)
-        failed = rt_fail(err, "injected failure (RT_MPI_TEST_FAIL_RANK=%d)", g_rank) != 0;
+    if (!failed && inject && atoi(inject) == rt_mpi_rank)
+        failed = rt_fail(err, "injected failure (RT_MPI_TEST_FAIL_RANK=%d)", rt_mpi_rank) != 0;
 #endif
     /* A rank that cannot render must not leave the others in a collective. */
-    if (mpi_agree(failed, err) != 0) {
+    if (rt_mpi_agree(failed, err) != 0) {
         rt_cpu_pool_free(&pool);
         return -1;
     }
@@ -356,15 +372,15 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     RT_MPI_CHECK(MPI_Reduce(&ms, &ms_max, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD));
     RT_MPI_CHECK(MPI_Reduce(&ms, &ms_min, 1, MPI_DOUBLE, MPI_MIN, 0, MPI_COMM_WORLD));
     RT_MPI_CHECK(MPI_Reduce(&g_load_ms, &load_max, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD));
-    char *all = g_rank == 0 ? malloc(sizeof cores * (size_t)g_size) : NULL;
-    if (g_rank == 0 && !all)
+    char *all = rt_mpi_rank == 0 ? malloc(sizeof cores * (size_t)rt_mpi_size) : NULL;
+    if (rt_mpi_rank == 0 && !all)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
     RT_MPI_CHECK(MPI_Gather(cores, (int)sizeof cores, MPI_CHAR, all, (int)sizeof cores, MPI_CHAR, 0, MPI_COMM_WORLD));
 
     out->threads_used = threads;
-    out->ranks_used = g_size;
-    out->is_root = g_rank == 0;
-    if (g_rank != 0)
+    out->ranks_used = rt_mpi_size;
+    out->is_root = rt_mpi_rank == 0;
+    if (rt_mpi_rank != 0)
         return 0;
     out->counters = sum;
     out->render_ms = ms_max;
@@ -375,7 +391,7 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     size_t len = 0;
     per_rank[0] = '\0';
     out->cores[0] = '\0';
-    for (int r = 0; r < g_size; r++) {
+    for (int r = 0; r < rt_mpi_size; r++) {
         const char *c = all + (size_t)r * sizeof cores;
         for (const char *p = c; *p;) {
             rt_cores_note(out->cores, sizeof out->cores, atoi(p));
@@ -398,6 +414,6 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     return 0;
 }
 
-static const RtCollective mpi_collective = {mpi_is_root, mpi_agree, mpi_scene_load};
+const RtCollective rt_mpi_collective = {mpi_is_root, rt_mpi_agree, mpi_scene_load};
 
-const RtBackend rt_backend_mpi = {"mpi", NULL, mpi_init, render_mpi, mpi_finalize, &mpi_collective, 0, NULL};
+const RtBackend rt_backend_mpi = {"mpi", NULL, rt_mpi_init, render_mpi, rt_mpi_finalize, &rt_mpi_collective, 0, NULL, 0};

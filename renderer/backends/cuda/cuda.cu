@@ -22,15 +22,7 @@
 
 #include "kernels.cuh"
 #include "cuda_check.h"
-
-/* Default timing: RT_CUDA_RUNS timed launches (fewer when they would take more
- * than RT_CUDA_TIME_BUDGET_MS of kernel time, so a brute-force render of a
- * large image does not run 21 times), after RT_CUDA_WARMUP_MS of warm-up
- * launches (module load, caches, and the clocks: an idle H100 needs some
- * milliseconds of work to boost). --runs and --warmup replace them. */
-#define RT_CUDA_RUNS 21
-#define RT_CUDA_WARMUP_MS 50.0
-#define RT_CUDA_TIME_BUDGET_MS 4000.0
+#include "cuda_session.h"
 
 /* One device allocation for everything: each array at a 256-byte aligned
  * offset, so one size is known (for the out-of-memory message) and one free
@@ -51,6 +43,7 @@ typedef struct CudaRun {
     size_t npix;
     cudaDeviceProp prop;
     char gpu[128];
+    char gpu_at[160];          /* gpu@PCI bus id */
     RtCudaPlan plan;
     const RtCudaVariant *variant;
     cudaFuncAttributes fa;
@@ -86,16 +79,35 @@ static void cuda_gpu_name(const char *in, char *out, size_t size)
 static pthread_t g_warm;
 static int g_warm_started;
 
+/* (device << 1) | wrap */
 static void *cuda_warm_main(void *arg)
 {
-    if (cudaSetDevice((int)(intptr_t)arg) == cudaSuccess)
+    int device = (int)((intptr_t)arg >> 1), n = 0;
+    if (((intptr_t)arg & 1) && cudaGetDeviceCount(&n) == cudaSuccess && n > 0)
+        device %= n;
+    if (cudaSetDevice(device) == cudaSuccess)
         cudaFree(0); /* (a failure is cuda_open's to report) */
     return NULL;
 }
 
-static void cuda_prewarm(int device)
+void rt_cuda_prewarm_device(int device, int wrap)
 {
-    g_warm_started = pthread_create(&g_warm, NULL, cuda_warm_main, (void *)(intptr_t)device) == 0;
+    g_warm_started =
+        pthread_create(&g_warm, NULL, cuda_warm_main, (void *)(((intptr_t)device << 1) | (wrap ? 1 : 0))) == 0;
+}
+
+static void cuda_prewarm(int device) { rt_cuda_prewarm_device(device, 0); }
+
+int rt_cuda_device_count(int *n, RtError *err)
+{
+    *n = 0;
+    cudaError_t e = cudaGetDeviceCount(n);
+    if (e != cudaSuccess)
+        return rt_fail(err, "cuda: no usable GPU: cudaGetDeviceCount failed: %s (%s)", cudaGetErrorString(e),
+                       cudaGetErrorName(e));
+    if (*n == 0)
+        return rt_fail(err, "cuda: no usable GPU: cudaGetDeviceCount found no CUDA device");
+    return 0;
 }
 
 /* The device, its context (init_ms: how long the render still waited for
@@ -110,12 +122,8 @@ static int cuda_open(CudaRun *c, RtError *err)
     }
     int ndev = 0;
     const int dev = c->job->device;
-    cudaError_t e = cudaGetDeviceCount(&ndev);
-    if (e != cudaSuccess)
-        return rt_fail(err, "cuda: no usable GPU: cudaGetDeviceCount failed: %s (%s)", cudaGetErrorString(e),
-                       cudaGetErrorName(e));
-    if (ndev == 0)
-        return rt_fail(err, "cuda: no usable GPU: cudaGetDeviceCount found no CUDA device");
+    if (rt_cuda_device_count(&ndev, err))
+        return -1;
     if (dev < 0 || dev >= ndev)
         return rt_fail(err, "cuda: --device %d: this machine has %d CUDA device(s), numbered 0 to %d", dev, ndev,
                        ndev - 1);
@@ -124,6 +132,12 @@ static int cuda_open(CudaRun *c, RtError *err)
     c->init_ms = rt_now_ms() - t_wait; /* what is left of the context's creation */
     RT_CUDA_CHECK(cudaGetDeviceProperties(&c->prop, dev));
     cuda_gpu_name(c->prop.name, c->gpu, sizeof c->gpu);
+    {
+        char bus[32] = "unknown";
+        if (cudaDeviceGetPCIBusId(bus, (int)sizeof bus, dev) != cudaSuccess)
+            cudaGetLastError();
+        snprintf(c->gpu_at, sizeof c->gpu_at, "%s@%s", c->gpu, bus);
+    }
     return 0;
 fail:
     return -1;
@@ -280,6 +294,35 @@ fail:
     return -1;
 }
 
+/* The kernel over grid g in nblocks blocks (the stream's order keeps it
+ * after the work counter's reset). */
+static int cuda_kernel(CudaRun *c, const RtCudaGrid *g, int nblocks, RtError *err)
+{
+    unsigned char *a = c->arena;
+    c->variant->kernel<<<nblocks, dim3((unsigned)c->plan.bx, (unsigned)c->plan.by)>>>(
+        c->dv, (float *)(a + c->parts[P_IMAGE].offset), (unsigned long long *)(a + c->parts[P_COUNTERS].offset),
+        (unsigned int *)(a + c->parts[P_WORK].offset), *g);
+    RT_CUDA_CHECK_LAUNCH("rt_render_kernel");
+    return 0;
+fail:
+    return -1;
+}
+
+/* The ray counters down from the device. */
+static int cuda_counters(CudaRun *c, RtCounters *cnt, RtError *err)
+{
+    unsigned long long h[RT_NCOUNTERS];
+    RT_CUDA_CHECK(cudaMemcpy(h, c->arena + c->parts[P_COUNTERS].offset, sizeof h, cudaMemcpyDeviceToHost));
+    cnt->primary_rays = h[0];
+    cnt->shadow_rays = h[1];
+    cnt->secondary_rays = h[2];
+    cnt->node_visits = h[3];
+    cnt->prim_tests = h[4];
+    return 0;
+fail:
+    return -1;
+}
+
 /* One launch from zeroed counters, timed between CUDA events. */
 static int cuda_launch_once(CudaRun *c, float *ms, RtError *err)
 {
@@ -288,10 +331,8 @@ static int cuda_launch_once(CudaRun *c, float *ms, RtError *err)
     RT_CUDA_CHECK(cudaMemsetAsync(a + c->parts[P_COUNTERS].offset, 0,
                                   c->parts[P_WORK].offset + c->parts[P_WORK].bytes - c->parts[P_COUNTERS].offset));
     RT_CUDA_CHECK(cudaEventRecord(c->ev0));
-    c->variant->kernel<<<c->nblocks, dim3((unsigned)c->plan.bx, (unsigned)c->plan.by)>>>(
-        c->dv, (float *)(a + c->parts[P_IMAGE].offset), (unsigned long long *)(a + c->parts[P_COUNTERS].offset),
-        (unsigned int *)(a + c->parts[P_WORK].offset), c->g);
-    RT_CUDA_CHECK_LAUNCH("rt_render_kernel");
+    if (cuda_kernel(c, &c->g, c->nblocks, err))
+        return -1;
     RT_CUDA_CHECK(cudaEventRecord(c->ev1));
     RT_CUDA_CHECK(cudaEventSynchronize(c->ev1));
     RT_CUDA_CHECK(cudaEventElapsedTime(ms, c->ev0, c->ev1));
@@ -344,22 +385,17 @@ fail:
 /* The image and counters down; render_ms the median of the timed launches. */
 static int cuda_finish(CudaRun *c, RtRenderOut *out, RtError *err)
 {
-    unsigned long long hcnt[RT_NCOUNTERS];
     double t0 = rt_now_ms();
     RT_CUDA_CHECK(cudaMemcpy(out->rgb, c->arena + c->parts[P_IMAGE].offset, c->parts[P_IMAGE].bytes,
                              cudaMemcpyDeviceToHost));
     c->download_ms = rt_now_ms() - t0;
-    RT_CUDA_CHECK(cudaMemcpy(hcnt, c->arena + c->parts[P_COUNTERS].offset, sizeof hcnt, cudaMemcpyDeviceToHost));
+    if (cuda_counters(c, &out->counters, err))
+        return -1;
     out->render_ms = rt_median(c->times, c->runs); /* (sorts: times[0] is the fastest) */
     out->render_ms_min = out->render_ms;
     out->render_ms_best = c->times[0];
     out->runs = c->runs;
     out->warmups = c->warmups;
-    out->counters.primary_rays = hcnt[0];
-    out->counters.shadow_rays = hcnt[1];
-    out->counters.secondary_rays = hcnt[2];
-    out->counters.node_visits = hcnt[3];
-    out->counters.prim_tests = hcnt[4];
     out->threads_used = c->nblocks * c->plan.threads;
     out->ranks_used = 1;
     out->is_root = 1;
@@ -369,18 +405,28 @@ fail:
     return -1;
 }
 
-/* The backend's record keys (docs/gpu.md, "Record keys"). */
-static void cuda_record(const CudaRun *c, RtRenderOut *out, double wall_ms)
+/* The plan's record keys (docs/gpu.md, "Record keys"). */
+static void cuda_plan_keys(const CudaRun *c, char *buf, size_t size)
 {
     const RtCudaPlan *p = &c->plan;
-    snprintf(out->extra, sizeof out->extra,
-             " block=%dx%d large=%d pairs=%d sched=%s order=%s traversal=%s anyhit=%s waves=%.2f kernel_runs=%d "
-             "kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f download_ms=%.3f "
-             "wall_ms=%.3f regs=%d local_bytes=%zu bounds=%dx%d blocks_per_sm=%d grid=%d gpu=%s",
+    snprintf(buf, size,
+             " block=%dx%d large=%d pairs=%d sched=%s order=%s traversal=%s anyhit=%s waves=%.2f regs=%d "
+             "local_bytes=%zu bounds=%dx%d blocks_per_sm=%d grid=%d",
              p->bx, p->by, p->large, p->pairs, p->persistent ? "persistent" : "grid", p->center ? "center" : "tiles",
-             c->job->view.wide ? "wide" : "binary", p->slot ? "slot" : "sorted", c->waves, c->runs, c->times[0],
-             c->warmups, c->first_ms, c->init_ms, c->upload_ms, c->download_ms, wall_ms, c->fa.numRegs,
-             (size_t)c->fa.localSizeBytes, c->variant->maxt, c->variant->minb, c->blocks_per_sm, c->nblocks, c->gpu);
+             c->job->view.wide ? "wide" : "binary", p->slot ? "slot" : "sorted", c->waves, c->fa.numRegs,
+             (size_t)c->fa.localSizeBytes, c->variant->maxt, c->variant->minb, c->blocks_per_sm, c->nblocks);
+}
+
+/* The backend's record keys: the plan's, then the timings'. */
+static void cuda_record(const CudaRun *c, RtRenderOut *out, double wall_ms)
+{
+    char plan[512];
+    cuda_plan_keys(c, plan, sizeof plan);
+    snprintf(out->extra, sizeof out->extra,
+             "%s kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
+             "download_ms=%.3f wall_ms=%.3f gpu=%s",
+             plan, c->runs, c->times[0], c->warmups, c->first_ms, c->init_ms, c->upload_ms, c->download_ms, wall_ms,
+             c->gpu);
 }
 
 static void cuda_release(CudaRun *c)
@@ -415,8 +461,100 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     return rc;
 }
 
+/* ---------------------------------------------------------------- sessions */
+
+struct RtCudaSession {
+    CudaRun c;
+};
+
+int rt_cuda_session_open(const RtRenderJob *job, RtCudaSession **out, RtError *err)
+{
+    RtCudaSession *s = (RtCudaSession *)calloc(1, sizeof *s);
+    *out = NULL;
+    if (!s)
+        return rt_fail(err, "cuda: out of memory");
+    CudaRun *c = &s->c;
+    c->job = job;
+    c->w = job->view.cam.width;
+    c->h = job->view.cam.height;
+    c->npix = (size_t)c->w * (size_t)c->h;
+    int rc = cuda_open(c, err) || cuda_plan(c, err);
+    c->plan.center = 0; /* bands are raster runs of tiles: no centre order */
+    if (rc || cuda_upload(c, err)) {
+        rt_cuda_session_close(s);
+        return -1;
+    }
+    *out = s;
+    return 0;
+}
+
+int rt_cuda_session_tile_rows(const RtCudaSession *s, int *row_h, int *wave_rows)
+{
+    const CudaRun *c = &s->c;
+    const int rows = (int)(c->g.ntiles / (uint32_t)c->g.tiles_x);
+    /* the pixels resident at once over a tile row's pixels, rounded up */
+    const double resident = (double)c->blocks_per_sm * (double)c->prop.multiProcessorCount *
+                            (double)(c->plan.pairs ? c->plan.threads / 2 : c->plan.threads);
+    const double per_row = (double)c->g.tiles_x * (double)c->g.tile_items;
+    const double wr = resident / per_row;
+    *row_h = c->g.by;
+    *wave_rows = wr >= rows ? rows : wr < 1.0 ? 1 : (int)wr + (wr > (int)wr);
+    return rows;
+}
+
+int rt_cuda_session_frame(RtCudaSession *s, RtError *err)
+{
+    CudaRun *c = &s->c;
+    RT_CUDA_CHECK(cudaMemset(c->arena + c->parts[P_COUNTERS].offset, 0, c->parts[P_COUNTERS].bytes));
+    return 0;
+fail:
+    return -1;
+}
+
+/* One launch over the band's tiles (the persistent schedule: at most the
+ * resident blocks), then its rows down. */
+int rt_cuda_session_rows(RtCudaSession *s, int r0, int r1, float *rgb, RtError *err)
+{
+    CudaRun *c = &s->c;
+    unsigned char *a = c->arena;
+    RtCudaGrid g = c->g;
+    const uint32_t tiles = (uint32_t)(r1 - r0) * (uint32_t)g.tiles_x;
+    g.units = NULL;
+    g.first_tile = (uint32_t)r0 * (uint32_t)g.tiles_x;
+    g.ntiles = tiles;
+    g.total_items = tiles * g.tile_items;
+    const int nblocks = (int)(g.persistent && (uint32_t)c->nblocks < tiles ? (uint32_t)c->nblocks : tiles);
+    const int y0 = r0 * g.by, y1 = r1 * g.by < c->h ? r1 * g.by : c->h;
+    const size_t off = (size_t)y0 * (size_t)c->w * 3, n = (size_t)(y1 - y0) * (size_t)c->w * 3;
+    RT_CUDA_CHECK(cudaMemsetAsync(a + c->parts[P_WORK].offset, 0, c->parts[P_WORK].bytes));
+    if (cuda_kernel(c, &g, nblocks, err))
+        return -1;
+    RT_CUDA_CHECK(cudaMemcpy(rgb + off, (float *)(a + c->parts[P_IMAGE].offset) + off, n * sizeof(float),
+                             cudaMemcpyDeviceToHost));
+    return 0;
+fail:
+    return -1;
+}
+
+int rt_cuda_session_counters(RtCudaSession *s, RtCounters *cnt, RtError *err)
+{
+    return cuda_counters(&s->c, cnt, err);
+}
+
+const char *rt_cuda_session_gpu(const RtCudaSession *s) { return s->c.gpu_at; }
+
+void rt_cuda_session_keys(const RtCudaSession *s, char *buf, size_t size) { cuda_plan_keys(&s->c, buf, size); }
+
+void rt_cuda_session_close(RtCudaSession *s)
+{
+    if (!s)
+        return;
+    cuda_release(&s->c);
+    free(s);
+}
+
 extern "C" {
 extern const RtBackend rt_backend_cuda;
 /* times its own runs: the scene stays on the device between launches */
-const RtBackend rt_backend_cuda = {"cuda", NULL, NULL, render_cuda, NULL, NULL, 1, cuda_prewarm};
+const RtBackend rt_backend_cuda = {"cuda", NULL, NULL, render_cuda, NULL, NULL, 1, cuda_prewarm, 1};
 }

@@ -40,13 +40,15 @@ extern "C" {
 
 enum { RT_NCOUNTERS = 5 }; /* fields of RtCounters, all uint64_t, in order */
 
-/* Persistent schedule: work item -> pixel. Items are numbered tile by tile,
- * row-major inside a tile. Returns 0 for the overhang of an edge tile. */
+/* Persistent schedule: work item -> pixel. Items are numbered tile by tile
+ * from g.first_tile, row-major inside a tile. Returns 0 for the overhang of
+ * an edge tile. */
 static __device__ __forceinline__ int rt_cuda_item_pixel(const RtSceneView &view, const RtCudaGrid &g,
                                                          uint32_t item, int *px, int *py)
 {
-    const uint32_t tile = item / g.tile_items;
-    const uint32_t local = item - tile * g.tile_items;
+    const uint32_t nth = item / g.tile_items;
+    const uint32_t local = item - nth * g.tile_items;
+    const uint32_t tile = g.first_tile + nth;
     *px = (int)(tile % (uint32_t)g.tiles_x) * g.bx + (int)(local % (uint32_t)g.bx);
     *py = (int)(tile / (uint32_t)g.tiles_x) * g.by + (int)(local / (uint32_t)g.bx);
     return *px < view.cam.width && *py < view.cam.height;
@@ -258,7 +260,7 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
                 rt_render_pixel(&view, px, py, SHADOW, rgb, &cnt);
         }
     } else {
-        const uint32_t tile = g.units ? g.units[blockIdx.x] : blockIdx.x;
+        const uint32_t tile = g.units ? g.units[blockIdx.x] : g.first_tile + blockIdx.x;
         int px, py;
         const bool valid = rt_cuda_unit_pixel(view, g, tile, PAIRS, tid, &px, &py);
         if (PAIRS)

@@ -22,7 +22,10 @@ typedef struct RtCudaGrid {
     uint32_t ntiles;        /* tiles in the image */
     int32_t persistent;     /* 1: warps fetch 32 pixels at a time from a counter; 0: one block per tile */
     int32_t pairs;          /* 1: two lanes per pixel (grid schedule only) */
-    const uint32_t *units;  /* grid schedule: block b renders tile units[b] (the centre order); NULL: tile b */
+    const uint32_t *units;  /* grid schedule: block b renders tile units[b] (the centre order); NULL: tile
+                             * first_tile + b */
+    uint32_t first_tile;    /* the launch's first tile (raster order) when units is NULL: 0 for the whole
+                             * image; a band of tile rows for the MPI backend's claims (cuda_session.h) */
 } RtCudaGrid;
 
 /* What the host decided for one render (the record prints it). */

@@ -1,0 +1,63 @@
+/* mpi_common.h - what the two MPI backends share (mpi.c: ranks on the CPU;
+ * mpi_cuda.c: a GPU on each rank): start and end, agreeing on failures, and
+ * the dynamic scheme's shared image -- the claim counter and the image in
+ * one MPI window on rank 0 (docs/cpu-backends.md, "MPI"). */
+#ifndef RT_MPI_COMMON_H
+#define RT_MPI_COMMON_H
+
+#include <mpi.h>
+#include <stdint.h>
+
+#include "rt.h"
+
+extern int rt_mpi_rank, rt_mpi_size;
+
+/* Names the failed call with MPI's error string, then MPI_Abort (never a hang). */
+void rt_mpi_die(const char *file, int line, const char *call, int code);
+
+/* MPI_ERRORS_RETURN is set on the communicator and the window, so errors come
+ * back here and are named, instead of Open MPI's generic abort text. */
+#define RT_MPI_CHECK(call)                                                                                            \
+    do {                                                                                                              \
+        int rc_ = (call);                                                                                             \
+        if (rc_ != MPI_SUCCESS)                                                                                       \
+            rt_mpi_die(__FILE__, __LINE__, #call, rc_);                                                               \
+    } while (0)
+
+int rt_mpi_init(int *argc, char ***argv, RtError *err);
+void rt_mpi_finalize(void);
+/* Collective: nonzero on every rank if any failed; rank 0's err then holds
+ * the lowest failing rank's message (RtCollective.agree). */
+int rt_mpi_agree(int failed, RtError *err);
+extern const RtCollective rt_mpi_collective;
+
+/* The shared image of the dynamic scheme. */
+typedef struct RtMpiImage {
+    MPI_Win win;
+    void *base;
+    float *img0;    /* rank 0: the image inside the window */
+    int direct;     /* rank 0 may write img0 itself (the unified memory model) */
+    size_t npix;
+} RtMpiImage;
+
+/* Collective: the window on rank 0 (counter and image, the image starting as
+ * rgb: main's NaN poison), locked for the passive target epochs of frames. */
+void rt_mpi_image_open(RtMpiImage *m, size_t npix, const float *rgb);
+/* Collective: the counter back to 0; returns when every rank may claim. */
+void rt_mpi_frame_start(RtMpiImage *m);
+/* Guided self-scheduling (Polychronopoulos & Kuck 1987) of `total` units:
+ * claims a share of what remained at this rank's last look (*seen), 1/(4P),
+ * never less than min_claim. Early claims are large, so the counter on rank
+ * 0 is hit a few dozen times rather than once per unit; the last are small,
+ * so the ranks finish together. The claim's first unit in *first and its
+ * length returned; 0 when nothing is left. */
+int64_t rt_mpi_claim(RtMpiImage *m, int64_t total, int64_t min_claim, int64_t *seen, int64_t *first);
+/* Puts floats [off, off + n) of this rank's whole-image buffer src into the
+ * same place in rank 0's image. */
+void rt_mpi_put(RtMpiImage *m, const float *src, size_t off, size_t n);
+/* Collective: every rank's puts are in rank 0's image. */
+void rt_mpi_frame_end(RtMpiImage *m);
+/* Collective: rank 0 copies the image into rgb; the window is freed. */
+void rt_mpi_image_close(RtMpiImage *m, float *rgb);
+
+#endif

@@ -1,0 +1,248 @@
+/* mpi_cuda.c - the MPI backend with a GPU on each rank (--backend mpi-cuda).
+ *
+ * One rank per GPU: a rank's device is --device plus its rank on its node
+ * (MPI_COMM_TYPE_SHARED, which is what the launcher's local rank numbers),
+ * among the devices CUDA_VISIBLE_DEVICES leaves it. More ranks on a node
+ * than GPUs is an error unless --share-gpu lets them take turns.
+ *
+ * Each rank opens a CUDA session (cuda_session.h: the device, the plan for
+ * the whole image, the scene uploaded once). The frame is handed out as in
+ * the CPU MPI backend's dynamic scheme (mpi_common.h): ranks claim bands of
+ * tile rows from the counter in rank 0's window (guided, never less than the
+ * rows that fill the GPU once), render each band with the CUDA kernel, copy
+ * its rows down, and MPI_Put them into rank 0's image -- a band is contiguous
+ * in the image, so one put. Rank 0 copies its own bands straight into the
+ * window. docs/gpu.md, "Several GPUs". */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "config.h"
+#include "cuda/cuda_session.h"
+#include "mpi_common.h"
+#include "rt.h"
+
+static int g_local_rank, g_local_size = 1;
+
+static int mpi_cuda_init(int *argc, char ***argv, RtError *err)
+{
+    if (rt_mpi_init(argc, argv, err) != 0)
+        return -1;
+    MPI_Comm node;
+    RT_MPI_CHECK(MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node));
+    RT_MPI_CHECK(MPI_Comm_rank(node, &g_local_rank));
+    RT_MPI_CHECK(MPI_Comm_size(node, &g_local_size));
+    RT_MPI_CHECK(MPI_Comm_free(&node));
+    return 0;
+}
+
+/* (the device as pick_device will choose it; wrapped, in case of --share-gpu) */
+static void mpi_cuda_prewarm(int device) { rt_cuda_prewarm_device(device + g_local_rank, 1); }
+
+/* This rank's device: --device + local rank; with --share-gpu, modulo the GPUs. */
+static int pick_device(const RtRenderJob *job, int *dev, RtError *err)
+{
+    int n = 0;
+    if (rt_cuda_device_count(&n, err) != 0)
+        return -1;
+    const int want = job->device + g_local_rank;
+    if (job->share_gpu) {
+        *dev = want % n;
+        return 0;
+    }
+    if (want >= n)
+        return rt_fail(err,
+                       "mpi-cuda: %d ranks on this node need GPUs %d to %d (--device %d + local rank), but it "
+                       "has %d: one rank per GPU, or --share-gpu to let ranks share them",
+                       g_local_size, job->device, job->device + g_local_size - 1, job->device, n);
+    *dev = want;
+    return 0;
+}
+
+/* What one rank did in a frame. */
+typedef struct Share {
+    double done_ms; /* from the frame's start to its last band's put */
+    int rows;       /* tile rows rendered */
+    int claims;
+    int cpu;        /* the CPU the rank ran on */
+} Share;
+
+static void die_on(int rc, const RtError *err)
+{
+    if (rc == 0)
+        return;
+    /* mid-frame the other ranks are in the claim loop: end them all */
+    fprintf(stderr, "raytrace: rank %d: %s\n", rt_mpi_rank, err->msg);
+    fflush(stderr);
+    MPI_Abort(MPI_COMM_WORLD, 1);
+}
+
+/* One frame: claims of tile rows until none is left. Returns rank 0's time
+ * to the whole image (other ranks: their own end). */
+static double frame(RtCudaSession *s, RtMpiImage *m, float *rgb, int rows, int wave_rows, int row_h, int w,
+                    Share *sh, RtError *err)
+{
+    float *dst = m->direct ? m->img0 : rgb;
+    int64_t seen = 0, first, count;
+    memset(sh, 0, sizeof *sh);
+    die_on(rt_cuda_session_frame(s, err), err);
+    rt_mpi_frame_start(m);
+    const double t0 = rt_now_ms();
+    while ((count = rt_mpi_claim(m, rows, wave_rows, &seen, &first)) > 0) {
+        die_on(rt_cuda_session_rows(s, (int)first, (int)(first + count), dst, err), err);
+        if (!m->direct) {
+            const size_t y0 = (size_t)first * (size_t)row_h;
+            size_t y1 = (size_t)(first + count) * (size_t)row_h;
+            if (y1 > m->npix / (size_t)w)
+                y1 = m->npix / (size_t)w;
+            rt_mpi_put(m, rgb, y0 * (size_t)w * 3, (y1 - y0) * (size_t)w * 3);
+        }
+        sh->rows += (int)count;
+        sh->claims++;
+    }
+    RT_MPI_CHECK(MPI_Win_flush(0, m->win));
+    sh->done_ms = rt_now_ms() - t0;
+    sh->cpu = rt_current_cpu();
+    rt_mpi_frame_end(m);
+    return rt_now_ms() - t0;
+}
+
+/* Warm-up and timed frames as the CUDA backend times launches (rank 0
+ * decides, so every rank renders the same frames). times[] gets rank 0's
+ * frame times, mins[] the earliest rank's end of each. */
+static int frames(const RtRenderJob *job, RtCudaSession *s, RtMpiImage *m, float *rgb, double *times, double *mins,
+                  int max_runs, int *runs, int *warmups, Share *sh, RtError *err)
+{
+    int row_h, wave_rows;
+    const int rows = rt_cuda_session_tile_rows(s, &row_h, &wave_rows);
+    const double warm_ms = job->warmup_runs < 0 && job->warmup_ms < 0.0 ? RT_CUDA_WARMUP_MS : job->warmup_ms;
+    const double t0 = rt_now_ms();
+    *runs = *warmups = 0;
+    for (int n = 0;; n++) {
+        double ms = frame(s, m, rgb, rows, wave_rows, row_h, job->view.cam.width, sh, err), first_end;
+        RT_MPI_CHECK(MPI_Reduce(&sh->done_ms, &first_end, 1, MPI_DOUBLE, MPI_MIN, 0, MPI_COMM_WORLD));
+        int next = 0; /* 0 stop, 1 warm-up, 2 timed */
+        if (rt_mpi_rank == 0) {
+            const int warm = *runs == 0 && rt_warmup_due(job->warmup_runs, warm_ms, n, rt_now_ms() - t0);
+            if (warm) {
+                ++*warmups;
+            } else {
+                times[*runs] = ms;
+                mins[(*runs)++] = first_end;
+            }
+            const int budget = job->runs <= 0 && ms * (*runs + 1) > RT_CUDA_TIME_BUDGET_MS;
+            next = *runs < max_runs && !budget ? 1 : 0;
+        }
+        RT_MPI_CHECK(MPI_Bcast(&next, 1, MPI_INT, 0, MPI_COMM_WORLD));
+        if (job->progress && rt_mpi_rank == 0)
+            job->progress(job->progress_ctx, (uint64_t)(n + 1), (uint64_t)max_runs + 1);
+        if (!next)
+            return 0;
+    }
+}
+
+/* The record's per-rank keys: its GPU, share of the tile rows, claims and
+ * time to its last band in the last frame, ranks separated by '/'; and the
+ * union of the ranks' CPUs (the harness's pinning check). */
+static void rank_keys(RtCudaSession *s, const Share *sh, int rows, RtRenderOut *out)
+{
+    char gpu[64];
+    snprintf(gpu, sizeof gpu, "%s", strchr(rt_cuda_session_gpu(s), '@') + 1);
+    const int P = rt_mpi_size;
+    char *gpus = rt_mpi_rank == 0 ? malloc(sizeof gpu * (size_t)P) : NULL;
+    Share *all = rt_mpi_rank == 0 ? malloc(sizeof *all * (size_t)P) : NULL;
+    if (rt_mpi_rank == 0 && (!gpus || !all))
+        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
+    RT_MPI_CHECK(MPI_Gather(gpu, (int)sizeof gpu, MPI_CHAR, gpus, (int)sizeof gpu, MPI_CHAR, 0, MPI_COMM_WORLD));
+    RT_MPI_CHECK(MPI_Gather(sh, (int)sizeof *sh, MPI_BYTE, all, (int)sizeof *sh, MPI_BYTE, 0, MPI_COMM_WORLD));
+    if (rt_mpi_rank != 0)
+        return;
+    char k_gpu[300] = "", k_share[200] = "", k_claims[120] = "", k_busy[200] = "";
+    size_t a = 0, b = 0, c = 0, d = 0;
+    int distinct = 0;
+    for (int r = 0; r < P; r++) {
+        const char *g = gpus + (size_t)r * sizeof gpu;
+        rt_cores_note(out->cores, sizeof out->cores, all[r].cpu);
+        int seen = 0;
+        for (int q = 0; q < r; q++)
+            seen |= strcmp(g, gpus + (size_t)q * sizeof gpu) == 0;
+        distinct += !seen;
+        const char *sep = r ? "/" : "";
+        if (a < sizeof k_gpu)
+            a += (size_t)snprintf(k_gpu + a, sizeof k_gpu - a, "%s%s", sep, g);
+        if (b < sizeof k_share)
+            b += (size_t)snprintf(k_share + b, sizeof k_share - b, "%s%.3f", sep, (double)all[r].rows / rows);
+        if (c < sizeof k_claims)
+            c += (size_t)snprintf(k_claims + c, sizeof k_claims - c, "%s%d", sep, all[r].claims);
+        if (d < sizeof k_busy)
+            d += (size_t)snprintf(k_busy + d, sizeof k_busy - d, "%s%.3f", sep, all[r].done_ms);
+    }
+    size_t len = strlen(out->extra);
+    snprintf(out->extra + len, sizeof out->extra - len, " gpus=%d rank_gpu=%s rank_share=%s rank_claims=%s rank_end_ms=%s", distinct,
+             k_gpu, k_share, k_claims, k_busy);
+    free(gpus);
+    free(all);
+}
+
+/* Every rank's device and session, agreed on before any frame. */
+static int open_all(const RtRenderJob *job, RtCudaSession **s, RtError *err)
+{
+    RtRenderJob mine = *job;
+    int failed = pick_device(job, &mine.device, err) != 0 || rt_cuda_session_open(&mine, s, err) != 0;
+    if (rt_mpi_agree(failed, err) != 0) {
+        rt_cuda_session_close(*s);
+        *s = NULL;
+        return -1;
+    }
+    return 0;
+}
+
+static int render_mpi_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
+{
+    RtCudaSession *s = NULL;
+    if (open_all(job, &s, err) != 0)
+        return -1;
+    const int max_runs = job->runs > 0 ? job->runs : RT_CUDA_RUNS;
+    double *times = malloc(2 * sizeof *times * (size_t)max_runs);
+    if (!times)
+        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
+    RtMpiImage m;
+    Share sh;
+    int runs, warmups, row_h, wave_rows;
+    const int rows = rt_cuda_session_tile_rows(s, &row_h, &wave_rows);
+    rt_mpi_image_open(&m, (size_t)job->view.cam.width * (size_t)job->view.cam.height, out->rgb);
+    frames(job, s, &m, out->rgb, times, times + max_runs, max_runs, &runs, &warmups, &sh, err);
+    rt_mpi_image_close(&m, out->rgb);
+
+    RtCounters mine, sum;
+    die_on(rt_cuda_session_counters(s, &mine, err), err);
+    _Static_assert(sizeof(RtCounters) == 5 * sizeof(uint64_t), "RtCounters is reduced as 5 uint64");
+    RT_MPI_CHECK(MPI_Reduce(&mine, &sum, 5, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD));
+    if (rt_mpi_rank == 0) {
+        rt_cuda_session_keys(s, out->extra, sizeof out->extra);
+        size_t len = strlen(out->extra);
+        snprintf(out->extra + len, sizeof out->extra - len, " row_h=%d wave_rows=%d frames=%d warmup_frames=%d",
+                 row_h, wave_rows, runs, warmups);
+    }
+    rank_keys(s, &sh, rows, out);
+    out->threads_used = 1;
+    out->ranks_used = rt_mpi_size;
+    out->is_root = rt_mpi_rank == 0;
+    if (out->is_root) {
+        size_t len = strlen(out->extra);
+        snprintf(out->extra + len, sizeof out->extra - len, " gpu=%.60s", rt_cuda_session_gpu(s));
+        out->counters = sum;
+        out->render_ms_min = rt_median(times + max_runs, runs);
+        out->render_ms = rt_median(times, runs); /* (sorts: times[0] is the fastest) */
+        out->render_ms_best = times[0];
+        out->runs = runs;
+        out->warmups = warmups;
+    }
+    free(times);
+    rt_cuda_session_close(s);
+    return 0;
+}
+
+/* times its own runs: the scene stays on each rank's device between frames */
+const RtBackend rt_backend_mpi_cuda = {"mpi-cuda",         NULL, mpi_cuda_init, render_mpi_cuda, rt_mpi_finalize,
+                                       &rt_mpi_collective, 1,    mpi_cuda_prewarm, 1};
