@@ -190,7 +190,7 @@ static int counters_changed(const HxStudy *nw, const HxStudy *base, const HxGrou
 {
     int bad = 0;
     /* GPU images match within a tolerance, not bit for bit (the gate's rule) */
-    int cuda = strcmp(b->backend, "cuda") == 0;
+    int cuda = hx_backend_gpu(b->backend);
     for (int ci = 0; counters[ci]; ci++) {
         if (cuda && strcmp(counters[ci], "image_fnv1a") == 0)
             continue;

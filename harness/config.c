@@ -21,7 +21,7 @@ const char *const hx_dim_col[HX_NDIM] = {
     "scene", "backend", "accel", "resolution", "max_depth", "tile",
     "schedule", "threads", "ranks", "mpi_schedule", "block", "pin"};
 
-static const char *const backends[] = {"serial", "openmp", "mpi", "cuda", NULL};
+static const char *const backends[] = {"serial", "openmp", "mpi", "cuda", "mpi-cuda", NULL};
 static const char *const accels[] = {"none", "bvh", NULL};
 static const char *const schedules[] = {"tiles", "pixels", NULL};
 static const char *const mpi_schedules[] = {"dynamic", "rows", NULL};
@@ -31,20 +31,39 @@ static const char *const pins[] = {"none", "close", "spread", NULL};
  * collapses to "-" for that backend, so `threads: 1 2` next to a serial
  * backend does not produce two identical serial runs that would later look
  * like a (fake) scaling series. */
+int hx_backend_mpi(const char *backend)
+{
+    return strcmp(backend, "mpi") == 0 || strcmp(backend, "mpi-cuda") == 0;
+}
+
+int hx_backend_gpu(const char *backend)
+{
+    return strcmp(backend, "cuda") == 0 || strcmp(backend, "mpi-cuda") == 0;
+}
+
+int hx_config_has(const HxConfig *cfg, int (*pred)(const char *))
+{
+    for (size_t i = 0; i < cfg->dim[HX_DIM_BACKEND].n; i++)
+        if (pred(cfg->dim[HX_DIM_BACKEND].v[i]))
+            return 1;
+    return 0;
+}
+
 int hx_dim_applies(int dim, const char *backend)
 {
     switch (dim) {
     case HX_DIM_TILE:
-        return strcmp(backend, "cuda") != 0;
+        return !hx_backend_gpu(backend);
     case HX_DIM_SCHEDULE:
         return strcmp(backend, "openmp") == 0;
     case HX_DIM_THREADS: /* openmp; with mpi: threads per rank (hybrid) */
         return strcmp(backend, "openmp") == 0 || strcmp(backend, "mpi") == 0;
-    case HX_DIM_RANKS:
+    case HX_DIM_RANKS: /* mpi-cuda: one rank per GPU */
+        return hx_backend_mpi(backend);
     case HX_DIM_MPI_SCHEDULE:
         return strcmp(backend, "mpi") == 0;
     case HX_DIM_BLOCK:
-        return strcmp(backend, "cuda") == 0;
+        return hx_backend_gpu(backend);
     default:
         return 1;
     }
@@ -598,7 +617,7 @@ static void push_run(HxPlan *plan, size_t *cap, const HxConfig *cfg,
     long w = 1, t = 1;
     if (strcmp(v[HX_DIM_THREADS], "-") != 0)
         hx_parse_int(v[HX_DIM_THREADS], 1, 4096, &w);
-    if (strcmp(v[HX_DIM_BACKEND], "mpi") == 0 && strcmp(v[HX_DIM_RANKS], "-") != 0)
+    if (hx_backend_mpi(v[HX_DIM_BACKEND]) && strcmp(v[HX_DIM_RANKS], "-") != 0)
         hx_parse_int(v[HX_DIM_RANKS], 1, 4096, &t);
     r->workers = (int)(w * t);
     r->config_id = hx_make_config_id(v);

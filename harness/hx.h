@@ -160,6 +160,12 @@ int hx_config_open(const char *path, HxConfig *cfg);
 int hx_launcher_parse(const char *name, HxLauncher *out);
 const char *hx_launcher_name(HxLauncher l);
 int hx_dim_applies(int dim, const char *backend);
+/* Backends started as MPI ranks (mpi, mpi-cuda); backends on GPUs (cuda,
+ * mpi-cuda: images checked against a tolerance, not bit for bit). */
+int hx_backend_mpi(const char *backend);
+int hx_backend_gpu(const char *backend);
+/* Whether any backend of the config is one of those. */
+int hx_config_has(const HxConfig *cfg, int (*pred)(const char *));
 int hx_expand(const HxConfig *cfg, HxPlan *plan);
 void hx_plan_free(HxPlan *plan);
 char *hx_make_config_id(const char *const v[HX_NDIM]);
@@ -175,6 +181,12 @@ typedef struct {
     int *core_os;       /* OS id of the first PU of each core, close order */
     char **core_pus;    /* "0" or "0,36": every PU of the core */
     int *spread_order;  /* core indices round-robin across packages */
+    int *core_pkg;      /* package of each core, and its index within it */
+    int *core_in_pkg;   /* (Open MPI's rankfile names a core as pkg:core) */
+    int ngpus;          /* NVIDIA GPUs on PCI (hwloc), in bus order: CUDA's */
+    char **gpu_bus;     /* order under CUDA_DEVICE_ORDER=PCI_BUS_ID */
+    int **gpu_cores;    /* the cores nearest each GPU (its NUMA node's) */
+    int *gpu_ncores;
     void *topo;         /* hwloc_topology_t */
 } HxTopo;
 
@@ -182,6 +194,9 @@ int hx_topo_load(HxTopo *t);
 void hx_topo_free(HxTopo *t);
 /* Plans cores for every run; prints a warning per run over the machine. */
 void hx_plan_cores(const HxTopo *t, const HxConfig *cfg, HxPlan *plan);
+/* Open MPI rankfile text placing rank w on the run's core w ("rank 0=localhost
+ * slot=0:3" ...; malloc'd), or NULL when the run has no planned cores. */
+char *hx_rankfile(const HxTopo *t, const HxRun *r);
 /* In the forked child, before exec: bind to the run's cores. */
 int hx_bind_child(const HxTopo *t, const HxRun *r);
 void hx_topo_print(const HxTopo *t, FILE *out);

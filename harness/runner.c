@@ -314,13 +314,32 @@ static void resolve_scene_cache(HxConfig *cfg)
     cfg->scene_cache = hx_strdup(buf);
 }
 
+/* The run's rankfile beside its image; argv gets --rankfile FILE. 0, or -1
+ * (the caller maps ranks itself). Takes rf. */
+static int write_rankfile(const char *image, char *rf, Command *c)
+{
+    HxBuf path = {0};
+    hx_buf_printf(&path, "%s.rankfile", image);
+    FILE *f = fopen(path.s, "w");
+    int bad = !f || fputs(rf, f) == EOF;
+    if (f)
+        bad |= fclose(f) != 0;
+    free(rf);
+    if (!bad) {
+        hx_strlist_push(&c->argv, "--rankfile");
+        hx_strlist_push(&c->argv, path.s);
+    }
+    hx_buf_free(&path);
+    return bad ? -1 : 0;
+}
+
 static void build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r,
                           const char *raytrace, const char *image, Command *c)
 {
     memset(c, 0, sizeof *c);
     const char *cache_dir = strcmp(cfg->scene_cache, "off") == 0 ? NULL : cfg->scene_cache;
     const char *be = r->v[HX_DIM_BACKEND];
-    int is_mpi = strcmp(be, "mpi") == 0;
+    int is_mpi = hx_backend_mpi(be);
     int pinned = strcmp(r->v[HX_DIM_PIN], "none") != 0;
     if (is_mpi && cfg->launcher == HX_LAUNCHER_SRUN) {
         /* Inside a Slurm allocation srun places and binds the ranks: each
@@ -341,6 +360,10 @@ static void build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *
         hx_buf_free(&a);
         hx_strlist_push(&c->argv, pinned ? "--cpu-bind=cores" : "--cpu-bind=none");
         hx_strlist_push(&c->argv, "--distribution=block:block");
+        if (hx_backend_gpu(be)) { /* a GPU per rank, the one nearest its cores */
+            hx_strlist_push(&c->argv, "--gpus-per-task=1");
+            hx_strlist_push(&c->argv, "--gpu-bind=closest");
+        }
         /* without it srun refuses (or waits for) more CPUs than allocated */
         if (r->oversubscribed)
             hx_strlist_push(&c->argv, "--overcommit");
@@ -365,7 +388,10 @@ static void build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *
         hx_strlist_push(&c->argv, "--bind-to");
         hx_strlist_push(&c->argv, !pinned ? "none"
                                           : r->oversubscribed ? "core:overload-allowed" : "core");
-        if (pinned) {
+        char *rf = pinned && hx_backend_gpu(be) && topo->ngpus > 0 ? hx_rankfile(topo, r) : NULL;
+        if (rf && write_rankfile(image, rf, c) == 0) {
+            /* each rank on the core planned next to its GPU (topo.c) */
+        } else if (pinned) {
             /* hybrid runs: PE=T gives each rank T consecutive cores */
             HxBuf m = {0};
             int spread = strcmp(r->v[HX_DIM_PIN], "spread") == 0;
@@ -387,6 +413,11 @@ static void build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *
         }
     } else {
         c->bind = pinned;
+    }
+    if (hx_backend_gpu(be)) {
+        /* CUDA numbers the GPUs as hwloc walks the bus (topo.c's plan) */
+        hx_strlist_push(&c->env, "CUDA_DEVICE_ORDER");
+        hx_strlist_push(&c->env, "PCI_BUS_ID");
     }
     if (cfg->instructions) {
         /* cachegrind without its cache model: the exact instruction count
@@ -554,7 +585,7 @@ static const char *gate(RefTable *t, const char *key, const char *backend,
     if (!hash || !*hash)
         return "ok";
     int serial = strcmp(backend, "serial") == 0;
-    int cuda = strcmp(backend, "cuda") == 0;
+    int cuda = hx_backend_gpu(backend);
     ImageRef *r = ref_find(t, key);
     if (!r || (!r->serial && serial)) {
         if (!r && !cuda) {
@@ -804,7 +835,7 @@ static const char *const stat_names[6] = {"ok", "wrong-image", "timeout", "crash
 static char **row_head(const Study *st, const HxRun *r)
 {
     const HxFingerprint *fp = &st->fp;
-    int cuda = strcmp(r->v[HX_DIM_BACKEND], "cuda") == 0;
+    int cuda = hx_backend_gpu(r->v[HX_DIM_BACKEND]);
     char **vals = calloc((size_t)hx_ncolumns, sizeof *vals);
     char utc[32];
     hx_utc_now(utc, sizeof utc);
@@ -1154,8 +1185,8 @@ static int study_open(Study *st, int resume, int overwrite)
     st->tmpdir = t.s;
     st->image = hx_path_join(st->tmpdir, "image.ppm");
     install_stop_handlers();
-    int want_gpu = hx_strlist_find(&st->cfg.dim[HX_DIM_BACKEND], "cuda") >= 0;
-    st->want_mpi = hx_strlist_find(&st->cfg.dim[HX_DIM_BACKEND], "mpi") >= 0;
+    int want_gpu = hx_config_has(&st->cfg, hx_backend_gpu);
+    st->want_mpi = hx_config_has(&st->cfg, hx_backend_mpi);
     /* the MPI library is mpirun's, whichever launcher starts the ranks */
     hx_fingerprint_get(&st->fp, &st->topo, want_gpu, st->raytrace, st->want_mpi ? st->cfg.mpirun : NULL,
                        st->out_path);

@@ -132,6 +132,7 @@ typedef struct {
 typedef struct {
     long ntasks, cpus;
     size_t nmpi;     /* MPI runs (launched with srun) */
+    size_t ngpu;     /* mpi-cuda runs: a GPU per task */
     size_t nrows;    /* CSV rows of the whole study: every run but warm-ups */
 } Sizing;
 
@@ -216,6 +217,10 @@ static void make_script(HxBuf *b, const HxConfig *cfg, const HxPlan *plan, const
                 : "# The largest thread count in the plan (threads per rank with MPI): each\n"
                   "# rank gets that many cores for its OpenMP threads.\n",
         sz->cpus, o->time_limit);
+    if (sz->ngpu)
+        hx_buf_printf(b, "# mpi-cuda runs: one GPU per task (rank), the GPU nearest the task's cores;\n"
+                         "# each rank then sees only its own GPU (docs/gpu.md, \"Several GPUs\").\n"
+                         "#SBATCH --gpus-per-task=1\n#SBATCH --gpu-bind=closest\n");
     if (o->partition)
         hx_buf_printf(b, "# Partition (queue) to run in.\n#SBATCH --partition=%s\n", o->partition);
     if (o->account)
@@ -549,8 +554,9 @@ static void size_plan(const HxPlan *plan, const SlurmOpts *o, Sizing *sz)
         const HxRun *r = &plan->runs[i];
         long v;
         sz->nrows += !r->warmup;
-        if (strcmp(r->v[HX_DIM_BACKEND], "mpi") == 0) {
+        if (hx_backend_mpi(r->v[HX_DIM_BACKEND])) {
             sz->nmpi++;
+            sz->ngpu += hx_backend_gpu(r->v[HX_DIM_BACKEND]);
             if (strcmp(r->v[HX_DIM_RANKS], "-") != 0 &&
                 hx_parse_int(r->v[HX_DIM_RANKS], 1, 4096, &v) == 0 && v > sz->ntasks)
                 sz->ntasks = v;

@@ -36,7 +36,7 @@ static int dim_int(const HxCsv *csv, size_t r, int d)
 static void group_series(HxGroup *g, const HxCsv *csv, size_t r, const int *varies)
 {
     int swept = strcmp(g->backend, "openmp") == 0 ? HX_DIM_THREADS
-              : strcmp(g->backend, "mpi") == 0    ? HX_DIM_RANKS
+              : hx_backend_mpi(g->backend)        ? HX_DIM_RANKS
                                                   : -2;
     g->series_id = row_config_id(csv, r, swept);
     g->axis = swept >= 0 ? dim_int(csv, r, swept) : 1;
@@ -211,7 +211,7 @@ static void mark_wrong_rows(HxStudy *s)
             continue;
         const char *be = hx_csv_get(csv, r, "backend");
         const char *hash = hx_csv_get(csv, r, "image_fnv1a");
-        if (!*hash || strcmp(be, "cuda") == 0)
+        if (!*hash || hx_backend_gpu(be))
             continue;
         HxBuf k = {0};
         hx_buf_printf(&k, "%s|%s|%s", hx_csv_get(csv, r, "scene_path"),
@@ -238,7 +238,7 @@ static void mark_wrong_rows(HxStudy *s)
         const char *st = hx_csv_get(csv, r, "status");
         if (strcmp(st, "wrong-image") == 0) {
             s->row_status_wrong[r] = 1;
-        } else if (strcmp(st, "ok") == 0 && strcmp(hx_csv_get(csv, r, "backend"), "cuda") != 0) {
+        } else if (strcmp(st, "ok") == 0 && !hx_backend_gpu(hx_csv_get(csv, r, "backend"))) {
             HxBuf k = {0};
             hx_buf_printf(&k, "%s|%s|%s", hx_csv_get(csv, r, "scene_path"),
                           hx_csv_get(csv, r, "resolution"), hx_csv_get(csv, r, "max_depth"));

@@ -1,5 +1,10 @@
 /* topo.c: machine topology (hwloc) and the placement of each run's workers.
  *
+ * GPU backends: worker (rank) w drives GPU w mod G (mpi-cuda's device rule
+ * under CUDA_DEVICE_ORDER=PCI_BUS_ID), so it is placed on a free core of
+ * that GPU's NUMA node (hwloc's PCI locality), as close as the machine
+ * allows to the GPU's PCIe root.
+ *
  * Policies: `close` fills physical cores in hwloc's logical order; `spread`
  * takes cores round-robin across packages (the same order as Open MPI's
  * `--map-by socket`), so two threads on a two-socket machine land on two
@@ -20,19 +25,58 @@
 #include <hwloc.h>
 #endif
 
+#if HAVE_HWLOC
+/* NVIDIA GPUs (PCI vendor 0x10de, class display/3D) in bus order, each with
+ * the cores of its nearest non-I/O ancestor (its NUMA node or package). */
+static void topo_gpus(HxTopo *t)
+{
+    hwloc_topology_t topo = (hwloc_topology_t)t->topo;
+    hwloc_obj_type_t ct = hwloc_get_nbobjs_by_type(topo, HWLOC_OBJ_CORE) > 0 ? HWLOC_OBJ_CORE : HWLOC_OBJ_PU;
+    for (hwloc_obj_t d = hwloc_get_next_pcidev(topo, NULL); d; d = hwloc_get_next_pcidev(topo, d)) {
+        const struct hwloc_pcidev_attr_s *a = &d->attr->pcidev;
+        if (a->vendor_id != 0x10de || (a->class_id >> 8) != 0x03)
+            continue;
+        hwloc_obj_t near = hwloc_get_non_io_ancestor_obj(topo, d);
+        int g = t->ngpus++;
+        t->gpu_bus = hx_xrealloc(t->gpu_bus, (size_t)t->ngpus * sizeof *t->gpu_bus);
+        t->gpu_cores = hx_xrealloc(t->gpu_cores, (size_t)t->ngpus * sizeof *t->gpu_cores);
+        t->gpu_ncores = hx_xrealloc(t->gpu_ncores, (size_t)t->ngpus * sizeof *t->gpu_ncores);
+        HxBuf b = {0};
+        hx_buf_printf(&b, "%04x:%02x:%02x.%x", a->domain, a->bus, a->dev, a->func);
+        t->gpu_bus[g] = b.s;
+        t->gpu_cores[g] = hx_xmalloc((size_t)t->ncores * sizeof(int));
+        t->gpu_ncores[g] = 0;
+        for (int i = 0; i < t->ncores; i++) {
+            hwloc_obj_t c = hwloc_get_obj_by_type(topo, ct, (unsigned)i);
+            if (c && near && hwloc_bitmap_intersects(c->cpuset, near->cpuset))
+                t->gpu_cores[g][t->gpu_ncores[g]++] = i;
+        }
+    }
+    /* bus order (hwloc's walk follows the PCI tree, not the bus numbers) */
+    for (int i = 1; i < t->ngpus; i++)
+        for (int j = i; j > 0 && strcmp(t->gpu_bus[j], t->gpu_bus[j - 1]) < 0; j--) {
+            char *s = t->gpu_bus[j]; t->gpu_bus[j] = t->gpu_bus[j - 1]; t->gpu_bus[j - 1] = s;
+            int *c = t->gpu_cores[j]; t->gpu_cores[j] = t->gpu_cores[j - 1]; t->gpu_cores[j - 1] = c;
+            int n = t->gpu_ncores[j]; t->gpu_ncores[j] = t->gpu_ncores[j - 1]; t->gpu_ncores[j - 1] = n;
+        }
+}
+#endif
+
 int hx_topo_load(HxTopo *t)
 {
     memset(t, 0, sizeof *t);
 #if HAVE_HWLOC
     hwloc_topology_t topo;
-    if (hwloc_topology_init(&topo) == 0 && hwloc_topology_load(topo) == 0) {
+    if (hwloc_topology_init(&topo) == 0 &&
+        hwloc_topology_set_io_types_filter(topo, HWLOC_TYPE_FILTER_KEEP_IMPORTANT) == 0 &&
+        hwloc_topology_load(topo) == 0) {
         /* Only the CPUs this process may use (taskset, a Slurm allocation,
          * a cgroup): every count and every planned core comes from them. */
         hwloc_bitmap_t allowed = hwloc_bitmap_alloc();
         if (allowed && hwloc_get_cpubind(topo, allowed, HWLOC_CPUBIND_PROCESS) == 0 &&
             !hwloc_bitmap_iszero(allowed) &&
             !hwloc_bitmap_isincluded(hwloc_topology_get_topology_cpuset(topo), allowed))
-            t->restricted = hwloc_topology_restrict(topo, allowed, 0) == 0;
+            t->restricted = hwloc_topology_restrict(topo, allowed, HWLOC_RESTRICT_FLAG_ADAPT_IO) == 0;
         hwloc_bitmap_free(allowed);
         t->topo = topo;
         t->have_hwloc = 1;
@@ -46,7 +90,8 @@ int hx_topo_load(HxTopo *t)
             t->npackages = 1;
         t->core_os = hx_xmalloc((size_t)t->ncores * sizeof(int));
         t->core_pus = hx_xmalloc((size_t)t->ncores * sizeof(char *));
-        int *pkg = hx_xmalloc((size_t)t->ncores * sizeof(int));
+        int *pkg = t->core_pkg = hx_xmalloc((size_t)t->ncores * sizeof(int));
+        t->core_in_pkg = hx_xmalloc((size_t)t->ncores * sizeof(int));
         hwloc_obj_type_t ct = hwloc_get_nbobjs_by_type(topo, HWLOC_OBJ_CORE) > 0
                                   ? HWLOC_OBJ_CORE : HWLOC_OBJ_PU;
         for (int i = 0; i < t->ncores; i++) {
@@ -63,6 +108,9 @@ int hx_topo_load(HxTopo *t)
             t->core_pus[i] = b.s ? b.s : hx_strdup("?");
             hwloc_obj_t p = hwloc_get_ancestor_obj_by_type(topo, HWLOC_OBJ_PACKAGE, c);
             pkg[i] = p ? (int)p->logical_index : 0;
+            t->core_in_pkg[i] = 0;
+            for (int k = 0; k < i; k++)
+                t->core_in_pkg[i] += pkg[k] == pkg[i];
         }
         /* spread order: i-th core of each package in turn */
         t->spread_order = hx_xmalloc((size_t)t->ncores * sizeof(int));
@@ -82,7 +130,7 @@ int hx_topo_load(HxTopo *t)
             if (round > t->ncores)
                 break;
         }
-        free(pkg);
+        topo_gpus(t);
         return 0;
     }
 #endif
@@ -103,8 +151,12 @@ int hx_topo_load(HxTopo *t)
     t->core_os = hx_xmalloc((size_t)t->ncores * sizeof(int));
     t->core_pus = hx_xmalloc((size_t)t->ncores * sizeof(char *));
     t->spread_order = hx_xmalloc((size_t)t->ncores * sizeof(int));
+    t->core_pkg = hx_xmalloc((size_t)t->ncores * sizeof(int));
+    t->core_in_pkg = hx_xmalloc((size_t)t->ncores * sizeof(int));
     for (int i = 0; i < t->ncores; i++) {
         char b[16];
+        t->core_pkg[i] = 0;
+        t->core_in_pkg[i] = i;
         snprintf(b, sizeof b, "%d", ids[i]);
         t->core_os[i] = ids[i];
         t->core_pus[i] = hx_strdup(b);
@@ -124,6 +176,15 @@ void hx_topo_free(HxTopo *t)
     free(t->core_pus);
     free(t->core_os);
     free(t->spread_order);
+    free(t->core_pkg);
+    free(t->core_in_pkg);
+    for (int g = 0; g < t->ngpus; g++) {
+        free(t->gpu_bus[g]);
+        free(t->gpu_cores[g]);
+    }
+    free(t->gpu_bus);
+    free(t->gpu_cores);
+    free(t->gpu_ncores);
     memset(t, 0, sizeof *t);
 }
 
@@ -133,6 +194,36 @@ static int slurm_nodes(void)
     const char *s = getenv("SLURM_JOB_NUM_NODES");
     long n;
     return s && hx_parse_int(s, 1, 1000000, &n) == 0 ? (int)n : 1;
+}
+
+/* Worker w of a GPU run (cores[0..w) placed): the first free core near GPU
+ * w mod G, else the first free core, else (oversubscribed) core w mod N. */
+static int gpu_core(const HxTopo *t, int w, const int *cores)
+{
+    const int g = w % t->ngpus;
+    for (int pass = 0; pass < 2; pass++) {
+        const int n = pass == 0 ? t->gpu_ncores[g] : t->ncores;
+        for (int k = 0; k < n; k++) {
+            const int c = pass == 0 ? t->gpu_cores[g][k] : k;
+            int used = 0;
+            for (int v = 0; v < w; v++)
+                used |= cores[v] == c;
+            if (!used)
+                return c;
+        }
+    }
+    return w % t->ncores;
+}
+
+char *hx_rankfile(const HxTopo *t, const HxRun *r)
+{
+    if (r->ncores == 0)
+        return NULL;
+    HxBuf b = {0};
+    for (int w = 0; w < r->ncores; w++)
+        hx_buf_printf(&b, "rank %d=localhost slot=%d:%d\n", w, t->core_pkg[r->cores[w]],
+                      t->core_in_pkg[r->cores[w]]);
+    return b.s;
 }
 
 void hx_plan_cores(const HxTopo *t, const HxConfig *cfg, HxPlan *plan)
@@ -147,7 +238,7 @@ void hx_plan_cores(const HxTopo *t, const HxConfig *cfg, HxPlan *plan)
         /* srun spreads an MPI run over every node of the job; the harness
          * only sees the first one, so it assumes the nodes are alike (whole
          * nodes of one partition, as `harness slurm` asks for). */
-        int span = strcmp(r->v[HX_DIM_BACKEND], "mpi") == 0 ? nodes : 1;
+        int span = hx_backend_mpi(r->v[HX_DIM_BACKEND]) ? nodes : 1;
         r->oversubscribed = r->workers > t->ncores * span;
         r->refused = r->oversubscribed && !cfg->oversubscribe_allow;
         /* Cores on other nodes cannot be named here, and raytrace's cores=
@@ -157,13 +248,14 @@ void hx_plan_cores(const HxTopo *t, const HxConfig *cfg, HxPlan *plan)
             continue;
         }
         int spread = strcmp(r->v[HX_DIM_PIN], "spread") == 0;
+        int gpu = hx_backend_gpu(r->v[HX_DIM_BACKEND]) && t->ngpus > 0;
         r->ncores = r->workers;
         r->cores = hx_xmalloc((size_t)r->workers * sizeof(int));
         HxBuf b = {0};
         for (int w = 0; w < r->workers; w++) {
             /* oversubscribed: wrap around, two workers per core */
             int k = w % t->ncores;
-            int c = spread ? t->spread_order[k] : k;
+            int c = gpu ? gpu_core(t, w, r->cores) : spread ? t->spread_order[k] : k;
             r->cores[w] = c;
             hx_buf_printf(&b, "%s%d", w ? "," : "", t->core_os[c]);
         }
@@ -244,6 +336,12 @@ void hx_topo_print(const HxTopo *t, FILE *out)
     for (int i = 0; i < t->ncores; i++)
         fprintf(out, " %d", t->spread_order[i]);
     fputc('\n', out);
+    for (int g = 0; g < t->ngpus; g++) {
+        fprintf(out, "GPU %d (PCI %s), nearest cores:", g, t->gpu_bus[g]);
+        for (int k = 0; k < t->gpu_ncores[g]; k++)
+            fprintf(out, " %d", t->gpu_cores[g][k]);
+        fputc('\n', out);
+    }
 }
 
 /* ---- `harness topo [CONFIG]` ---- */

@@ -112,6 +112,15 @@ printf 'scenes: ok\nscene_dir: %s\nbackend: openmp\nthreads: 1 8\n' "$T" > "$T/o
 "$H" slurm "$T/omp.conf" > "$T/omp.sh" || fail "slurm on an OpenMP study"
 grep -q -x -- '#SBATCH --ntasks=1' "$T/omp.sh" && grep -q -x -- '#SBATCH --cpus-per-task=8' "$T/omp.sh" \
   || fail "OpenMP-only sizing"
+# a GPU per rank: the script asks Slurm for one per task, srun binds it
+printf 'study: gpus\nscenes: ok\nscene_dir: %s\nbackend: mpi-cuda\nranks: 1 2\nraytrace: %s\n' "$T" "$FAKE" > "$T/gpu.conf"
+"$H" slurm "$T/gpu.conf" > "$T/gpu.sh" || fail "slurm on an mpi-cuda study"
+for l in '#SBATCH --gpus-per-task=1' '#SBATCH --gpu-bind=closest' '#SBATCH --ntasks=2'; do
+  grep -q -x -F -- "$l" "$T/gpu.sh" || { cat "$T/gpu.sh"; fail "mpi-cuda script lacks: $l"; }
+done
+bash -n "$T/gpu.sh" || fail "bash -n rejects the mpi-cuda script"
+"$H" run "$T/gpu.conf" --dry-run --launcher srun > "$T/dry-g" 2>/dev/null || fail "mpi-cuda dry-run failed"
+has "$T/dry-g" "CUDA_DEVICE_ORDER=PCI_BUS_ID srun --ntasks=2 --cpus-per-task=1 --cpu-bind=cores --distribution=block:block --gpus-per-task=1 --gpu-bind=closest $FAKE --backend mpi-cuda "
 # bad options: one line naming the option, exit 1
 bad() {
   want=$1; shift

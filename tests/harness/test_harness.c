@@ -151,6 +151,63 @@ static void test_config(void)
     hx_config_free(&cfg);
 }
 
+/* GPU backends: mpi-cuda sweeps ranks and blocks, not threads or tiles; each
+ * rank goes to a free core next to its GPU (rank w: GPU w mod 2), and the
+ * rankfile names those cores as package:core. Fake machine: 2 packages of 2
+ * cores, GPU 0 on package 1, GPU 1 on package 0. */
+static void test_expand_gpus(void)
+{
+    HxConfig cfg;
+    HxPlan plan;
+    char err[512];
+    int rc = parse("scenes: a\nbackend: mpi-cuda cuda\nranks: 1 3\nthreads: 2\ntile: 8x8\nblock: 8x8\n"
+                   "repeats: 1\n", &cfg, err, sizeof err);
+    CHECK(rc == 0);
+    hx_expand(&cfg, &plan);
+    CHECK(plan.n == 3);
+    HxTopo t;
+    memset(&t, 0, sizeof t);
+    t.ncores = t.npus = 4;
+    t.npackages = 2;
+    int os[4] = {0, 1, 2, 3}, order[4] = {0, 2, 1, 3}, pkg[4] = {0, 0, 1, 1}, inpkg[4] = {0, 1, 0, 1};
+    int near0[2] = {2, 3}, near1[2] = {0, 1}, *near[2] = {near0, near1}, nnear[2] = {2, 2};
+    char *pus[4] = {"0", "1", "2", "3"}, *bus[2] = {"0000:19:00.0", "0000:3b:00.0"};
+    t.core_os = os;
+    t.spread_order = order;
+    t.core_pus = pus;
+    t.core_pkg = pkg;
+    t.core_in_pkg = inpkg;
+    t.ngpus = 2;
+    t.gpu_bus = bus;
+    t.gpu_cores = near;
+    t.gpu_ncores = nnear;
+    hx_plan_cores(&t, &cfg, &plan);
+    int seen = 0;
+    for (size_t i = 0; i < plan.n; i++) {
+        const HxRun *r = &plan.runs[i];
+        CHECK_STR(r->v[HX_DIM_THREADS], "-");
+        CHECK_STR(r->v[HX_DIM_TILE], "-");
+        CHECK_STR(r->v[HX_DIM_BLOCK], "8x8");
+        if (strcmp(r->v[HX_DIM_BACKEND], "cuda") == 0) {
+            CHECK_STR(r->v[HX_DIM_RANKS], "-");
+            CHECK_STR(r->cores_planned, "2");
+            seen |= 1;
+        } else if (strcmp(r->v[HX_DIM_RANKS], "3") == 0) {
+            CHECK(r->workers == 3);
+            CHECK_STR(r->cores_planned, "2,0,3");
+            char *rf = hx_rankfile(&t, r);
+            CHECK(rf && strcmp(rf, "rank 0=localhost slot=1:0\nrank 1=localhost slot=0:0\n"
+                                   "rank 2=localhost slot=1:1\n") == 0);
+            free(rf);
+            seen |= 2;
+        }
+    }
+    CHECK(seen == 3);
+    CHECK(hx_backend_mpi("mpi-cuda") && hx_backend_gpu("mpi-cuda") && !hx_backend_gpu("mpi"));
+    hx_plan_free(&plan);
+    hx_config_free(&cfg);
+}
+
 static void test_expand(void)
 {
     HxConfig cfg;
@@ -234,6 +291,7 @@ static void test_expand(void)
     unsetenv("SLURM_JOB_NUM_NODES");
     hx_plan_free(&plan);
     hx_config_free(&cfg);
+    test_expand_gpus();
 }
 
 static void test_stats(void)
