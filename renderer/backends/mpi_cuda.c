@@ -2,8 +2,9 @@
  *
  * One rank per GPU: a rank's device is --device plus its rank on its node
  * (MPI_COMM_TYPE_SHARED, which is what the launcher's local rank numbers),
- * among the devices CUDA_VISIBLE_DEVICES leaves it. More ranks on a node
- * than GPUs is an error unless --share-gpu lets them take turns.
+ * modulo the devices CUDA_VISIBLE_DEVICES leaves it. Two ranks of a node on
+ * one physical GPU (the same PCI bus id) is an error unless --share-gpu lets
+ * them take turns.
  *
  * Each rank opens a CUDA session (cuda_session.h: the device, the plan for
  * the whole image, the scene uploaded once). The frame is handed out as in
@@ -23,45 +24,68 @@
 #include "rt.h"
 
 static int g_local_rank, g_local_size = 1;
+static MPI_Comm g_node = MPI_COMM_NULL; /* the ranks on this rank's node */
 
 static int mpi_cuda_init(int *argc, char ***argv, RtError *err)
 {
     if (rt_mpi_init(argc, argv, err) != 0)
         return -1;
-    MPI_Comm node;
-    RT_MPI_CHECK(MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node));
-    RT_MPI_CHECK(MPI_Comm_rank(node, &g_local_rank));
-    RT_MPI_CHECK(MPI_Comm_size(node, &g_local_size));
-    RT_MPI_CHECK(MPI_Comm_free(&node));
+    RT_MPI_CHECK(MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &g_node));
+    RT_MPI_CHECK(MPI_Comm_rank(g_node, &g_local_rank));
+    RT_MPI_CHECK(MPI_Comm_size(g_node, &g_local_size));
     return 0;
 }
 
-/* (the device as pick_device will choose it; wrapped, in case of --share-gpu) */
+static void mpi_cuda_finalize(void)
+{
+    if (g_node != MPI_COMM_NULL)
+        MPI_Comm_free(&g_node);
+    rt_mpi_finalize();
+}
+
+/* (the device as pick_device will choose it) */
 static void mpi_cuda_prewarm(int device) { rt_cuda_prewarm_device(device + g_local_rank, 1); }
 
-/* This rank's device: --device + local rank; with --share-gpu, modulo the GPUs. */
-static int pick_device(const RtRenderJob *job, int *dev, RtError *err)
+/* This rank's device: --device + local rank, modulo the GPUs it sees (under
+ * Slurm's --gpus-per-task each rank sees only its own: device 0). */
+static int pick_device(const RtRenderJob *job, int *dev, char *bus, size_t size, RtError *err)
 {
     int n = 0;
     if (rt_cuda_device_count(&n, err) != 0)
         return -1;
-    const int want = job->device + g_local_rank;
-    if (job->share_gpu) {
-        *dev = want % n;
-        return 0;
-    }
-    if (want >= n)
-        return rt_fail(err,
-                       "mpi-cuda: %d ranks on this node need GPUs %d to %d (--device %d + local rank), but it "
-                       "has %d: one rank per GPU, or --share-gpu to let ranks share them",
-                       g_local_size, job->device, job->device + g_local_size - 1, job->device, n);
-    *dev = want;
-    return 0;
+    if (job->device >= n)
+        return rt_fail(err, "mpi-cuda: --device %d: this node has %d CUDA device(s), numbered 0 to %d", job->device,
+                       n, n - 1);
+    *dev = (job->device + g_local_rank) % n;
+    return rt_cuda_device_bus(*dev, bus, size, err);
+}
+
+/* One rank per GPU: collective over the node; fails on a rank whose GPU a
+ * lower local rank has too, unless --share-gpu. */
+static int check_one_per_gpu(const RtRenderJob *job, const char *bus, RtError *err)
+{
+    enum { BUS = 32 };
+    char *all = malloc((size_t)BUS * (size_t)g_local_size);
+    if (!all)
+        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
+    char mine[BUS];
+    snprintf(mine, sizeof mine, "%s", bus);
+    RT_MPI_CHECK(MPI_Allgather(mine, BUS, MPI_CHAR, all, BUS, MPI_CHAR, g_node));
+    int rc = 0;
+    for (int q = 0; q < g_local_rank && !job->share_gpu && !rc && *mine; q++)
+        if (strcmp(all + (size_t)q * BUS, mine) == 0)
+            rc = rt_fail(err,
+                         "mpi-cuda: local ranks %d and %d would both drive GPU %s (%d ranks on this node): one "
+                         "rank per GPU, or --share-gpu to let ranks share them",
+                         q, g_local_rank, mine, g_local_size);
+    free(all);
+    return rc;
 }
 
 /* What one rank did in a frame. */
 typedef struct Share {
     double done_ms; /* from the frame's start to its last band's put */
+    double claim_ms, band_ms, put_ms; /* in claims, in bands (kernel and copy down), in puts */
     int rows;       /* tile rows rendered */
     int claims;
     int cpu;        /* the CPU the rank ran on */
@@ -88,8 +112,16 @@ static double frame(RtCudaSession *s, RtMpiImage *m, float *rgb, int rows, int w
     die_on(rt_cuda_session_frame(s, err), err);
     rt_mpi_frame_start(m);
     const double t0 = rt_now_ms();
-    while ((count = rt_mpi_claim(m, rows, wave_rows, &seen, &first)) > 0) {
+    for (;;) {
+        double t = rt_now_ms();
+        count = rt_mpi_claim(m, rows, wave_rows, &seen, &first);
+        sh->claim_ms += rt_now_ms() - t;
+        if (count == 0)
+            break;
+        t = rt_now_ms();
         die_on(rt_cuda_session_rows(s, (int)first, (int)(first + count), dst, err), err);
+        sh->band_ms += rt_now_ms() - t;
+        t = rt_now_ms();
         if (!m->direct) {
             const size_t y0 = (size_t)first * (size_t)row_h;
             size_t y1 = (size_t)(first + count) * (size_t)row_h;
@@ -97,10 +129,13 @@ static double frame(RtCudaSession *s, RtMpiImage *m, float *rgb, int rows, int w
                 y1 = m->npix / (size_t)w;
             rt_mpi_put(m, rgb, y0 * (size_t)w * 3, (y1 - y0) * (size_t)w * 3);
         }
+        sh->put_ms += rt_now_ms() - t;
         sh->rows += (int)count;
         sh->claims++;
     }
+    const double tf = rt_now_ms();
     RT_MPI_CHECK(MPI_Win_flush(0, m->win));
+    sh->put_ms += rt_now_ms() - tf;
     sh->done_ms = rt_now_ms() - t0;
     sh->cpu = rt_current_cpu();
     rt_mpi_frame_end(m);
@@ -157,9 +192,11 @@ static void rank_keys(RtCudaSession *s, const Share *sh, int rows, RtRenderOut *
     RT_MPI_CHECK(MPI_Gather(sh, (int)sizeof *sh, MPI_BYTE, all, (int)sizeof *sh, MPI_BYTE, 0, MPI_COMM_WORLD));
     if (rt_mpi_rank != 0)
         return;
-    char k_gpu[300] = "", k_share[200] = "", k_claims[120] = "", k_busy[200] = "";
-    size_t a = 0, b = 0, c = 0, d = 0;
+    char k_gpu[300] = "", k[6][160];
+    size_t a = 0, len[6] = {0};
     int distinct = 0;
+    for (int i = 0; i < 6; i++)
+        k[i][0] = '\0';
     for (int r = 0; r < P; r++) {
         const char *g = gpus + (size_t)r * sizeof gpu;
         rt_cores_note(out->cores, sizeof out->cores, all[r].cpu);
@@ -170,16 +207,18 @@ static void rank_keys(RtCudaSession *s, const Share *sh, int rows, RtRenderOut *
         const char *sep = r ? "/" : "";
         if (a < sizeof k_gpu)
             a += (size_t)snprintf(k_gpu + a, sizeof k_gpu - a, "%s%s", sep, g);
-        if (b < sizeof k_share)
-            b += (size_t)snprintf(k_share + b, sizeof k_share - b, "%s%.3f", sep, (double)all[r].rows / rows);
-        if (c < sizeof k_claims)
-            c += (size_t)snprintf(k_claims + c, sizeof k_claims - c, "%s%d", sep, all[r].claims);
-        if (d < sizeof k_busy)
-            d += (size_t)snprintf(k_busy + d, sizeof k_busy - d, "%s%.3f", sep, all[r].done_ms);
+        const double v[6] = {(double)all[r].rows / rows, all[r].claims, all[r].done_ms, all[r].claim_ms,
+                             all[r].band_ms, all[r].put_ms};
+        for (int i = 0; i < 6; i++)
+            if (len[i] < sizeof k[i])
+                len[i] += (size_t)snprintf(k[i] + len[i], sizeof k[i] - len[i], i == 1 ? "%s%.0f" : "%s%.3f", sep,
+                                           v[i]);
     }
-    size_t len = strlen(out->extra);
-    snprintf(out->extra + len, sizeof out->extra - len, " gpus=%d rank_gpu=%s rank_share=%s rank_claims=%s rank_end_ms=%s", distinct,
-             k_gpu, k_share, k_claims, k_busy);
+    size_t n = strlen(out->extra);
+    snprintf(out->extra + n, sizeof out->extra - n,
+             " gpus=%d rank_gpu=%s rank_share=%s rank_claims=%s rank_end_ms=%s rank_claim_ms=%s rank_band_ms=%s"
+             " rank_put_ms=%s",
+             distinct, k_gpu, k[0], k[1], k[2], k[3], k[4], k[5]);
     free(gpus);
     free(all);
 }
@@ -188,7 +227,13 @@ static void rank_keys(RtCudaSession *s, const Share *sh, int rows, RtRenderOut *
 static int open_all(const RtRenderJob *job, RtCudaSession **s, RtError *err)
 {
     RtRenderJob mine = *job;
-    int failed = pick_device(job, &mine.device, err) != 0 || rt_cuda_session_open(&mine, s, err) != 0;
+    char bus[32] = "";
+    int failed = pick_device(job, &mine.device, bus, sizeof bus, err) != 0;
+    if (failed)
+        bus[0] = '\0';
+    failed |= check_one_per_gpu(job, bus, err) != 0;
+    if (!failed)
+        failed = rt_cuda_session_open(&mine, s, err) != 0;
     if (rt_mpi_agree(failed, err) != 0) {
         rt_cuda_session_close(*s);
         *s = NULL;
@@ -244,5 +289,5 @@ static int render_mpi_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *er
 }
 
 /* times its own runs: the scene stays on each rank's device between frames */
-const RtBackend rt_backend_mpi_cuda = {"mpi-cuda",         NULL, mpi_cuda_init, render_mpi_cuda, rt_mpi_finalize,
+const RtBackend rt_backend_mpi_cuda = {"mpi-cuda",         NULL, mpi_cuda_init, render_mpi_cuda, mpi_cuda_finalize,
                                        &rt_mpi_collective, 1,    mpi_cuda_prewarm, 1};

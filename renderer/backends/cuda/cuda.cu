@@ -98,6 +98,14 @@ void rt_cuda_prewarm_device(int device, int wrap)
 
 static void cuda_prewarm(int device) { rt_cuda_prewarm_device(device, 0); }
 
+int rt_cuda_device_bus(int device, char *bus, size_t size, RtError *err)
+{
+    cudaError_t e = cudaDeviceGetPCIBusId(bus, (int)size, device);
+    if (e != cudaSuccess)
+        return rt_cuda_fail(err, e, "cudaDeviceGetPCIBusId", __FILE__, __LINE__);
+    return 0;
+}
+
 int rt_cuda_device_count(int *n, RtError *err)
 {
     *n = 0;
@@ -134,7 +142,8 @@ static int cuda_open(CudaRun *c, RtError *err)
     cuda_gpu_name(c->prop.name, c->gpu, sizeof c->gpu);
     {
         char bus[32] = "unknown";
-        if (cudaDeviceGetPCIBusId(bus, (int)sizeof bus, dev) != cudaSuccess)
+        RtError ignored;
+        if (rt_cuda_device_bus(dev, bus, sizeof bus, &ignored) != 0)
             cudaGetLastError();
         snprintf(c->gpu_at, sizeof c->gpu_at, "%s@%s", c->gpu, bus);
     }

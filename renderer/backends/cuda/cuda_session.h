@@ -29,6 +29,9 @@ typedef struct RtCudaSession RtCudaSession;
 /* CUDA devices this process sees (CUDA_VISIBLE_DEVICES applies). 0, or -1
  * with "cuda: no usable GPU: ..." when there is no driver or no device. */
 int rt_cuda_device_count(int *n, RtError *err);
+/* The PCI bus id of a device ("0000:19:00.0"): which physical GPU it is,
+ * whatever CUDA_VISIBLE_DEVICES numbers it. 0 or -1. */
+int rt_cuda_device_bus(int device, char *bus, size_t size, RtError *err);
 /* Creates device `device`'s context on a thread of its own, so that it is
  * ready when the session opens; device modulo the device count when wrap. */
 void rt_cuda_prewarm_device(int device, int wrap);

@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# device-gpus.sh [STEP...] - the mpi-cuda backend on the GPU machine
+# (docs/gpu.md, "Several GPUs"). Steps (default: all):
+#   test    build, then the GPU test suite (mpi-cuda against cuda included)
+#   shared  configs/mpi-cuda-shared.conf with one GPU visible: 1, 2 and 4
+#           ranks taking turns on it
+#   gpus    configs/gpus-dragon.conf and configs/gpus-island.conf, the rank
+#           lists cut to the GPUs the machine has
+# CSVs, tables and logs go to $OUT (default /tmp/device-gpus). Carry
+# [".devcarry"]: the course scenes in .devcarry/scenes/course, and
+# .devcarry/include/xxhash.h where the machine lacks libxxhash-dev.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+OUT=${OUT:-/tmp/device-gpus}
+mkdir -p "$OUT"
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+B=build-gpus
+steps=${*:-test shared gpus}
+course=$PWD/.devcarry/scenes/course
+args=(-Dgpu_arch=9.0 "-Dcourse_dir=$course")
+[ -f /usr/include/xxhash.h ] || args+=("-Dc_args=-I$PWD/.devcarry/include")
+[ -f $B/build.ninja ] || meson setup $B "${args[@]}" > "$OUT/setup.log"
+ninja -C $B > "$OUT/build.log"
+ngpu=$(nvidia-smi -L | grep -c '^GPU ')
+nvidia-smi -L > "$OUT/gpus.txt"
+nvidia-smi topo -m >> "$OUT/gpus.txt" 2>&1 || true
+$B/harness/harness topo > "$OUT/topo.txt"
+
+# CONFIG [SED...]: the config with scene_dir set for this machine, run, tabled
+study() {
+    local conf=$1 name
+    name=$(basename "$conf" .conf)
+    shift
+    sed -e "s|^scene_dir: \.\./shared/scenes/course|scene_dir: $course|" "$@" "$conf" > "/tmp/$name.conf"
+    $B/harness/harness run "/tmp/$name.conf" --raytrace $B/renderer/raytrace -o "$OUT/$name.csv" -q \
+        2> "$OUT/$name.log" || { tail -5 "$OUT/$name.log"; return 0; }
+    $B/harness/harness table "$OUT/$name.csv" > "$OUT/$name-table.md" || true
+    echo "== $name"; cat "$OUT/$name-table.md"
+}
+
+for step in $steps; do
+    case $step in
+    test)
+        meson test -C $B --suite gpu --num-processes 1 > "$OUT/gpu-tests.txt" 2>&1 || true
+        grep -E '^ *[0-9]+/[0-9]+ |^(Ok|Fail|Skipped):' "$OUT/gpu-tests.txt"
+        grep -E ' np=[0-9]| GPU\(s\)|^  \| |^FAIL' $B/meson-logs/testlog.txt > "$OUT/mpi-cuda-check.txt" || true ;;
+    shared)
+        CUDA_VISIBLE_DEVICES=0 study configs/mpi-cuda-shared.conf ;;
+    gpus)
+        keep=""
+        for n in 1 2 4 8; do [ "$n" -le "$ngpu" ] && keep="$keep $n"; done
+        SCENEGEN=$B/renderer/scenegen scripts/gen-scenes.sh island-4m > /dev/null
+        for c in configs/gpus-dragon.conf configs/gpus-island.conf; do
+            study "$c" -e "s|^ranks:.*|ranks:$keep|"
+        done ;;
+    *) echo "device-gpus: unknown step '$step' (test, shared, gpus)" >&2; exit 1 ;;
+    esac
+done
