@@ -255,8 +255,11 @@ static int render_mpi_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *er
     Share sh;
     int runs, warmups, row_h, wave_rows;
     const int rows = rt_cuda_session_tile_rows(s, &row_h, &wave_rows);
-    rt_mpi_image_open(&m, (size_t)job->view.cam.width * (size_t)job->view.cam.height, out->rgb);
+    const size_t npix = (size_t)job->view.cam.width * (size_t)job->view.cam.height;
+    rt_mpi_image_open(&m, npix, out->rgb);
+    rt_cuda_session_pin(s, m.direct ? (void *)m.img0 : (void *)out->rgb, npix * 3 * sizeof(float));
     frames(job, s, &m, out->rgb, times, times + max_runs, max_runs, &runs, &warmups, &sh, err);
+    rt_cuda_session_unpin(s); /* (before the window's memory goes) */
     rt_mpi_image_close(&m, out->rgb);
 
     RtCounters mine, sum;

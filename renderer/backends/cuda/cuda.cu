@@ -474,6 +474,7 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 
 struct RtCudaSession {
     CudaRun c;
+    void *pinned; /* the host buffer page-locked by rt_cuda_session_pin */
 };
 
 int rt_cuda_session_open(const RtRenderJob *job, RtCudaSession **out, RtError *err)
@@ -509,6 +510,22 @@ int rt_cuda_session_tile_rows(const RtCudaSession *s, int *row_h, int *wave_rows
     *row_h = c->g.by;
     *wave_rows = wr >= rows ? rows : wr < 1.0 ? 1 : (int)wr + (wr > (int)wr);
     return rows;
+}
+
+void rt_cuda_session_pin(RtCudaSession *s, void *host, size_t bytes)
+{
+    rt_cuda_session_unpin(s);
+    if (cudaHostRegister(host, bytes, cudaHostRegisterDefault) == cudaSuccess)
+        s->pinned = host;
+    else
+        cudaGetLastError(); /* (not sticky: the copies go on from pageable memory) */
+}
+
+void rt_cuda_session_unpin(RtCudaSession *s)
+{
+    if (s->pinned)
+        cudaHostUnregister(s->pinned);
+    s->pinned = NULL;
 }
 
 int rt_cuda_session_frame(RtCudaSession *s, RtError *err)
@@ -558,6 +575,7 @@ void rt_cuda_session_close(RtCudaSession *s)
 {
     if (!s)
         return;
+    rt_cuda_session_unpin(s);
     cuda_release(&s->c);
     free(s);
 }

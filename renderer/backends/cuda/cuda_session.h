@@ -41,6 +41,11 @@ int rt_cuda_session_open(const RtRenderJob *job, RtCudaSession **s, RtError *err
 /* Tile rows in the image; *row_h receives the rows of pixels in each, and
  * *wave_rows the tile rows that fill the GPU once (its resident threads). */
 int rt_cuda_session_tile_rows(const RtCudaSession *s, int *row_h, int *wave_rows);
+/* Page-locks the host buffer the bands are copied into (the copies then run
+ * at the link's speed, several times faster than into pageable memory) until
+ * rt_cuda_session_unpin; a buffer that cannot be locked is left as it is. */
+void rt_cuda_session_pin(RtCudaSession *s, void *host, size_t bytes);
+void rt_cuda_session_unpin(RtCudaSession *s);
 /* Zeroes the ray counters: a frame starts. */
 int rt_cuda_session_frame(RtCudaSession *s, RtError *err);
 /* Renders tile rows [r0, r1) and copies their pixel rows into rgb, the
