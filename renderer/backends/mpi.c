@@ -201,22 +201,42 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
 /* Window layout on rank 0 (disp_unit 1): the claim counter, then the image. */
 #define RT_WIN_IMAGE 8 /* byte offset of the float RGB image */
 
-void rt_mpi_image_open(RtMpiImage *m, size_t npix, const float *rgb)
+/* 1 when every rank runs on this rank's node. */
+static int one_node(void)
+{
+    MPI_Comm node;
+    int n = 0;
+    RT_MPI_CHECK(MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node));
+    RT_MPI_CHECK(MPI_Comm_size(node, &n));
+    RT_MPI_CHECK(MPI_Comm_free(&node));
+    return n == rt_mpi_size;
+}
+
+void rt_mpi_image_open(RtMpiImage *m, size_t npix, const float *rgb, int shared)
 {
     memset(m, 0, sizeof *m);
     m->npix = npix;
+    shared = shared && rt_mpi_size > 1 && one_node(); /* (the same answer on every rank) */
     MPI_Aint bytes = rt_mpi_rank == 0 ? (MPI_Aint)(RT_WIN_IMAGE + npix * 3 * sizeof(float)) : 0;
-    RT_MPI_CHECK(MPI_Win_allocate(bytes, 1, MPI_INFO_NULL, MPI_COMM_WORLD, &m->base, &m->win));
+    if (shared)
+        RT_MPI_CHECK(MPI_Win_allocate_shared(bytes, 1, MPI_INFO_NULL, MPI_COMM_WORLD, &m->base, &m->win));
+    else
+        RT_MPI_CHECK(MPI_Win_allocate(bytes, 1, MPI_INFO_NULL, MPI_COMM_WORLD, &m->base, &m->win));
     MPI_Win_set_errhandler(m->win, MPI_ERRORS_RETURN);
     int *model = NULL, flag = 0;
     RT_MPI_CHECK(MPI_Win_get_attr(m->win, MPI_WIN_MODEL, &model, &flag));
     /* In the unified memory model (osc/sm, osc/rdma) rank 0 can render into
      * the window directly; in the separate model it MPI_Puts to itself. */
     m->direct = rt_mpi_rank == 0 && flag && *model == MPI_WIN_UNIFIED;
-    if (rt_mpi_rank == 0) {
-        m->img0 = (float *)(void *)((char *)m->base + RT_WIN_IMAGE);
-        memcpy(m->img0, rgb, npix * 3 * sizeof(float)); /* carry main's NaN poison for --verify */
+    if (shared) { /* rank 0's segment, mapped here */
+        MPI_Aint size;
+        int disp;
+        RT_MPI_CHECK(MPI_Win_shared_query(m->win, 0, &size, &disp, &m->base));
+        m->direct = 1;
     }
+    m->img0 = (float *)(void *)((char *)m->base + RT_WIN_IMAGE);
+    if (rt_mpi_rank == 0)
+        memcpy(m->img0, rgb, npix * 3 * sizeof(float)); /* carry main's NaN poison for --verify */
     RT_MPI_CHECK(MPI_Win_lock_all(MPI_MODE_NOCHECK, m->win));
 }
 
@@ -249,7 +269,8 @@ void rt_mpi_put(RtMpiImage *m, const float *src, size_t off, size_t n)
 
 void rt_mpi_frame_end(RtMpiImage *m)
 {
-    RT_MPI_CHECK(MPI_Win_flush(0, m->win));    /* this rank's pixels are in rank 0's memory */
+    RT_MPI_CHECK(MPI_Win_flush(0, m->win));    /* this rank's puts are in rank 0's memory, */
+    RT_MPI_CHECK(MPI_Win_sync(m->win));        /* and its direct stores visible */
     RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD)); /* ... and everyone's */
     if (rt_mpi_rank == 0)
         RT_MPI_CHECK(MPI_Win_sync(m->win));
@@ -295,7 +316,7 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
     int w = v->cam.width, h = v->cam.height;
     int64_t ntiles = rt_tile_count(w, h, tw, th);
     RtMpiImage m;
-    rt_mpi_image_open(&m, (size_t)w * (size_t)h, rgb);
+    rt_mpi_image_open(&m, (size_t)w * (size_t)h, rgb, 0);
     rt_mpi_frame_start(&m);
     *t_start = rt_now_ms();
 

@@ -34,15 +34,19 @@ extern const RtCollective rt_mpi_collective;
 /* The shared image of the dynamic scheme. */
 typedef struct RtMpiImage {
     MPI_Win win;
-    void *base;
-    float *img0;    /* rank 0: the image inside the window */
-    int direct;     /* rank 0 may write img0 itself (the unified memory model) */
+    void *base;     /* rank 0's window (the counter at its start) */
+    float *img0;    /* rank 0's image, where this rank may write it directly */
+    int direct;     /* 1: write img0 directly; 0: MPI_Put into it */
     size_t npix;
 } RtMpiImage;
 
 /* Collective: the window on rank 0 (counter and image, the image starting as
- * rgb: main's NaN poison), locked for the passive target epochs of frames. */
-void rt_mpi_image_open(RtMpiImage *m, size_t npix, const float *rgb);
+ * rgb: main's NaN poison), locked for the passive target epochs of frames.
+ * Rank 0 writes its own pixels directly where the memory model allows. With
+ * shared set and every rank on one node, the window is shared memory
+ * (MPI_Win_allocate_shared) and every rank writes its pixels straight into
+ * rank 0's image: no puts. */
+void rt_mpi_image_open(RtMpiImage *m, size_t npix, const float *rgb, int shared);
 /* Collective: the counter back to 0; returns when every rank may claim. */
 void rt_mpi_frame_start(RtMpiImage *m);
 /* Guided self-scheduling (Polychronopoulos & Kuck 1987) of `total` units:

@@ -10,10 +10,11 @@
  * the whole image, the scene uploaded once). The frame is handed out as in
  * the CPU MPI backend's dynamic scheme (mpi_common.h): ranks claim bands of
  * tile rows from the counter in rank 0's window (guided, never less than the
- * rows that fill the GPU once), render each band with the CUDA kernel, copy
- * its rows down, and MPI_Put them into rank 0's image -- a band is contiguous
- * in the image, so one put. Rank 0 copies its own bands straight into the
- * window. docs/gpu.md, "Several GPUs". */
+ * rows that fill the GPU once) and render each with the CUDA kernel; a
+ * band's rows are copied down while the next band renders. A band is
+ * contiguous in the image: on one node every rank copies it straight into
+ * rank 0's image (a shared-memory window); across nodes it is one MPI_Put.
+ * docs/gpu.md, "Several GPUs". */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -84,12 +85,19 @@ static int check_one_per_gpu(const RtRenderJob *job, const char *bus, RtError *e
 
 /* What one rank did in a frame. */
 typedef struct Share {
-    double done_ms; /* from the frame's start to its last band's put */
-    double claim_ms, band_ms, put_ms; /* in claims, in bands (kernel and copy down), in puts */
+    double done_ms; /* from the frame's start to its last pixels in rank 0's image */
+    double claim_ms, wait_ms, put_ms; /* in claims, waiting for the GPU, in puts */
     int rows;       /* tile rows rendered */
     int claims;
     int cpu;        /* the CPU the rank ran on */
 } Share;
+
+/* The bands this rank has queued and not yet put, oldest first. */
+typedef struct Bands {
+    int r0[RT_CUDA_BANDS], r1[RT_CUDA_BANDS];
+    unsigned long long queued, put;
+    int row_h, w;
+} Bands;
 
 static void die_on(int rc, const RtError *err)
 {
@@ -101,38 +109,61 @@ static void die_on(int rc, const RtError *err)
     MPI_Abort(MPI_COMM_WORLD, 1);
 }
 
-/* One frame: claims of tile rows until none is left. Returns rank 0's time
- * to the whole image (other ranks: their own end). */
-static double frame(RtCudaSession *s, RtMpiImage *m, float *rgb, int rows, int wave_rows, int row_h, int w,
-                    Share *sh, RtError *err)
+/* The bands whose rows are down (wait: all of them) into rank 0's image:
+ * already there when this rank writes it directly, else one MPI_Put each. */
+static void put_ready(RtCudaSession *s, RtMpiImage *m, float *rgb, Bands *b, int wait, Share *sh, RtError *err)
+{
+    double t = rt_now_ms();
+    const int n = rt_cuda_session_ready(s, wait, err);
+    die_on(n < 0, err);
+    sh->wait_ms += rt_now_ms() - t;
+    t = rt_now_ms();
+    for (int i = 0; i < n; i++, b->put++) {
+        const unsigned k = (unsigned)(b->put % RT_CUDA_BANDS);
+        if (m->direct)
+            continue;
+        const size_t h = m->npix / (size_t)b->w, y0 = (size_t)b->r0[k] * (size_t)b->row_h;
+        const size_t y1 = (size_t)b->r1[k] * (size_t)b->row_h < h ? (size_t)b->r1[k] * (size_t)b->row_h : h;
+        rt_mpi_put(m, rgb, y0 * (size_t)b->w * 3, (y1 - y0) * (size_t)b->w * 3);
+    }
+    sh->put_ms += rt_now_ms() - t;
+}
+
+/* One frame: claims of tile rows until none is left, each queued on the GPU
+ * as soon as the previous band's kernel runs (so the GPU never waits for a
+ * claim, and a rank never holds more than two unfinished bands: the claims
+ * stay balanced), its rows put as they come down. Returns rank 0's time to
+ * the whole image (other ranks: their own end). */
+static double frame(RtCudaSession *s, RtMpiImage *m, float *rgb, int rows, int wave_rows, Bands *b, Share *sh,
+                    RtError *err)
 {
     float *dst = m->direct ? m->img0 : rgb;
     int64_t seen = 0, first, count;
     memset(sh, 0, sizeof *sh);
+    b->queued = b->put = 0;
     die_on(rt_cuda_session_frame(s, err), err);
     rt_mpi_frame_start(m);
     const double t0 = rt_now_ms();
     for (;;) {
         double t = rt_now_ms();
+        die_on(rt_cuda_session_kernels(s, 1, err), err);
+        sh->wait_ms += rt_now_ms() - t;
+        t = rt_now_ms();
         count = rt_mpi_claim(m, rows, wave_rows, &seen, &first);
         sh->claim_ms += rt_now_ms() - t;
         if (count == 0)
             break;
-        t = rt_now_ms();
-        die_on(rt_cuda_session_rows(s, (int)first, (int)(first + count), dst, err), err);
-        sh->band_ms += rt_now_ms() - t;
-        t = rt_now_ms();
-        if (!m->direct) {
-            const size_t y0 = (size_t)first * (size_t)row_h;
-            size_t y1 = (size_t)(first + count) * (size_t)row_h;
-            if (y1 > m->npix / (size_t)w)
-                y1 = m->npix / (size_t)w;
-            rt_mpi_put(m, rgb, y0 * (size_t)w * 3, (y1 - y0) * (size_t)w * 3);
-        }
-        sh->put_ms += rt_now_ms() - t;
+        if (b->queued - b->put == RT_CUDA_BANDS)
+            put_ready(s, m, rgb, b, 1, sh, err);
+        const unsigned k = (unsigned)(b->queued++ % RT_CUDA_BANDS);
+        b->r0[k] = (int)first;
+        b->r1[k] = (int)(first + count);
+        die_on(rt_cuda_session_band(s, b->r0[k], b->r1[k], dst, err), err);
+        put_ready(s, m, rgb, b, 0, sh, err);
         sh->rows += (int)count;
         sh->claims++;
     }
+    put_ready(s, m, rgb, b, 1, sh, err);
     const double tf = rt_now_ms();
     RT_MPI_CHECK(MPI_Win_flush(0, m->win));
     sh->put_ms += rt_now_ms() - tf;
@@ -148,13 +179,17 @@ static double frame(RtCudaSession *s, RtMpiImage *m, float *rgb, int rows, int w
 static int frames(const RtRenderJob *job, RtCudaSession *s, RtMpiImage *m, float *rgb, double *times, double *mins,
                   int max_runs, int *runs, int *warmups, Share *sh, RtError *err)
 {
-    int row_h, wave_rows;
-    const int rows = rt_cuda_session_tile_rows(s, &row_h, &wave_rows);
+    int wave_rows;
+    Bands *b = malloc(sizeof *b);
+    if (!b)
+        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
+    const int rows = rt_cuda_session_tile_rows(s, &b->row_h, &wave_rows);
+    b->w = job->view.cam.width;
     const double warm_ms = job->warmup_runs < 0 && job->warmup_ms < 0.0 ? RT_CUDA_WARMUP_MS : job->warmup_ms;
     const double t0 = rt_now_ms();
     *runs = *warmups = 0;
     for (int n = 0;; n++) {
-        double ms = frame(s, m, rgb, rows, wave_rows, row_h, job->view.cam.width, sh, err), first_end;
+        double ms = frame(s, m, rgb, rows, wave_rows, b, sh, err), first_end;
         RT_MPI_CHECK(MPI_Reduce(&sh->done_ms, &first_end, 1, MPI_DOUBLE, MPI_MIN, 0, MPI_COMM_WORLD));
         int next = 0; /* 0 stop, 1 warm-up, 2 timed */
         if (rt_mpi_rank == 0) {
@@ -171,8 +206,10 @@ static int frames(const RtRenderJob *job, RtCudaSession *s, RtMpiImage *m, float
         RT_MPI_CHECK(MPI_Bcast(&next, 1, MPI_INT, 0, MPI_COMM_WORLD));
         if (job->progress && rt_mpi_rank == 0)
             job->progress(job->progress_ctx, (uint64_t)(n + 1), (uint64_t)max_runs + 1);
-        if (!next)
+        if (!next) {
+            free(b);
             return 0;
+        }
     }
 }
 
@@ -208,7 +245,7 @@ static void rank_keys(RtCudaSession *s, const Share *sh, int rows, RtRenderOut *
         if (a < sizeof k_gpu)
             a += (size_t)snprintf(k_gpu + a, sizeof k_gpu - a, "%s%s", sep, g);
         const double v[6] = {(double)all[r].rows / rows, all[r].claims, all[r].done_ms, all[r].claim_ms,
-                             all[r].band_ms, all[r].put_ms};
+                             all[r].wait_ms, all[r].put_ms};
         for (int i = 0; i < 6; i++)
             if (len[i] < sizeof k[i])
                 len[i] += (size_t)snprintf(k[i] + len[i], sizeof k[i] - len[i], i == 1 ? "%s%.0f" : "%s%.3f", sep,
@@ -216,7 +253,7 @@ static void rank_keys(RtCudaSession *s, const Share *sh, int rows, RtRenderOut *
     }
     size_t n = strlen(out->extra);
     snprintf(out->extra + n, sizeof out->extra - n,
-             " gpus=%d rank_gpu=%s rank_share=%s rank_claims=%s rank_end_ms=%s rank_claim_ms=%s rank_band_ms=%s"
+             " gpus=%d rank_gpu=%s rank_share=%s rank_claims=%s rank_end_ms=%s rank_claim_ms=%s rank_wait_ms=%s"
              " rank_put_ms=%s",
              distinct, k_gpu, k[0], k[1], k[2], k[3], k[4], k[5]);
     free(gpus);
@@ -256,7 +293,7 @@ static int render_mpi_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *er
     int runs, warmups, row_h, wave_rows;
     const int rows = rt_cuda_session_tile_rows(s, &row_h, &wave_rows);
     const size_t npix = (size_t)job->view.cam.width * (size_t)job->view.cam.height;
-    rt_mpi_image_open(&m, npix, out->rgb);
+    rt_mpi_image_open(&m, npix, out->rgb, 1);
     rt_cuda_session_pin(s, m.direct ? (void *)m.img0 : (void *)out->rgb, npix * 3 * sizeof(float));
     frames(job, s, &m, out->rgb, times, times + max_runs, max_runs, &runs, &warmups, &sh, err);
     rt_cuda_session_unpin(s); /* (before the window's memory goes) */

@@ -305,10 +305,10 @@ fail:
 
 /* The kernel over grid g in nblocks blocks (the stream's order keeps it
  * after the work counter's reset). */
-static int cuda_kernel(CudaRun *c, const RtCudaGrid *g, int nblocks, RtError *err)
+static int cuda_kernel(CudaRun *c, const RtCudaGrid *g, int nblocks, cudaStream_t stream, RtError *err)
 {
     unsigned char *a = c->arena;
-    c->variant->kernel<<<nblocks, dim3((unsigned)c->plan.bx, (unsigned)c->plan.by)>>>(
+    c->variant->kernel<<<nblocks, dim3((unsigned)c->plan.bx, (unsigned)c->plan.by), 0, stream>>>(
         c->dv, (float *)(a + c->parts[P_IMAGE].offset), (unsigned long long *)(a + c->parts[P_COUNTERS].offset),
         (unsigned int *)(a + c->parts[P_WORK].offset), *g);
     RT_CUDA_CHECK_LAUNCH("rt_render_kernel");
@@ -340,7 +340,7 @@ static int cuda_launch_once(CudaRun *c, float *ms, RtError *err)
     RT_CUDA_CHECK(cudaMemsetAsync(a + c->parts[P_COUNTERS].offset, 0,
                                   c->parts[P_WORK].offset + c->parts[P_WORK].bytes - c->parts[P_COUNTERS].offset));
     RT_CUDA_CHECK(cudaEventRecord(c->ev0));
-    if (cuda_kernel(c, &c->g, c->nblocks, err))
+    if (cuda_kernel(c, &c->g, c->nblocks, 0, err))
         return -1;
     RT_CUDA_CHECK(cudaEventRecord(c->ev1));
     RT_CUDA_CHECK(cudaEventSynchronize(c->ev1));
@@ -472,9 +472,17 @@ static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 
 /* ---------------------------------------------------------------- sessions */
 
+/* A session queues bands: each band's kernel on one stream, the copy of its
+ * rows down on another after it, so that a band's copy overlaps the next
+ * band's kernel. Events mark each band's kernel and copy; bands complete in
+ * the order they were queued. */
 struct RtCudaSession {
     CudaRun c;
-    void *pinned; /* the host buffer page-locked by rt_cuda_session_pin */
+    void *pinned;                 /* the host buffer page-locked by rt_cuda_session_pin */
+    cudaStream_t ks, cs;          /* kernels, copies */
+    cudaEvent_t kev[RT_CUDA_BANDS], cev[RT_CUDA_BANDS];
+    int nev;                      /* event pairs created */
+    unsigned long long queued, kernels_done, copies_done;
 };
 
 int rt_cuda_session_open(const RtRenderJob *job, RtCudaSession **out, RtError *err)
@@ -490,12 +498,23 @@ int rt_cuda_session_open(const RtRenderJob *job, RtCudaSession **out, RtError *e
     c->npix = (size_t)c->w * (size_t)c->h;
     int rc = cuda_open(c, err) || cuda_plan(c, err);
     c->plan.center = 0; /* bands are raster runs of tiles: no centre order */
-    if (rc || cuda_upload(c, err)) {
-        rt_cuda_session_close(s);
-        return -1;
+    if (rc || cuda_upload(c, err))
+        goto fail;
+    RT_CUDA_CHECK(cudaDeviceSynchronize()); /* (the streams below do not wait for the legacy stream's poison) */
+    RT_CUDA_CHECK(cudaStreamCreateWithFlags(&s->ks, cudaStreamNonBlocking));
+    RT_CUDA_CHECK(cudaStreamCreateWithFlags(&s->cs, cudaStreamNonBlocking));
+    for (; s->nev < RT_CUDA_BANDS; s->nev++) {
+        RT_CUDA_CHECK(cudaEventCreateWithFlags(&s->kev[s->nev], cudaEventDisableTiming));
+        if (cudaEventCreateWithFlags(&s->cev[s->nev], cudaEventDisableTiming) != cudaSuccess) {
+            cudaEventDestroy(s->kev[s->nev]);
+            RT_CUDA_CHECK(cudaGetLastError());
+        }
     }
     *out = s;
     return 0;
+fail:
+    rt_cuda_session_close(s);
+    return -1;
 }
 
 int rt_cuda_session_tile_rows(const RtCudaSession *s, int *row_h, int *wave_rows)
@@ -531,19 +550,18 @@ void rt_cuda_session_unpin(RtCudaSession *s)
 int rt_cuda_session_frame(RtCudaSession *s, RtError *err)
 {
     CudaRun *c = &s->c;
-    RT_CUDA_CHECK(cudaMemset(c->arena + c->parts[P_COUNTERS].offset, 0, c->parts[P_COUNTERS].bytes));
+    RT_CUDA_CHECK(cudaMemsetAsync(c->arena + c->parts[P_COUNTERS].offset, 0, c->parts[P_COUNTERS].bytes, s->ks));
     return 0;
 fail:
     return -1;
 }
 
-/* One launch over the band's tiles (the persistent schedule: at most the
- * resident blocks), then its rows down. */
-int rt_cuda_session_rows(RtCudaSession *s, int r0, int r1, float *rgb, RtError *err)
+int rt_cuda_session_band(RtCudaSession *s, int r0, int r1, float *rgb, RtError *err)
 {
     CudaRun *c = &s->c;
     unsigned char *a = c->arena;
     RtCudaGrid g = c->g;
+    const unsigned slot = (unsigned)(s->queued % RT_CUDA_BANDS);
     const uint32_t tiles = (uint32_t)(r1 - r0) * (uint32_t)g.tiles_x;
     g.units = NULL;
     g.first_tile = (uint32_t)r0 * (uint32_t)g.tiles_x;
@@ -552,19 +570,61 @@ int rt_cuda_session_rows(RtCudaSession *s, int r0, int r1, float *rgb, RtError *
     const int nblocks = (int)(g.persistent && (uint32_t)c->nblocks < tiles ? (uint32_t)c->nblocks : tiles);
     const int y0 = r0 * g.by, y1 = r1 * g.by < c->h ? r1 * g.by : c->h;
     const size_t off = (size_t)y0 * (size_t)c->w * 3, n = (size_t)(y1 - y0) * (size_t)c->w * 3;
-    RT_CUDA_CHECK(cudaMemsetAsync(a + c->parts[P_WORK].offset, 0, c->parts[P_WORK].bytes));
-    if (cuda_kernel(c, &g, nblocks, err))
+    if (s->queued - s->copies_done >= RT_CUDA_BANDS)
+        return rt_fail(err, "cuda: more than %d bands in flight", RT_CUDA_BANDS);
+    RT_CUDA_CHECK(cudaMemsetAsync(a + c->parts[P_WORK].offset, 0, c->parts[P_WORK].bytes, s->ks));
+    if (cuda_kernel(c, &g, nblocks, s->ks, err))
         return -1;
-    RT_CUDA_CHECK(cudaMemcpy(rgb + off, (float *)(a + c->parts[P_IMAGE].offset) + off, n * sizeof(float),
-                             cudaMemcpyDeviceToHost));
+    RT_CUDA_CHECK(cudaEventRecord(s->kev[slot], s->ks));
+    RT_CUDA_CHECK(cudaStreamWaitEvent(s->cs, s->kev[slot], 0));
+    RT_CUDA_CHECK(cudaMemcpyAsync(rgb + off, (float *)(a + c->parts[P_IMAGE].offset) + off, n * sizeof(float),
+                                  cudaMemcpyDeviceToHost, s->cs));
+    RT_CUDA_CHECK(cudaEventRecord(s->cev[slot], s->cs));
+    s->queued++;
     return 0;
+fail:
+    return -1;
+}
+
+int rt_cuda_session_kernels(RtCudaSession *s, int keep, RtError *err)
+{
+    if (s->queued - s->kernels_done > (unsigned long long)keep) {
+        const unsigned long long last = s->queued - (unsigned long long)keep - 1;
+        RT_CUDA_CHECK(cudaEventSynchronize(s->kev[last % RT_CUDA_BANDS]));
+        s->kernels_done = last + 1;
+    }
+    return 0;
+fail:
+    return -1;
+}
+
+int rt_cuda_session_ready(RtCudaSession *s, int wait, RtError *err)
+{
+    int n = 0;
+    for (; s->copies_done < s->queued; s->copies_done++, n++) {
+        cudaEvent_t e = s->cev[s->copies_done % RT_CUDA_BANDS];
+        if (wait) {
+            RT_CUDA_CHECK(cudaEventSynchronize(e));
+        } else {
+            cudaError_t q = cudaEventQuery(e);
+            if (q == cudaErrorNotReady)
+                break;
+            RT_CUDA_CHECK(q);
+        }
+    }
+    if (s->kernels_done < s->copies_done)
+        s->kernels_done = s->copies_done;
+    return n;
 fail:
     return -1;
 }
 
 int rt_cuda_session_counters(RtCudaSession *s, RtCounters *cnt, RtError *err)
 {
+    RT_CUDA_CHECK(cudaStreamSynchronize(s->ks));
     return cuda_counters(&s->c, cnt, err);
+fail:
+    return -1;
 }
 
 const char *rt_cuda_session_gpu(const RtCudaSession *s) { return s->c.gpu_at; }
@@ -576,6 +636,14 @@ void rt_cuda_session_close(RtCudaSession *s)
     if (!s)
         return;
     rt_cuda_session_unpin(s);
+    for (int i = 0; i < s->nev; i++) {
+        cudaEventDestroy(s->kev[i]);
+        cudaEventDestroy(s->cev[i]);
+    }
+    if (s->ks)
+        cudaStreamDestroy(s->ks);
+    if (s->cs)
+        cudaStreamDestroy(s->cs);
     cuda_release(&s->c);
     free(s);
 }

@@ -2,8 +2,9 @@
  * frame in many pieces: the MPI backend with a GPU on each rank
  * (backends/mpi_cuda.c). A session opens the device, plans the launch for
  * the whole image and uploads the scene once (as cuda.cu's own render does);
- * then each call renders a band of tile rows with the same kernel and copies
- * those pixel rows down. Plain C: mpi_cuda.c is compiled by the C compiler. */
+ * then the caller queues bands of tile rows, each rendered by the same kernel
+ * and its pixel rows copied down while the next band renders. Plain C:
+ * mpi_cuda.c is compiled by the C compiler. */
 #ifndef RT_CUDA_SESSION_H
 #define RT_CUDA_SESSION_H
 
@@ -48,9 +49,17 @@ void rt_cuda_session_pin(RtCudaSession *s, void *host, size_t bytes);
 void rt_cuda_session_unpin(RtCudaSession *s);
 /* Zeroes the ray counters: a frame starts. */
 int rt_cuda_session_frame(RtCudaSession *s, RtError *err);
-/* Renders tile rows [r0, r1) and copies their pixel rows into rgb, the
- * whole image's host buffer, at the same offsets. */
-int rt_cuda_session_rows(RtCudaSession *s, int r0, int r1, float *rgb, RtError *err);
+/* Queues tile rows [r0, r1): their kernel, then the copy of their pixel rows
+ * into rgb (the whole image's host buffer, at the same offsets) on a second
+ * stream, so that it overlaps the next band's kernel. Returns at once. At
+ * most RT_CUDA_BANDS bands may be queued and not yet reported ready. */
+#define RT_CUDA_BANDS 256
+int rt_cuda_session_band(RtCudaSession *s, int r0, int r1, float *rgb, RtError *err);
+/* Waits until at most `keep` queued kernels are unfinished. */
+int rt_cuda_session_kernels(RtCudaSession *s, int keep, RtError *err);
+/* How many more of the oldest queued bands are in rgb now, in queue order
+ * (wait: all of them, waiting for their copies); -1 on an error. */
+int rt_cuda_session_ready(RtCudaSession *s, int wait, RtError *err);
 /* The counters of the frame so far. */
 int rt_cuda_session_counters(RtCudaSession *s, RtCounters *c, RtError *err);
 /* "NAME@PCI-BUS-ID" of the session's GPU (characters safe in a record). */
