@@ -161,7 +161,7 @@ uint64_t rt_fnv1a64(const uint8_t *data, size_t len);
 int rt_cpu_isa_select(const char *name, RtError *err);
 /* The chosen one's name ("c", "sse2", "avx2"). */
 const char *rt_cpu_isa_name(void);
-/* Sets v->soa to a new copy of the primitive records in nine arrays (the
+/* Sets v->soa to a new copy of the primitive records in ten arrays (the
  * leaves' SIMD tests read it) and returns it for free(); NULL, and v->soa
  * NULL, for brute force or out of memory (the leaves are then tested one
  * record at a time: the same results). */

@@ -189,8 +189,10 @@ CPU_INLINE void tri4_sse2(const float *soa, uint32_t stride, uint32_t at, RtVec3
     _mm_storeu_ps(v, vv);
 }
 
-/* A leaf four records at a time from the nine arrays (a group with a
- * sphere one at a time); the results taken in order, as leaf_c takes them.
+/* A leaf four records at a time from the arrays (a group with a sphere one
+ * at a time); the results taken in order, as leaf_c takes them. A lane
+ * that missed (t = RT_INF) only counts a test in rt_leaf_take, so only the
+ * lanes that hit are taken: the records themselves are read only for hits.
  * (A short group computes lanes past the leaf and ignores them: the arrays
  * are padded.) */
 CPU_INLINE int leaf_sse2(const RtSceneView *s, uint32_t first, uint32_t count, RtVec3 o, RtVec3 d, int any,
@@ -198,22 +200,32 @@ CPU_INLINE int leaf_sse2(const RtSceneView *s, uint32_t first, uint32_t count, R
 {
     if (!s->soa)
         return leaf_c(s, first, count, o, d, any, hit, found, tests);
+    const __m128i sphere_bit = _mm_set1_epi32((int)RT_PRIM_SPHERE_BIT);
     for (uint32_t k = 0; k < count; k += 4) {
-        const uint32_t m = count - k < 4 ? count - k : 4;
+        const uint32_t m = count - k < 4 ? count - k : 4, lanes = (1u << m) - 1u;
         const RtPrim *p = &s->prims[first + k];
-        uint32_t spheres = 0;
-        for (uint32_t i = 0; i < m; i++)
-            spheres |= p[i].id & RT_PRIM_SPHERE_BIT;
+        const __m128i ids = _mm_loadu_si128((const __m128i *)(const void *)(s->soa + 9 * (size_t)s->soa_stride +
+                                                                             first + k));
+        const __m128i sph = _mm_cmpeq_epi32(_mm_and_si128(ids, sphere_bit), sphere_bit);
         float t[4], u[4], v[4];
-        if (spheres) {
-            for (uint32_t i = 0; i < m; i++)
-                t[i] = rt_prim_intersect(&p[i], o, d, &u[i], &v[i]);
-        } else {
-            tri4_sse2(s->soa, s->soa_stride, first + k, o, d, t, u, v);
+        if ((uint32_t)_mm_movemask_ps(_mm_castsi128_ps(sph)) & lanes) {
+            for (uint32_t i = 0; i < m; i++) {
+                const float ti = rt_prim_intersect(&p[i], o, d, &u[i], &v[i]);
+                if (rt_leaf_take(&p[i], ti, u[i], v[i], any, hit, found, tests))
+                    return 1;
+            }
+            continue;
         }
-        for (uint32_t i = 0; i < m; i++)
-            if (rt_leaf_take(&p[i], t[i], u[i], v[i], any, hit, found, tests))
+        tri4_sse2(s->soa, s->soa_stride, first + k, o, d, t, u, v);
+        uint32_t hits = (uint32_t)_mm_movemask_ps(_mm_cmplt_ps(_mm_loadu_ps(t), _mm_set1_ps(RT_INF))) & lanes;
+        for (uint32_t scratch = 0; hits; hits &= hits - 1) {
+            const uint32_t i = (uint32_t)__builtin_ctz(hits);
+            if (rt_leaf_take(&p[i], t[i], u[i], v[i], any, hit, found, &scratch)) {
+                *tests += i + 1; /* (the lanes before it, as leaf_c counts them) */
                 return 1;
+            }
+        }
+        *tests += m;
     }
     return 0;
 }
@@ -245,15 +257,17 @@ float *rt_cpu_soa(RtSceneView *v)
     if (!v->wide || v->nnodes == 0)
         return NULL;
     const size_t stride = (size_t)v->nprims + 4; /* (+4: a leaf's last group reads past it) */
-    float *m = calloc(9 * stride, sizeof *m);
+    float *m = calloc(10 * stride, sizeof *m);
     if (!m)
         return NULL;
-    for (uint32_t i = 0; i < v->nprims; i++)
+    for (uint32_t i = 0; i < v->nprims; i++) {
         for (int k = 0; k < 3; k++) {
             m[(size_t)k * stride + i] = v->prims[i].p0[k];
             m[(size_t)(3 + k) * stride + i] = v->prims[i].e1[k];
             m[(size_t)(6 + k) * stride + i] = v->prims[i].e2[k];
         }
+        memcpy(&m[9 * stride + i], &v->prims[i].id, sizeof(uint32_t)); /* (the id's bits) */
+    }
     v->soa = m;
     v->soa_stride = (uint32_t)stride;
     return m;
