@@ -617,7 +617,7 @@ static int render(Run *r, RtError *err)
      * copy of the records its leaf tests load. */
     if (!o->isa && rt_cpu_isa_select(NULL, err) != 0)
         return -1;
-    float *soa = !r->be->gpu ? rt_cpu_soa(&job.view) : NULL;
+    void *soa = !r->be->gpu ? rt_cpu_prepare(&job.view) : NULL;
     /* Right before the render, on the same core: the machine's speed now. */
     r->calib_ms = o->calibrate ? rt_calibrate_ms() : 0.0;
     memset(&r->out, 0, sizeof r->out);

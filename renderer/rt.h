@@ -161,11 +161,12 @@ uint64_t rt_fnv1a64(const uint8_t *data, size_t len);
 int rt_cpu_isa_select(const char *name, RtError *err);
 /* The chosen one's name ("c", "sse2", "avx2"). */
 const char *rt_cpu_isa_name(void);
-/* Sets v->soa to a new copy of the primitive records in ten arrays (the
- * leaves' SIMD tests read it) and returns it for free(); NULL, and v->soa
- * NULL, for brute force or out of memory (the leaves are then tested one
- * record at a time: the same results). */
-float *rt_cpu_soa(RtSceneView *v);
+/* The CPU traversal's copy of view v's 4-wide tree (v->cpu_wide), its
+ * leaves' records packed four to a group for the SIMD leaf test
+ * (v->cpu_leaves). Returns the one block to free(); NULL, with both NULL,
+ * for brute force or out of memory (the CPU backends then trace with
+ * rt_trace_ray: the same hits). */
+void *rt_cpu_prepare(RtSceneView *v);
 
 /* ---------------------------------------------------------------- backends */
 

@@ -30,8 +30,9 @@
 /* The entered children of node n (bit k: child k) and their entry
  * distances t[k], against the closest hit so far tmax. */
 typedef int (*NodeFn)(const RtBvh4Node *n, const RtRayBox *rb, float tmax, float t[4]);
-/* A leaf's primitives [first, first + count): rt_leaf_hits' contract. */
-typedef int (*LeafFn)(const RtSceneView *s, uint32_t first, uint32_t count, RtVec3 o, RtVec3 d, int any,
+/* A leaf: its `count` records, from its first group of four in
+ * s->cpu_leaves; rt_leaf_hits' contract. */
+typedef int (*LeafFn)(const RtSceneView *s, uint32_t group, uint32_t count, RtVec3 o, RtVec3 d, int any,
                       RtHit *hit, int *found, uint32_t *tests);
 
 /* ---- the C reference -------------------------------------------------- */
@@ -51,9 +52,10 @@ CPU_INLINE int node_c(const RtBvh4Node *n, const RtRayBox *rb, float tmax, float
  * the traversal (the reference's leaf test, and the SIMD one's without its
  * copy of the records): calling rt_leaf_hits from the SIMD leaf instead
  * cost 2-7% of a mesh's instructions (cachegrind). */
-CPU_INLINE int leaf_c(const RtSceneView *s, uint32_t first, uint32_t count, RtVec3 o, RtVec3 d, int any, RtHit *hit,
+CPU_INLINE int leaf_c(const RtSceneView *s, uint32_t group, uint32_t count, RtVec3 o, RtVec3 d, int any, RtHit *hit,
                   int *found, uint32_t *tests)
 {
+    const uint32_t first = s->cpu_leaves[group].first;
     for (uint32_t k = 0; k < count; k++) {
         const RtPrim *p = &s->prims[first + k];
         float u, v;
@@ -103,7 +105,7 @@ CPU_INLINE int trace_wide(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, 
             if (leaf(s, (ref & ~RT_WIDE_LEAF) >> 3, (ref & 7u) + 1u, o, d, any, hit, &found, &tests))
                 break;
         } else {
-            const RtBvh4Node *n = &s->wide[ref];
+            const RtBvh4Node *n = &s->cpu_wide[ref];
             float t[4];
             const int mask = node(n, &rb, hit->t, t);
             if (mask) {
@@ -154,14 +156,12 @@ CPU_INLINE int node_sse2(const RtBvh4Node *n, const RtRayBox *rb, float tmax, fl
     return in & ((1 << n->count) - 1); /* (an empty slot's inside-out box is no child) */
 }
 
-/* rt_prim_intersect of the four records from `at` of the nine arrays:
- * t (RT_INF on a miss), u, v. */
-CPU_INLINE void tri4_sse2(const float *soa, uint32_t stride, uint32_t at, RtVec3 o, RtVec3 d, float *t, float *u,
-                          float *v)
+/* rt_prim_intersect of a group's four records: t (RT_INF on a miss), u, v. */
+CPU_INLINE void tri4_sse2(const RtCpuLeaf4 *g, RtVec3 o, RtVec3 d, float *t, float *u, float *v)
 {
     __m128 f[9];
     for (int k = 0; k < 9; k++)
-        f[k] = _mm_loadu_ps(soa + (size_t)k * stride + at);
+        f[k] = _mm_load_ps(g->p[k]);
     const __m128 *p0 = f, *e1 = f + 3, *e2 = f + 6;
     const __m128 dx = _mm_set1_ps(d.x), dy = _mm_set1_ps(d.y), dz = _mm_set1_ps(d.z);
     const __m128 pvx = _mm_sub_ps(_mm_mul_ps(dy, e2[2]), _mm_mul_ps(dz, e2[1]));
@@ -189,23 +189,20 @@ CPU_INLINE void tri4_sse2(const float *soa, uint32_t stride, uint32_t at, RtVec3
     _mm_storeu_ps(v, vv);
 }
 
-/* A leaf four records at a time from the arrays (a group with a sphere one
- * at a time); the results taken in order, as leaf_c takes them. A lane
+/* A leaf four records at a time from its groups (a group with a sphere
+ * one at a time); the results taken in order, as leaf_c takes them. A lane
  * that missed (t = RT_INF) only counts a test in rt_leaf_take, so only the
  * lanes that hit are taken: the records themselves are read only for hits.
- * (A short group computes lanes past the leaf and ignores them: the arrays
- * are padded.) */
-CPU_INLINE int leaf_sse2(const RtSceneView *s, uint32_t first, uint32_t count, RtVec3 o, RtVec3 d, int any,
+ * (A short group's lanes past the leaf are zero triangles, ignored.) */
+CPU_INLINE int leaf_sse2(const RtSceneView *s, uint32_t group, uint32_t count, RtVec3 o, RtVec3 d, int any,
                          RtHit *hit, int *found, uint32_t *tests)
 {
-    if (!s->soa)
-        return leaf_c(s, first, count, o, d, any, hit, found, tests);
     const __m128i sphere_bit = _mm_set1_epi32((int)RT_PRIM_SPHERE_BIT);
     for (uint32_t k = 0; k < count; k += 4) {
+        const RtCpuLeaf4 *g = &s->cpu_leaves[group + k / 4];
         const uint32_t m = count - k < 4 ? count - k : 4, lanes = (1u << m) - 1u;
-        const RtPrim *p = &s->prims[first + k];
-        const __m128i ids = _mm_loadu_si128((const __m128i *)(const void *)(s->soa + 9 * (size_t)s->soa_stride +
-                                                                             first + k));
+        const RtPrim *p = &s->prims[g->first];
+        const __m128i ids = _mm_load_si128((const __m128i *)(const void *)g->id);
         const __m128i sph = _mm_cmpeq_epi32(_mm_and_si128(ids, sphere_bit), sphere_bit);
         float t[4], u[4], v[4];
         if ((uint32_t)_mm_movemask_ps(_mm_castsi128_ps(sph)) & lanes) {
@@ -216,7 +213,7 @@ CPU_INLINE int leaf_sse2(const RtSceneView *s, uint32_t first, uint32_t count, R
             }
             continue;
         }
-        tri4_sse2(s->soa, s->soa_stride, first + k, o, d, t, u, v);
+        tri4_sse2(g, o, d, t, u, v);
         uint32_t hits = (uint32_t)_mm_movemask_ps(_mm_cmplt_ps(_mm_loadu_ps(t), _mm_set1_ps(RT_INF))) & lanes;
         for (uint32_t scratch = 0; hits; hits &= hits - 1) {
             const uint32_t i = (uint32_t)__builtin_ctz(hits);
@@ -250,27 +247,66 @@ static int have_avx2(void)
 }
 #endif
 
-float *rt_cpu_soa(RtSceneView *v)
+/* ---- the CPU's copy of the tree ---------------------------------------- */
+
+/* The records of each leaf of the tree, in groups of four. */
+static size_t leaf_groups(const RtBvh4Node *w, uint32_t n)
 {
-    v->soa = NULL;
-    v->soa_stride = 0;
+    size_t groups = 0;
+    for (uint32_t i = 0; i < n; i++)
+        for (uint32_t k = 0; k < w[i].count; k++)
+            if (w[i].child[k] & RT_WIDE_LEAF)
+                groups += ((w[i].child[k] & 7u) + 4u) / 4u;
+    return groups;
+}
+
+/* Leaf ref (first record, count) of node slot *ref: its records into
+ * groups from g on, and the ref made (group g, count). Returns the groups used. */
+static uint32_t pack_leaf(const RtSceneView *v, uint32_t *ref, RtCpuLeaf4 *leaves, uint32_t g)
+{
+    const uint32_t first = (*ref & ~RT_WIDE_LEAF) >> 3, count = (*ref & 7u) + 1u;
+    for (uint32_t j = 0; j < count; j++) {
+        RtCpuLeaf4 *l = &leaves[g + j / 4];
+        const RtPrim *p = &v->prims[first + j];
+        const uint32_t lane = j % 4;
+        for (int a = 0; a < 3; a++) {
+            l->p[a][lane] = p->p0[a];
+            l->p[3 + a][lane] = p->e1[a];
+            l->p[6 + a][lane] = p->e2[a];
+        }
+        l->id[lane] = p->id;
+        if (lane == 0)
+            l->first = first + j;
+    }
+    *ref = RT_WIDE_LEAF | g << 3 | (count - 1u);
+    return (count + 3u) / 4u;
+}
+
+void *rt_cpu_prepare(RtSceneView *v)
+{
+    v->cpu_wide = NULL;
+    v->cpu_leaves = NULL;
     if (!v->wide || v->nnodes == 0)
         return NULL;
-    const size_t stride = (size_t)v->nprims + 4; /* (+4: a leaf's last group reads past it) */
-    float *m = calloc(10 * stride, sizeof *m);
-    if (!m)
+    const size_t groups = leaf_groups(v->wide, v->nwide);
+    const size_t nodes = ((size_t)v->nwide * sizeof(RtBvh4Node) + 63) & ~(size_t)63;
+    if (groups >= RT_WIDE_MAX_FIRST)
         return NULL;
-    for (uint32_t i = 0; i < v->nprims; i++) {
-        for (int k = 0; k < 3; k++) {
-            m[(size_t)k * stride + i] = v->prims[i].p0[k];
-            m[(size_t)(3 + k) * stride + i] = v->prims[i].e1[k];
-            m[(size_t)(6 + k) * stride + i] = v->prims[i].e2[k];
-        }
-        memcpy(&m[9 * stride + i], &v->prims[i].id, sizeof(uint32_t)); /* (the id's bits) */
-    }
-    v->soa = m;
-    v->soa_stride = (uint32_t)stride;
-    return m;
+    char *block = aligned_alloc(64, nodes + groups * sizeof(RtCpuLeaf4));
+    if (!block)
+        return NULL;
+    RtBvh4Node *w = (RtBvh4Node *)(void *)block;
+    RtCpuLeaf4 *leaves = (RtCpuLeaf4 *)(void *)(block + nodes);
+    memcpy(w, v->wide, (size_t)v->nwide * sizeof *w);
+    memset(leaves, 0, groups * sizeof *leaves); /* (lanes past a leaf: zero triangles, which miss) */
+    uint32_t g = 0;
+    for (uint32_t i = 0; i < v->nwide; i++)
+        for (uint32_t k = 0; k < w[i].count; k++)
+            if (w[i].child[k] & RT_WIDE_LEAF)
+                g += pack_leaf(v, &w[i].child[k], leaves, g);
+    v->cpu_wide = w;
+    v->cpu_leaves = leaves;
+    return block;
 }
 
 /* ---- the table and the choice ----------------------------------------- */
@@ -317,7 +353,7 @@ const char *rt_cpu_isa_name(void)
 
 int rt_cpu_trace(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit, RtCounters *cnt)
 {
-    if (!s->wide || s->nnodes == 0)
+    if (!s->cpu_wide)
         return rt_trace_ray(s, o, d, tmax, any, hit, cnt);
     if (!selected)
         rt_cpu_isa_select(NULL, NULL);

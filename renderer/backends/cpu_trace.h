@@ -1,7 +1,8 @@
 /* cpu_trace.h - the CPU backends' ray query, chosen at run time for the
  * machine's instruction set (docs/cpu-backends.md, "Traversal and dispatch").
  *
- * Each entry of the table traces one ray on the 4-wide tree (RtBvh4Node):
+ * Each entry of the table traces one ray on the CPU's copy of the 4-wide
+ * tree (rt_cpu_prepare: RtBvh4Node, its leaves' records in RtCpuLeaf4 groups):
  * "c" is the reference, plain C; the others test a node's four boxes and a
  * leaf's triangles four at a time with SIMD. Every entry finds the same hits
  * and counts the same work as "c", bit for bit (tests/unit/test_cpu_trace.c
@@ -22,12 +23,24 @@ typedef struct RtCpuIsa {
     int (*supported)(void);
 } RtCpuIsa;
 
+/* Four records of a leaf, as the SIMD leaf test loads them: p0, e1 and e2
+ * component by component, one lane per record, with their ids; a leaf's
+ * records fill consecutive groups (rt_cpu_prepare), so one group is three
+ * cache lines where the records are four and their arrays nine. */
+typedef struct RtCpuLeaf4 {
+    float p[9][4];        /* p0 x, y, z, e1 x, y, z, e2 x, y, z */
+    uint32_t id[4];
+    uint32_t first;       /* lane 0's record in prims[] (the lanes follow it) */
+    uint32_t pad[7];
+} RtCpuLeaf4;             /* 192 bytes */
+
 /* The table, reference first; n receives its length. */
 const RtCpuIsa *rt_cpu_isa_table(int *n);
 
 /* The query every CPU backend's shading calls (RT_PATH_TRACE): the selected
- * entry (rt_cpu_isa_select) on scenes with a 4-wide tree; brute force, and a
- * tree too large for the wide copy, through rt_trace_ray. */
+ * entry (rt_cpu_isa_select) on scenes with the CPU's copy of the tree
+ * (rt_cpu_prepare); brute force, a tree too large for the wide copy, and no
+ * memory for the copy, through rt_trace_ray (the same hits). */
 int rt_cpu_trace(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit, RtCounters *cnt);
 
 /* The shading of the CPU backends (core/rt_shade.h, included after this)

@@ -105,12 +105,10 @@ typedef struct RtSceneView {
     RtVec3 background;            /* colour of rays that hit nothing */
     RtVec3 ambient;               /* ambient light intensity */
     int32_t max_depth;            /* 1: primary and shadow rays only */
-    /* CPU backends: the primitive records' p0, e1, e2 and id as ten arrays
-     * of soa_stride floats each (x, y, z of p0, then e1, then e2, then the
-     * id's bits), so a leaf's triangles load four at a time
-     * (backends/cpu_trace.c); NULL: none. */
-    const float *soa;
-    uint32_t soa_stride;
+    /* CPU backends: their copy of the 4-wide tree, whose leaves refer to
+     * groups of four records in cpu_leaves (backends/cpu_trace.h); NULL: none. */
+    const RtBvh4Node *cpu_wide;
+    const struct RtCpuLeaf4 *cpu_leaves;
 } RtSceneView;
 
 /* Exact, deterministic work counters (machine-independent). */

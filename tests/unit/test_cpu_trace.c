@@ -112,8 +112,8 @@ static void check_scene(const char *path, const RtCpuIsa *isa, int nisa)
     RtSceneView v;
     if (fixture_load(path, &s, &a, &cam, &v) != 0)
         return;
-    float *soa = rt_cpu_soa(&v);
-    CHECK(soa != NULL && v.soa == soa, "%s: no copy for the leaves' SIMD tests", path);
+    void *soa = rt_cpu_prepare(&v);
+    CHECK(soa != NULL && v.cpu_wide != NULL && v.cpu_leaves != NULL, "%s: no CPU copy of the tree", path);
     Ctx c;
     memset(&c, 0, sizeof c);
     c.v = &v;
