@@ -231,7 +231,8 @@ static int cuda_parts(CudaRun *c, RtError *err)
         return -1;
     memset(pt, 0, sizeof c->parts);
     pt[P_PRIMS].host = hv->prims;      pt[P_PRIMS].bytes = (size_t)hv->nprims * sizeof(RtPrim);
-    pt[P_NODES].host = hv->nodes;      pt[P_NODES].bytes = (size_t)hv->nnodes * sizeof(RtBvhNode);
+    /* the binary nodes only where the kernel traverses them: no 4-wide tree (kernels.cuh) */
+    pt[P_NODES].host = hv->nodes;      pt[P_NODES].bytes = hv->wide ? 0 : (size_t)hv->nnodes * sizeof(RtBvhNode);
     pt[P_WIDE].host = c->slot_wide ? c->slot_wide : hv->wide;
     pt[P_WIDE].bytes = hv->wide ? (size_t)hv->nwide * sizeof(RtBvh4Node) : 0;
     pt[P_VERTS].host = hv->vertices;   pt[P_VERTS].bytes = (size_t)sc->nvertices * sizeof(RtVec3);
@@ -288,7 +289,7 @@ static int cuda_upload(CudaRun *c, RtError *err)
         unsigned char *a = c->arena;
         *dv = *hv;
         dv->prims = (const RtPrim *)(a + c->parts[P_PRIMS].offset);
-        dv->nodes = hv->nnodes ? (const RtBvhNode *)(a + c->parts[P_NODES].offset) : NULL;
+        dv->nodes = c->parts[P_NODES].bytes ? (const RtBvhNode *)(a + c->parts[P_NODES].offset) : NULL;
         dv->wide = hv->wide ? (const RtBvh4Node *)(a + c->parts[P_WIDE].offset) : NULL;
         dv->vertices = (const RtVec3 *)(a + c->parts[P_VERTS].offset);
         dv->normals = (const RtVec3 *)(a + c->parts[P_NORMALS].offset);
