@@ -176,8 +176,8 @@ static double frame(RtCudaSession *s, RtMpiImage *m, float *rgb, int rows, int w
 /* Warm-up and timed frames as the CUDA backend times launches (rank 0
  * decides, so every rank renders the same frames). times[] gets rank 0's
  * frame times, mins[] the earliest rank's end of each. */
-static int frames(const RtRenderJob *job, RtCudaSession *s, RtMpiImage *m, float *rgb, double *times, double *mins,
-                  int max_runs, int *runs, int *warmups, Share *sh, RtError *err)
+static void frames(const RtRenderJob *job, RtCudaSession *s, RtMpiImage *m, float *rgb, double *times, double *mins,
+                   int max_runs, int *runs, int *warmups, Share *sh, RtError *err)
 {
     int wave_rows;
     Bands *b = malloc(sizeof *b);
@@ -191,7 +191,7 @@ static int frames(const RtRenderJob *job, RtCudaSession *s, RtMpiImage *m, float
     for (int n = 0;; n++) {
         double ms = frame(s, m, rgb, rows, wave_rows, b, sh, err), first_end;
         RT_MPI_CHECK(MPI_Reduce(&sh->done_ms, &first_end, 1, MPI_DOUBLE, MPI_MIN, 0, MPI_COMM_WORLD));
-        int next = 0; /* 0 stop, 1 warm-up, 2 timed */
+        int next = 0; /* rank 0's answer: another frame (1) or the last (0) */
         if (rt_mpi_rank == 0) {
             const int warm = *runs == 0 && rt_warmup_due(job->warmup_runs, warm_ms, n, rt_now_ms() - t0);
             if (warm) {
@@ -208,7 +208,7 @@ static int frames(const RtRenderJob *job, RtCudaSession *s, RtMpiImage *m, float
             job->progress(job->progress_ctx, (uint64_t)(n + 1), (uint64_t)max_runs + 1);
         if (!next) {
             free(b);
-            return 0;
+            return;
         }
     }
 }
