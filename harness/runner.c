@@ -388,10 +388,10 @@ static void build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *
         hx_strlist_push(&c->argv, "--bind-to");
         hx_strlist_push(&c->argv, !pinned ? "none"
                                           : r->oversubscribed ? "core:overload-allowed" : "core");
+        /* GPU runs: each rank on the core planned next to its GPU (topo.c) */
         char *rf = pinned && hx_backend_gpu(be) && topo->ngpus > 0 ? hx_rankfile(topo, r) : NULL;
-        if (rf && write_rankfile(image, rf, c) == 0) {
-            /* each rank on the core planned next to its GPU (topo.c) */
-        } else if (pinned) {
+        const int ranked = rf && write_rankfile(image, rf, c) == 0;
+        if (pinned && !ranked) {
             /* hybrid runs: PE=T gives each rank T consecutive cores */
             HxBuf m = {0};
             int spread = strcmp(r->v[HX_DIM_PIN], "spread") == 0;

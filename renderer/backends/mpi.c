@@ -201,22 +201,11 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
 /* Window layout on rank 0 (disp_unit 1): the claim counter, then the image. */
 #define RT_WIN_IMAGE 8 /* byte offset of the float RGB image */
 
-/* 1 when every rank runs on this rank's node. */
-static int one_node(void)
-{
-    MPI_Comm node;
-    int n = 0;
-    RT_MPI_CHECK(MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node));
-    RT_MPI_CHECK(MPI_Comm_size(node, &n));
-    RT_MPI_CHECK(MPI_Comm_free(&node));
-    return n == rt_mpi_size;
-}
-
 void rt_mpi_image_open(RtMpiImage *m, size_t npix, const float *rgb, int shared)
 {
     memset(m, 0, sizeof *m);
     m->npix = npix;
-    shared = shared && rt_mpi_size > 1 && one_node(); /* (the same answer on every rank) */
+    shared = shared && rt_mpi_size > 1;
     MPI_Aint bytes = rt_mpi_rank == 0 ? (MPI_Aint)(RT_WIN_IMAGE + npix * 3 * sizeof(float)) : 0;
     if (shared)
         RT_MPI_CHECK(MPI_Win_allocate_shared(bytes, 1, MPI_INFO_NULL, MPI_COMM_WORLD, &m->base, &m->win));

@@ -42,10 +42,10 @@ typedef struct RtMpiImage {
 
 /* Collective: the window on rank 0 (counter and image, the image starting as
  * rgb: main's NaN poison), locked for the passive target epochs of frames.
- * Rank 0 writes its own pixels directly where the memory model allows. With
- * shared set and every rank on one node, the window is shared memory
- * (MPI_Win_allocate_shared) and every rank writes its pixels straight into
- * rank 0's image: no puts. */
+ * Rank 0 writes its own pixels directly where the memory model allows.
+ * shared (the same on every rank) says every rank runs on one node: the
+ * window is then shared memory (MPI_Win_allocate_shared) and every rank
+ * writes its pixels straight into rank 0's image: no puts. */
 void rt_mpi_image_open(RtMpiImage *m, size_t npix, const float *rgb, int shared);
 /* Collective: the counter back to 0; returns when every rank may claim. */
 void rt_mpi_frame_start(RtMpiImage *m);

@@ -176,14 +176,14 @@ static double frame(RtCudaSession *s, RtMpiImage *m, float *rgb, int rows, int w
 /* Warm-up and timed frames as the CUDA backend times launches (rank 0
  * decides, so every rank renders the same frames). times[] gets rank 0's
  * frame times, mins[] the earliest rank's end of each. */
-static void frames(const RtRenderJob *job, RtCudaSession *s, RtMpiImage *m, float *rgb, double *times, double *mins,
-                   int max_runs, int *runs, int *warmups, Share *sh, RtError *err)
+static void frames(const RtRenderJob *job, RtCudaSession *s, RtMpiImage *m, float *rgb, int rows, int row_h,
+                   int wave_rows, double *times, double *mins, int max_runs, int *runs, int *warmups, Share *sh,
+                   RtError *err)
 {
-    int wave_rows;
     Bands *b = malloc(sizeof *b);
     if (!b)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
-    const int rows = rt_cuda_session_tile_rows(s, &b->row_h, &wave_rows);
+    b->row_h = row_h;
     b->w = job->view.cam.width;
     const double warm_ms = job->warmup_runs < 0 && job->warmup_ms < 0.0 ? RT_CUDA_WARMUP_MS : job->warmup_ms;
     const double t0 = rt_now_ms();
@@ -293,9 +293,10 @@ static int render_mpi_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *er
     int runs, warmups, row_h, wave_rows;
     const int rows = rt_cuda_session_tile_rows(s, &row_h, &wave_rows);
     const size_t npix = (size_t)job->view.cam.width * (size_t)job->view.cam.height;
-    rt_mpi_image_open(&m, npix, out->rgb, 1);
+    rt_mpi_image_open(&m, npix, out->rgb, g_local_size == rt_mpi_size);
     rt_cuda_session_pin(s, m.direct ? (void *)m.img0 : (void *)out->rgb, npix * 3 * sizeof(float));
-    frames(job, s, &m, out->rgb, times, times + max_runs, max_runs, &runs, &warmups, &sh, err);
+    frames(job, s, &m, out->rgb, rows, row_h, wave_rows, times, times + max_runs, max_runs, &runs, &warmups, &sh,
+           err);
     rt_cuda_session_unpin(s); /* (before the window's memory goes) */
     rt_mpi_image_close(&m, out->rgb);
 
