@@ -16,6 +16,7 @@
  * code, in its order (no fused multiply-add: -ffp-contract=off), so their
  * numbers, and with them the traversal's path and counters, are the
  * reference's. */
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -27,9 +28,53 @@
  * a pointer is left inside the loop. */
 #define CPU_INLINE static inline __attribute__((always_inline))
 
+/* A ray's constants for the node tests: the slab test's, and for the SIMD
+ * test each broadcast to four lanes and, per axis, the byte offset in the
+ * node of the bounds the ray meets first (lo for a positive direction, hi
+ * for a negative one; the far bounds are at offset ^ 16). As 1/d is finite
+ * and nonzero (rt_safe_inv), the near bound's distance is exactly the slab
+ * test's min of the two and the far one's its max, so selecting them by
+ * sign saves the six min/max without changing a value (Williams et al.
+ * 2005, "An efficient and robust ray-box intersection algorithm"). */
+typedef struct CpuRay {
+    RtRayBox rb;
+    uint32_t near[3];
+#if RT_SSE
+    __m128 o[3], inv[3];
+#endif
+} CpuRay;
+
+_Static_assert(offsetof(RtBvh4Node, hi_x) == offsetof(RtBvh4Node, lo_x) + 16 &&
+                   offsetof(RtBvh4Node, hi_y) == offsetof(RtBvh4Node, lo_y) + 16 &&
+                   offsetof(RtBvh4Node, hi_z) == offsetof(RtBvh4Node, lo_z) + 16 && offsetof(RtBvh4Node, lo_x) == 0 &&
+                   offsetof(RtBvh4Node, lo_y) == 32 && offsetof(RtBvh4Node, lo_z) == 64,
+               "the near/far offsets (CpuRay) assume each axis's lo then hi, 16 bytes apart");
+
+CPU_INLINE void cpu_ray(CpuRay *r, RtVec3 o, RtVec3 d)
+{
+    r->rb = rt_raybox(o, d);
+    /* (rt_safe_inv keeps the sign of d, a -0 made +tiny) */
+    r->near[0] = d.x < 0.0f ? offsetof(RtBvh4Node, hi_x) : offsetof(RtBvh4Node, lo_x);
+    r->near[1] = d.y < 0.0f ? offsetof(RtBvh4Node, hi_y) : offsetof(RtBvh4Node, lo_y);
+    r->near[2] = d.z < 0.0f ? offsetof(RtBvh4Node, hi_z) : offsetof(RtBvh4Node, lo_z);
+#if RT_SSE
+    /* rt_safe_inv of the three at once, without its branches: one
+     * division instead of three, the same IEEE quotients */
+    const __m128 dv = _mm_set_ps(1.0f, d.z, d.y, d.x), tiny = _mm_set1_ps(1e-20f);
+    const __m128 small = _mm_and_ps(_mm_cmpgt_ps(dv, _mm_sub_ps(_mm_setzero_ps(), tiny)), _mm_cmplt_ps(dv, tiny));
+    const __m128 nudged = _mm_or_ps(_mm_and_ps(_mm_cmplt_ps(dv, _mm_setzero_ps()), _mm_set1_ps(-1e-20f)),
+                                    _mm_andnot_ps(_mm_cmplt_ps(dv, _mm_setzero_ps()), tiny));
+    const __m128 inv = _mm_div_ps(_mm_set1_ps(1.0f), _mm_or_ps(_mm_and_ps(small, nudged), _mm_andnot_ps(small, dv)));
+    r->o[0] = _mm_set1_ps(o.x), r->o[1] = _mm_set1_ps(o.y), r->o[2] = _mm_set1_ps(o.z);
+    r->inv[0] = _mm_shuffle_ps(inv, inv, _MM_SHUFFLE(0, 0, 0, 0));
+    r->inv[1] = _mm_shuffle_ps(inv, inv, _MM_SHUFFLE(1, 1, 1, 1));
+    r->inv[2] = _mm_shuffle_ps(inv, inv, _MM_SHUFFLE(2, 2, 2, 2));
+#endif
+}
+
 /* The entered children of node n (bit k: child k) and their entry
  * distances t[k], against the closest hit so far tmax. */
-typedef int (*NodeFn)(const RtBvh4Node *n, const RtRayBox *rb, float tmax, float t[4]);
+typedef int (*NodeFn)(const RtBvh4Node *n, const CpuRay *r, float tmax, float t[4]);
 /* A leaf: its `count` records, from its first group of four in
  * s->cpu_leaves; rt_leaf_hits' contract. */
 typedef int (*LeafFn)(const RtSceneView *s, uint32_t group, uint32_t count, RtVec3 o, RtVec3 d, int any,
@@ -37,8 +82,9 @@ typedef int (*LeafFn)(const RtSceneView *s, uint32_t group, uint32_t count, RtVe
 
 /* ---- the C reference -------------------------------------------------- */
 
-CPU_INLINE int node_c(const RtBvh4Node *n, const RtRayBox *rb, float tmax, float t[4])
+CPU_INLINE int node_c(const RtBvh4Node *n, const CpuRay *r, float tmax, float t[4])
 {
+    const RtRayBox *rb = &r->rb;
     int mask = 0;
     for (uint32_t k = 0; k < n->count; k++) {
         t[k] = rt_slab_enter(n->lo_x[k], n->lo_y[k], n->lo_z[k], n->hi_x[k], n->hi_y[k], n->hi_z[k], rb, 0.0f,
@@ -71,7 +117,7 @@ CPU_INLINE int leaf_c(const RtSceneView *s, uint32_t group, uint32_t count, RtVe
 /* Stacks the entered children of n (mask) but the nearest, farthest first,
  * and returns the nearest; ties keep slot order. */
 CPU_INLINE uint32_t order_children(const RtBvh4Node *n, int mask, const float t[4], uint32_t *sn, float *st,
-                                      int *sp)
+                                   int *sp)
 {
     int ks[4], m = 0;
     for (int k = 0; k < 4; k++)
@@ -95,7 +141,8 @@ CPU_INLINE int trace_wide(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, 
     hit->t = tmax;
     hit->u = hit->v = 0.0f;
     hit->id = 0xffffffffu;
-    const RtRayBox rb = rt_raybox(o, d);
+    CpuRay ray;
+    cpu_ray(&ray, o, d);
     uint32_t sn[CPU_STACK], ref = 0, visits = 0, tests = 0;
     float st[CPU_STACK];
     int sp = 0, found = 0;
@@ -107,7 +154,7 @@ CPU_INLINE int trace_wide(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, 
         } else {
             const RtBvh4Node *n = &s->cpu_wide[ref];
             float t[4];
-            const int mask = node(n, &rb, hit->t, t);
+            const int mask = node(n, &ray, hit->t, t);
             if (mask) {
                 ref = order_children(n, mask, t, sn, st, &sp);
                 continue;
@@ -135,22 +182,18 @@ static int always(void) { return 1; }
 
 /* ---- SSE2 (every x86-64) --------------------------------------------- */
 #if RT_SSE
-CPU_INLINE int node_sse2(const RtBvh4Node *n, const RtRayBox *rb, float tmax, float t[4])
+CPU_INLINE int node_sse2(const RtBvh4Node *n, const CpuRay *r, float tmax, float t[4])
 {
-    const __m128 ox = _mm_set1_ps(rb->o.x), oy = _mm_set1_ps(rb->o.y), oz = _mm_set1_ps(rb->o.z);
-    const __m128 ix = _mm_set1_ps(rb->inv.x), iy = _mm_set1_ps(rb->inv.y), iz = _mm_set1_ps(rb->inv.z);
-    const __m128 x0 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->lo_x), ox), ix);
-    const __m128 x1 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->hi_x), ox), ix);
-    const __m128 y0 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->lo_y), oy), iy);
-    const __m128 y1 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->hi_y), oy), iy);
-    const __m128 z0 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->lo_z), oz), iz);
-    const __m128 z1 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->hi_z), oz), iz);
-    /* rt_slab_enter's expressions; _mm_min_ps(a, b) is a < b ? a : b and
-     * _mm_max_ps(a, b) is a > b ? a : b, as rt_minf and rt_maxf */
-    const __m128 t0 = _mm_max_ps(_mm_max_ps(_mm_min_ps(x0, x1), _mm_min_ps(y0, y1)),
-                                 _mm_max_ps(_mm_min_ps(z0, z1), _mm_setzero_ps()));
-    const __m128 t1 = _mm_min_ps(_mm_min_ps(_mm_max_ps(x0, x1), _mm_max_ps(y0, y1)),
-                                 _mm_min_ps(_mm_max_ps(z0, z1), _mm_set1_ps(tmax)));
+    const char *b = (const char *)n;
+#define SLAB(a, off) _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps((const float *)(const void *)(b + (off))), r->o[a]), r->inv[a])
+    const __m128 x0 = SLAB(0, r->near[0]), x1 = SLAB(0, r->near[0] ^ 16u);
+    const __m128 y0 = SLAB(1, r->near[1]), y1 = SLAB(1, r->near[1] ^ 16u);
+    const __m128 z0 = SLAB(2, r->near[2]), z1 = SLAB(2, r->near[2] ^ 16u);
+#undef SLAB
+    /* rt_slab_enter's expressions with its inner min/max already taken
+     * (CpuRay); _mm_max_ps(a, b) is a > b ? a : b, as rt_maxf */
+    const __m128 t0 = _mm_max_ps(_mm_max_ps(x0, y0), _mm_max_ps(z0, _mm_setzero_ps()));
+    const __m128 t1 = _mm_min_ps(_mm_min_ps(x1, y1), _mm_min_ps(z1, _mm_set1_ps(tmax)));
     _mm_storeu_ps(t, t0);
     const int in = _mm_movemask_ps(_mm_cmple_ps(t0, _mm_mul_ps(t1, _mm_set1_ps(RT_BOX_WIDEN))));
     return in & ((1 << n->count) - 1); /* (an empty slot's inside-out box is no child) */
