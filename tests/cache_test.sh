@@ -3,7 +3,8 @@
 # loads what the first built, with the same image and counters; a changed
 # scene, another accelerator, a corrupt or truncated entry and a tampered
 # header all build again (never trusted); an unwritable directory is a
-# warning, not a failure; a bad option value is one line and exit 1.
+# warning, not a failure; the memo of a file's hash is used only while the
+# file is unchanged; a bad option value is one line and exit 1.
 RT=$1
 SRC=$2
 fail=0
@@ -25,7 +26,7 @@ a=$(run) || FAIL "first run"
 b=$(run) || FAIL "second run"
 [ "$(key "$a" cache)/$(key "$b" cache)" = built/loaded ] || FAIL "built then loaded: $(key "$a" cache)/$(key "$b" cache)"
 same "$off" "$b" "loaded vs no cache"
-[ "$(ls "$TMP/c" | wc -l)" = 1 ] || FAIL "one entry expected: $(ls "$TMP/c")"
+[ "$(ls "$TMP/c"/*.rbc | wc -l)" = 1 ] || FAIL "one entry expected: $(ls "$TMP/c")"
 
 n=$(run --accel none) || FAIL "accel none"
 [ "$(key "$n" cache)" = built ] || FAIL "another accelerator loaded the tree's entry"
@@ -74,6 +75,26 @@ mkdir -p "$TMP/ro" && printf x > "$TMP/ro/c"
 w=$("$RT" -q -r 48x36 --cache "$TMP/ro/c" -o "$TMP/o.ppm" "$TMP/s.txt" 2> "$TMP/err") || FAIL "unwritable cache: the run failed"
 grep -q "warning: scene cache: cannot" "$TMP/err" || FAIL "unwritable cache: no warning: $(cat "$TMP/err")"
 [ "$(key "$w" cache)" = built ] || FAIL "unwritable cache: cache=$(key "$w" cache)"
+
+# the memo of a settled file's hash (DIR/stat): written once the file is 2 s
+# old, used while it is unchanged, and worthless after a change in place of
+# the same size (the ctime moved), as after a damaged memo
+cp "$SRC" "$TMP/m.txt"
+sleep 3
+runm() { "$RT" -q -r 48x36 --cache "$TMP/cm" -o "$TMP/o.ppm" "$TMP/m.txt"; }
+m1=$(runm) || FAIL "memo: first run"
+ls "$TMP/cm/stat/"*.memo > /dev/null 2>&1 || FAIL "memo: none written for a settled scene"
+m2=$(runm) || FAIL "memo: second run"
+[ "$(key "$m1" cache)/$(key "$m2" cache)" = built/loaded ] || FAIL "memo: built then loaded: $(key "$m1" cache)/$(key "$m2" cache)"
+same "$off" "$m2" "memo: loaded"
+for memo in "$TMP/cm/stat/"*.memo; do printf '\377' | dd of="$memo" bs=1 seek=60 conv=notrunc 2> /dev/null; done
+m3=$(runm) || FAIL "memo: damaged memo"
+[ "$(key "$m3" cache)" = loaded ] || FAIL "memo: a damaged memo lost the entry (cache=$(key "$m3" cache))"
+at=$(grep -bo 'camera_fov_ha: 20' "$TMP/m.txt" | cut -d: -f1)
+printf '21' | dd of="$TMP/m.txt" bs=1 seek=$((at + 15)) conv=notrunc 2> /dev/null
+m4=$(runm) || FAIL "memo: changed scene"
+[ "$(key "$m4" cache)" = built ] || FAIL "memo: a scene changed in place loaded the old entry"
+[ "$(key "$m4" image_fnv1a)" != "$(key "$m2" image_fnv1a)" ] || FAIL "memo: the changed scene rendered the old image"
 
 "$RT" -q --cache "" -o "$TMP/o.ppm" "$TMP/s.txt" > /dev/null 2> "$TMP/err"
 rc=$?

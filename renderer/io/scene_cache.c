@@ -12,11 +12,13 @@
  * the scene is built again. A store writes a
  * temporary file and renames it, so a reader never sees half a file. */
 #include <errno.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "config.h"
@@ -87,25 +89,123 @@ static void *map_file(const char *path, size_t *len)
     return m == MAP_FAILED ? NULL : m;
 }
 
+/* A file's content hash remembered against its identity and times, as
+ * git's index remembers a file's blob (DIR/stat/DEV-INO.memo): a later key
+ * for the same unchanged file reads 56 bytes instead of hashing the file.
+ * Any write to a file moves its ctime, which no user can set back, so a
+ * memo whose size, mtime and ctime all match is the file's hash. The one
+ * hole, a write within the same clock tick as the hashed state, is closed
+ * as git closes it: a file changed less than RT_MEMO_SETTLE_S before its
+ * hash was finished gets no memo. */
+#define RT_MEMO_MAGIC "RBSTAT01"
+#define RT_MEMO_SETTLE_S 2
+typedef struct FileMemo {
+    char magic[8];
+    uint64_t dev, ino, size, mtime_s, mtime_ns, ctime_s, ctime_ns;
+    XXH128_hash_t hash;
+    uint64_t check; /* XXH3-64 of everything above */
+} FileMemo;
+
+static void memo_of(const struct stat *st, FileMemo *m)
+{
+    memset(m, 0, sizeof *m);
+    memcpy(m->magic, RT_MEMO_MAGIC, 8);
+    m->dev = (uint64_t)st->st_dev, m->ino = (uint64_t)st->st_ino, m->size = (uint64_t)st->st_size;
+    m->mtime_s = (uint64_t)st->st_mtim.tv_sec, m->mtime_ns = (uint64_t)st->st_mtim.tv_nsec;
+    m->ctime_s = (uint64_t)st->st_ctim.tv_sec, m->ctime_ns = (uint64_t)st->st_ctim.tv_nsec;
+}
+
+static void memo_path(char *out, size_t size, const char *dir, const struct stat *st)
+{
+    snprintf(out, size, "%s/stat/%llx-%llx.memo", dir, (unsigned long long)st->st_dev,
+             (unsigned long long)st->st_ino);
+}
+
+/* The remembered hash of the file st describes, if its memo matches. */
+static int memo_read(const char *dir, const struct stat *st, XXH128_hash_t *out)
+{
+    char path[4200];
+    memo_path(path, sizeof path, dir, st);
+    FileMemo want, m;
+    memo_of(st, &want);
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return 0;
+    const int got = fread(&m, sizeof m, 1, f) == 1 && fgetc(f) == EOF;
+    fclose(f);
+    if (!got || m.check != XXH3_64bits(&m, offsetof(FileMemo, check)) ||
+        memcmp(&m, &want, offsetof(FileMemo, hash)) != 0)
+        return 0;
+    *out = m.hash;
+    return 1;
+}
+
+static int same_state(const struct stat *a, const struct stat *b)
+{
+    FileMemo x, y;
+    memo_of(a, &x);
+    memo_of(b, &y);
+    return memcmp(&x, &y, sizeof x) == 0;
+}
+
+/* Remembers hash h for the file that was st before and after hashing (a
+ * temporary file renamed into place; any failure only forgoes the memo). */
+static void memo_write(const char *dir, const struct stat *st, const struct stat *after, XXH128_hash_t h)
+{
+    struct timespec now;
+    clock_gettime(CLOCK_REALTIME, &now);
+    const time_t changed = st->st_mtim.tv_sec > st->st_ctim.tv_sec ? st->st_mtim.tv_sec : st->st_ctim.tv_sec;
+    if (!same_state(st, after) || now.tv_sec - changed < RT_MEMO_SETTLE_S)
+        return;
+    char path[4200], tmp[4300];
+    snprintf(path, sizeof path, "%s/stat", dir);
+    if (mkdir(dir, 0777) != 0 && errno != EEXIST)
+        return;
+    if (mkdir(path, 0777) != 0 && errno != EEXIST)
+        return;
+    memo_path(path, sizeof path, dir, st);
+    snprintf(tmp, sizeof tmp, "%s.tmp.XXXXXX", path);
+    FileMemo m;
+    memo_of(st, &m);
+    m.hash = h;
+    m.check = XXH3_64bits(&m, offsetof(FileMemo, check));
+    const int fd = mkstemp(tmp);
+    if (fd < 0)
+        return;
+    const int ok = write(fd, &m, sizeof m) == (ssize_t)sizeof m;
+    if (close(fd) != 0 || !ok || chmod(tmp, 0644) != 0 || rename(tmp, path) != 0)
+        unlink(tmp);
+}
+
+/* The hash of a regular file's bytes: remembered (dir's memo) or computed. */
+static int file_hash(const char *dir, const char *path, XXH128_hash_t *out)
+{
+    struct stat st, after;
+    if (stat(path, &st) != 0 || !S_ISREG(st.st_mode))
+        return -1;
+    if (memo_read(dir, &st, out))
+        return 0;
+    size_t len = 0;
+    void *m = st.st_size > 0 ? map_file(path, &len) : NULL;
+    if (st.st_size > 0 && !m)
+        return -1;
+    *out = m ? hash_big(m, len) : XXH3_128bits("", 0);
+    if (m)
+        munmap(m, len);
+    if (stat(path, &after) == 0)
+        memo_write(dir, &st, &after, *out);
+    return 0;
+}
+
 /* The key: the scene's bytes, the accelerator kind, the format, and the
  * program itself (any rebuild with other code misses). */
-static int cache_key(const char *scene_path, RtAccelKind kind, char *hex, RtError *err)
+static int cache_key(const char *dir, const char *scene_path, RtAccelKind kind, char *hex, RtError *err)
 {
-    size_t slen = 0, elen = 0;
-    struct stat st;
-    if (stat(scene_path, &st) != 0 || !S_ISREG(st.st_mode))
-        return rt_fail(err, "%s: not a regular file", scene_path); /* (the load says why) */
-    void *s = st.st_size > 0 ? map_file(scene_path, &slen) : NULL;
-    if (st.st_size > 0 && !s)
-        return rt_fail(err, "%s: cannot read for the scene cache", scene_path);
     XXH128_hash_t h[3];
-    h[0] = s ? hash_big(s, slen) : XXH3_128bits("", 0);
-    if (s)
-        munmap(s, slen);
-    void *exe = map_file("/proc/self/exe", &elen);
-    h[1] = exe ? hash_big(exe, elen) : XXH3_128bits(RT_BUILD_FLAGS, sizeof RT_BUILD_FLAGS);
-    if (exe)
-        munmap(exe, elen);
+    if (file_hash(dir, scene_path, &h[0]) != 0)
+        return rt_fail(err, "%s: cannot read for the scene cache", scene_path); /* (the load says why) */
+    if (file_hash(dir, "/proc/self/exe", &h[1]) != 0)
+        h[1] = XXH3_128bits(RT_BUILD_FLAGS, sizeof RT_BUILD_FLAGS);
     const uint32_t opts[2] = {(uint32_t)kind, RT_CACHE_FORMAT};
     h[2] = XXH3_128bits(opts, sizeof opts);
     const XXH128_hash_t k = XXH3_128bits(h, sizeof h);
@@ -162,7 +262,7 @@ static int header_ok(const CacheHeader *h, size_t len)
 int rt_cache_load(const char *dir, const char *scene_path, RtAccelKind kind, RtScene *scene, RtAccel *accel,
                   char *key, RtError *err)
 {
-    if (cache_key(scene_path, kind, key, err) != 0)
+    if (cache_key(dir, scene_path, kind, key, err) != 0)
         return -1;
     char path[4200];
     cache_path(path, sizeof path, dir, key);
