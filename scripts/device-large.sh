@@ -8,10 +8,30 @@
 #          rendered by the older commit in .devcarry/old.tar.gz (`git archive
 #          OLD | gzip`) and by this tree, interleaved, 5 rounds: parse, build,
 #          render, node visits and image (the same tree gives the same visits)
+#   warm   the first image from a warm cache: the whole command
+#          `raytrace -q --backend cuda --cache DIR -r 1920x1080 -o x.png`
+#          on that scene, timed from outside, for the older commit and this
+#          tree, interleaved, 5 rounds; and the floor every CUDA run pays
+#          (process start and CUDA context): an empty scene at 1x1, and a
+#          one-sphere scene at 1920x1080 with its PNG
 # .devcarry/include/xxhash.h stands in for libxxhash-dev where the machine
 # lacks it (the scene cache needs only the header).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+old_build() {
+    mkdir -p /tmp/old-src
+    tar -xzf .devcarry/old.tar.gz -C /tmp/old-src
+    [ -f /tmp/build-old/build.ninja ] ||
+        meson setup /tmp/build-old /tmp/old-src -Dgpu_arch=9.0 -Dharness=false -Dcourse_dir=none "${args[@]}" > /dev/null
+    ninja -C /tmp/build-old renderer/raytrace > /dev/null
+}
+wall_ms() { # wall_ms CMD...: the command's record on stdout, then wall_ms=...
+    local t0 t1 rec
+    t0=$(date +%s%N)
+    rec=$("$@")
+    t1=$(date +%s%N)
+    echo "$rec wall_ms=$(( (t1 - t0) / 1000000 ))"
+}
 OUT=${OUT:-/tmp/device-large}
 mkdir -p "$OUT"
 args=()
@@ -24,11 +44,7 @@ for step in "${@:-bench ab}"; do
         scripts/bench-large.sh --build build-large --backend cuda --resolution 1920x1080 --threads "$(nproc)" \
             --repeats 3 --out "$OUT/bench-large-h100" ;;
     ab)
-        mkdir -p /tmp/old-src
-        tar -xzf .devcarry/old.tar.gz -C /tmp/old-src
-        [ -f /tmp/build-old/build.ninja ] ||
-            meson setup /tmp/build-old /tmp/old-src -Dgpu_arch=9.0 -Dharness=false -Dcourse_dir=none > /dev/null
-        ninja -C /tmp/build-old renderer/raytrace > /dev/null
+        old_build
         SCENEGEN=build-large/renderer/scenegen scripts/gen-scenes.sh large-4m > /dev/null
         s=scenes/generated/large-4m.txt
         echo "round,build,parse_ms,build_ms,render_ms,node_visits,image_fnv1a,sah_cost" > "$OUT/large-4m-ab.csv"
@@ -39,6 +55,31 @@ for step in "${@:-bench ab}"; do
                 k() { printf '%s\n' "$rec" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
                 echo "$r,$b,$(k parse_ms),$(k build_ms),$(k render_ms),$(k node_visits),$(k image_fnv1a),$(k sah_cost)" |
                     tee -a "$OUT/large-4m-ab.csv"
+            done
+        done ;;
+    warm)
+        old_build
+        SCENEGEN=build-large/renderer/scenegen scripts/gen-scenes.sh large-4m > /dev/null
+        s=scenes/generated/large-4m.txt
+        : > /tmp/empty.txt
+        printf 'film_resolution: 1920 1080\nsphere: 0 0 -5 1\n' > /tmp/one.txt
+        sleep 3 # (files changed within 2 s get no hash memo: docs/scene-format.md)
+        for b in old new old new; do # entries built, then loaded once
+            rt=build-large/renderer/raytrace; [ $b = old ] && rt=/tmp/build-old/renderer/raytrace
+            "$rt" -q --backend cuda --cache /tmp/warm-$b -r 1920x1080 -o /tmp/w.png "$s" > /dev/null
+        done
+        f="$OUT/warm-cache-4m-ab.csv"
+        echo "round,build,scene,wall_ms,total_ms,parse_ms,init_ms,upload_ms,render_ms,write_ms,cache,image_fnv1a" > "$f"
+        for r in 1 2 3 4 5; do
+            for b in old new floor-empty floor-one; do
+                rt=build-large/renderer/raytrace; [ $b = old ] && rt=/tmp/build-old/renderer/raytrace
+                case $b in
+                floor-empty) rec=$(wall_ms "$rt" -q --backend cuda -r 1x1 -o /tmp/w.ppm /tmp/empty.txt) ;;
+                floor-one) rec=$(wall_ms "$rt" -q --backend cuda -o /tmp/w.png /tmp/one.txt) ;;
+                *) rec=$(wall_ms "$rt" -q --backend cuda --cache /tmp/warm-$b -r 1920x1080 -o /tmp/w.png "$s") ;;
+                esac
+                k() { printf '%s\n' "$rec" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
+                echo "$r,$b,$(k scene),$(k wall_ms),$(k total_ms),$(k parse_ms),$(k init_ms),$(k upload_ms),$(k render_ms),$(k write_ms),$(k cache),$(k image_fnv1a)" | tee -a "$f"
             done
         done ;;
     *) echo "device-large: unknown step $step" >&2; exit 2 ;;
