@@ -8,9 +8,10 @@
  *
  * Large files are mapped and parsed in two passes (parse_chunks below):
  * chunks of lines in parallel turn vertex, normal, triangle and sphere lines
- * into records, then one pass in file order checks the triangles' indices,
- * gives each primitive its material and runs every other line as the
- * serial parser does. The scene, the warnings and the first error are the
+ * into records, then one pass in file order gives each primitive its
+ * material and slot and runs every other line as the serial parser does;
+ * the triangles' index checks before it and their records after it run in
+ * parallel again. The scene, the warnings and the first error are the
  * serial parser's, byte for byte (tests/unit/test_parse_threads.c). */
 #include <ctype.h>
 #include <errno.h>
@@ -803,7 +804,11 @@ static int parse_serial(Parser *p, const char *buf, size_t len)
  * deferred lines so far), every other line deferred; a chunk stops at its
  * first error. Pass 2, in file order: each chunk's pools appended, then its
  * records and deferred lines in their order, so materials, index checks,
- * warnings and the first error come out as the serial parser's. */
+ * warnings and the first error come out as the serial parser's. Of that
+ * pass only the order is serial: each chunk's first triangle with a bad
+ * index is found before it (in parallel), the triangles before it are given
+ * slots and a material in runs, and the runs are written after it (in
+ * parallel); from a bad triangle on, add_triangle reports it. */
 #define RT_PARSE_CHUNK (4u << 20) /* bytes per chunk; smaller files are parsed serially */
 
 typedef struct TriRec {
@@ -909,10 +914,57 @@ static void chunk_parse(const Parser *p0, Chunk *c, const char *buf)
     free(line);
 }
 
-/* Pass 2 for a chunk's triangles and spheres before its deferred line j. */
-static int chunk_prims(Parser *p, const Chunk *c, uint32_t j, uint32_t *ti, uint32_t *si, uint32_t nv0, uint32_t nn0)
+/* A run of a chunk's triangles that pass 2 placed without writing them:
+ * their slots from `out` on, their material, and the pools' sizes before
+ * the chunk (the records' indices were checked before, in parallel). */
+typedef struct TriRun {
+    const TriRec *t;
+    uint32_t n, out, material;
+} TriRun;
+
+typedef struct Pass2 {
+    TriRun *runs;
+    uint32_t nruns, cap;
+} Pass2;
+
+/* The first of chunk c's triangles whose indices fail add_triangle's checks
+ * against the nv0 vertices and nn0 normals before the chunk (c->nt: none). */
+static uint32_t chunk_first_bad(const Chunk *c, uint32_t nv0, uint32_t nn0)
 {
-    for (; *ti < c->nt && c->tris[*ti].deferred == j; (*ti)++) {
+    for (uint32_t k = 0; k < c->nt; k++) {
+        const TriRec *t = &c->tris[k];
+        const uint64_t nv = (uint64_t)nv0 + t->nv, nn = (uint64_t)nn0 + t->nn;
+        int bad = t->v[0] >= nv || t->v[1] >= nv || t->v[2] >= nv;
+        if (t->line < 0)
+            bad |= t->n[0] >= nn || t->n[1] >= nn || t->n[2] >= nn;
+        if (bad)
+            return k;
+    }
+    return c->nt;
+}
+
+/* Pass 2 for a chunk's triangles and spheres before its deferred line j:
+ * triangles before the chunk's first bad one (bad) are placed as one run,
+ * written later (pass2_fill); from the bad one on they go through
+ * add_triangle, which stops at it with the serial parser's message. */
+static int chunk_prims(Parser *p, const Chunk *c, uint32_t j, uint32_t *ti, uint32_t *si, uint32_t nv0, uint32_t nn0,
+                       uint32_t bad, Pass2 *q)
+{
+    uint32_t end = *ti;
+    while (end < c->nt && c->tris[end].deferred == j)
+        end++;
+    const uint32_t good = end < bad ? end : bad;
+    if (good > *ti) {
+        RtScene *sc = p->s;
+        if (q->nruns == q->cap && grow(p, (void **)&q->runs, &q->cap, q->nruns, sizeof *q->runs, "lines") != 0)
+            return -1;
+        if ((uint64_t)sc->ntriangles + (good - *ti) > sc->cap_triangles) /* (reserve_all sized them) */
+            return perr(p, "internal error: triangle pool too small");
+        q->runs[q->nruns++] = (TriRun){&c->tris[*ti], good - *ti, sc->ntriangles, p->material};
+        sc->ntriangles += good - *ti;
+        *ti = good;
+    }
+    for (; *ti < end; (*ti)++) {
         const TriRec *t = &c->tris[*ti];
         const int normals = t->line < 0;
         const int64_t ix[6] = {t->v[0], t->v[1], t->v[2], t->n[0], t->n[1], t->n[2]};
@@ -927,7 +979,7 @@ static int chunk_prims(Parser *p, const Chunk *c, uint32_t j, uint32_t *ti, uint
 }
 
 /* Pass 2 for one chunk, in file order. */
-static int chunk_merge(Parser *p, const Chunk *c, const char *buf, char *line)
+static int chunk_merge(Parser *p, const Chunk *c, const char *buf, char *line, uint32_t bad, Pass2 *q)
 {
     RtScene *sc = p->s;
     const uint32_t nv0 = sc->nvertices, nn0 = sc->nnormals;
@@ -937,7 +989,7 @@ static int chunk_merge(Parser *p, const Chunk *c, const char *buf, char *line)
     sc->nnormals += c->nn;
     uint32_t ti = 0, si = 0;
     for (uint32_t j = 0; j <= c->nd; j++) {
-        if (chunk_prims(p, c, j, &ti, &si, nv0, nn0) != 0)
+        if (chunk_prims(p, c, j, &ti, &si, nv0, nn0, bad, q) != 0)
             return -1;
         if (j == c->nd)
             break;
@@ -951,6 +1003,25 @@ static int chunk_merge(Parser *p, const Chunk *c, const char *buf, char *line)
         return -1;
     }
     return 0;
+}
+
+/* The placed runs written, in parallel: add_triangle's records. */
+static void pass2_fill(RtScene *sc, const Pass2 *q, int nt)
+{
+    (void)nt;
+#pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
+    for (uint32_t r = 0; r < q->nruns; r++) {
+        const TriRun *run = &q->runs[r];
+        for (uint32_t k = 0; k < run->n; k++) {
+            const TriRec *t = &run->t[k];
+            RtTriangle *o = &sc->triangles[run->out + k];
+            for (int i = 0; i < 3; i++) {
+                o->v[i] = t->v[i];
+                o->n[i] = t->line < 0 ? (int32_t)t->n[i] : -1;
+            }
+            o->material = run->material;
+        }
+    }
 }
 
 /* Chunks at line starts, about RT_PARSE_CHUNK bytes each, and the lines
@@ -1046,11 +1117,29 @@ static int parse_chunks(Parser *p, const char *buf, size_t len, int nt)
     int upto = 0;
     while (upto < n && !c[upto].failed)
         upto++;
+    /* each chunk's first bad triangle, against the pools before it */
+    uint32_t *bad = malloc((size_t)n * sizeof *bad), *nv0 = malloc((size_t)n * 2 * sizeof *nv0);
+    if (bad && nv0) {
+        for (int i = 0; i < n; i++) {
+            nv0[2 * i] = i ? nv0[2 * i - 2] + c[i - 1].nv : p->s->nvertices;
+            nv0[2 * i + 1] = i ? nv0[2 * i - 1] + c[i - 1].nn : p->s->nnormals;
+        }
+#pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
+        for (int i = 0; i < n; i++)
+            bad[i] = chunk_first_bad(&c[i], nv0[2 * i], nv0[2 * i + 1]);
+    }
     char *line = malloc(RT_MAX_LINE + 1);
-    int rc = line ? reserve_all(p, c, upto < n ? upto + 1 : n) : rt_fail(p->err, "%s: out of memory", p->file);
+    Pass2 q = {NULL, 0, 0};
+    int rc = line && bad && nv0 ? reserve_all(p, c, upto < n ? upto + 1 : n)
+                                : rt_fail(p->err, "%s: out of memory", p->file);
     for (int i = 0; i < n && rc == 0; i++)
-        rc = chunk_merge(p, &c[i], buf, line);
+        rc = chunk_merge(p, &c[i], buf, line, bad[i], &q);
+    if (rc == 0)
+        pass2_fill(p->s, &q, nt);
+    free(q.runs);
     free(line);
+    free(bad);
+    free(nv0);
     chunks_free(c, n);
     return rc;
 }

@@ -113,7 +113,7 @@ int main(void)
             free(buf);
         }
     /* two faults in different chunks: the earlier wins, whichever pass finds it */
-    const int pairs[][2] = {{2, 1}, {1, 2}, {3, 1}, {4, 5}};
+    const int pairs[][2] = {{2, 1}, {1, 2}, {3, 1}, {4, 5}, {2, 3}, {3, 4}};
     for (size_t i = 0; i < sizeof pairs / sizeof pairs[0]; i++) {
         char what[64];
         snprintf(what, sizeof what, "faults %d then %d", pairs[i][0], pairs[i][1]);
