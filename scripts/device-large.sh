@@ -1,23 +1,25 @@
 #!/usr/bin/env bash
-# device-large.sh [bench|ab]... - the large-scene measurements on the GPU
+# device-large.sh [bench|ab|warm]... - the large-scene measurements on the GPU
 # machine (docs/performance.md, "Large scenes"); run through the device tool
 # from the repository root with carry [".devcarry"]:
 #   bench  scripts/bench-large.sh on the CUDA backend at 1920x1080, 10K to
 #          4M triangles, every core (CSV and table under $OUT)
 #   ab     the 3,567,202-triangle scene (gen-scenes.sh large-4m) loaded and
 #          rendered by the older commit in .devcarry/old.tar.gz (`git archive
-#          OLD | gzip`) and by this tree, interleaved, 5 rounds: parse, build,
-#          render, node visits and image (the same tree gives the same visits)
+#          OLD | gzip`) and by this tree, interleaved, ROUNDS (default 5)
+#          rounds: parse, build, render, node visits and image (the same
+#          tree gives the same visits)
 #   warm   the first image from a warm cache: the whole command
 #          `raytrace -q --backend cuda --cache DIR -r 1920x1080 -o x.png`
 #          on that scene, timed from outside, for the older commit and this
-#          tree, interleaved, 5 rounds; and the floor every CUDA run pays
+#          tree, interleaved, ROUNDS rounds; and the floor every CUDA run pays
 #          (process start and CUDA context): an empty scene at 1x1, and a
 #          one-sphere scene at 1920x1080 with its PNG
 # .devcarry/include/xxhash.h stands in for libxxhash-dev where the machine
 # lacks it (the scene cache needs only the header).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+ROUNDS=${ROUNDS:-5} # rounds of ab and warm
 old_build() {
     mkdir -p /tmp/old-src
     tar -xzf .devcarry/old.tar.gz -C /tmp/old-src
@@ -25,12 +27,12 @@ old_build() {
         meson setup /tmp/build-old /tmp/old-src -Dgpu_arch=9.0 -Dharness=false -Dcourse_dir=none "${args[@]}" > /dev/null
     ninja -C /tmp/build-old renderer/raytrace > /dev/null
 }
-wall_ms() { # wall_ms CMD...: the command's record on stdout, then wall_ms=...
+cmd_ms() { # cmd_ms CMD...: the command's record on stdout, then cmd_ms=... (its time from outside)
     local t0 t1 rec
     t0=$(date +%s%N)
     rec=$("$@")
     t1=$(date +%s%N)
-    echo "$rec wall_ms=$(( (t1 - t0) / 1000000 ))"
+    echo "$rec cmd_ms=$(( (t1 - t0) / 1000000 ))"
 }
 OUT=${OUT:-/tmp/device-large}
 mkdir -p "$OUT"
@@ -48,7 +50,7 @@ for step in "${@:-bench ab}"; do
         SCENEGEN=build-large/renderer/scenegen scripts/gen-scenes.sh large-4m > /dev/null
         s=scenes/generated/large-4m.txt
         echo "round,build,parse_ms,build_ms,render_ms,node_visits,image_fnv1a,sah_cost" > "$OUT/large-4m-ab.csv"
-        for r in 1 2 3 4 5; do
+        for r in $(seq "$ROUNDS"); do
             for b in old new; do
                 rt=build-large/renderer/raytrace; [ $b = old ] && rt=/tmp/build-old/renderer/raytrace
                 rec=$("$rt" -q --backend cuda -r 1920x1080 -o /tmp/ab.ppm "$s")
@@ -69,17 +71,17 @@ for step in "${@:-bench ab}"; do
             "$rt" -q --backend cuda --cache /tmp/warm-$b -r 1920x1080 -o /tmp/w.png "$s" > /dev/null
         done
         f="$OUT/warm-cache-4m-ab.csv"
-        echo "round,build,scene,wall_ms,total_ms,parse_ms,init_ms,upload_ms,render_ms,write_ms,cache,image_fnv1a" > "$f"
-        for r in 1 2 3 4 5; do
+        echo "round,build,scene,cmd_ms,total_ms,parse_ms,init_ms,upload_ms,render_ms,write_ms,cache,image_fnv1a" > "$f"
+        for r in $(seq "$ROUNDS"); do
             for b in old new floor-empty floor-one; do
                 rt=build-large/renderer/raytrace; [ $b = old ] && rt=/tmp/build-old/renderer/raytrace
                 case $b in
-                floor-empty) rec=$(wall_ms "$rt" -q --backend cuda -r 1x1 -o /tmp/w.ppm /tmp/empty.txt) ;;
-                floor-one) rec=$(wall_ms "$rt" -q --backend cuda -o /tmp/w.png /tmp/one.txt) ;;
-                *) rec=$(wall_ms "$rt" -q --backend cuda --cache /tmp/warm-$b -r 1920x1080 -o /tmp/w.png "$s") ;;
+                floor-empty) rec=$(cmd_ms "$rt" -q --backend cuda -r 1x1 -o /tmp/w.ppm /tmp/empty.txt) ;;
+                floor-one) rec=$(cmd_ms "$rt" -q --backend cuda -o /tmp/w.png /tmp/one.txt) ;;
+                *) rec=$(cmd_ms "$rt" -q --backend cuda --cache /tmp/warm-$b -r 1920x1080 -o /tmp/w.png "$s") ;;
                 esac
                 k() { printf '%s\n' "$rec" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
-                echo "$r,$b,$(k scene),$(k wall_ms),$(k total_ms),$(k parse_ms),$(k init_ms),$(k upload_ms),$(k render_ms),$(k write_ms),$(k cache),$(k image_fnv1a)" | tee -a "$f"
+                echo "$r,$b,$(k scene),$(k cmd_ms),$(k total_ms),$(k parse_ms),$(k init_ms),$(k upload_ms),$(k render_ms),$(k write_ms),$(k cache),$(k image_fnv1a)" | tee -a "$f"
             done
         done ;;
     *) echo "device-large: unknown step $step" >&2; exit 2 ;;
