@@ -7,7 +7,8 @@
  * in a build without OpenMP the pragmas vanish and the loops run on one
  * thread. One loop, two callers: neither backend shades or tiles differently.
  *
- * Every loop calls rt_render_pixel / rt_render_tile from core/rt_shade.h; a
+ * Every loop calls rt_cpu_render_pixel / rt_cpu_render_tile (cpu_trace.h:
+ * core/rt_shade.h's pixel and tile with the CPU traversal inlined); a
  * pixel's colour and counters depend only on (scene, i, j), so any split of
  * the image over threads or ranks gives the serial image bit for bit and the
  * same integer counter sums. */
@@ -141,7 +142,7 @@ static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtSceneView *v, int r
         for (int t = first; t < first + count; t++) {
             int x0, y0, x1, y1;
             rt_region_tile(rx0, ry0, rx1, ry1, tw, th, t, &x0, &y0, &x1, &y1);
-            rt_render_tile(v, x0, y0, x1, y1, rgb, &cnt);
+            rt_cpu_render_tile(v, x0, y0, x1, y1, rgb, &cnt);
             rt_cpu_note(slot);
             if (progress) {
                 /* One atomic add per tile (hundreds of pixels); only thread 0
@@ -173,7 +174,7 @@ static inline void rt_cpu_render_pixels(RtCpuPool *p, const RtSceneView *v, int 
 #pragma omp for collapse(2) schedule(static) nowait
         for (int j = y0; j < y1; j++)
             for (int i = x0; i < x1; i++)
-                rt_render_pixel(v, i, j, RT_ANY_HIT, rgb, &cnt);
+                rt_cpu_render_pixel(v, i, j, rgb, &cnt);
         rt_cpu_note(slot);
         rt_counters_add(&slot->cnt, &cnt);
     }

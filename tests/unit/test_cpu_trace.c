@@ -6,12 +6,17 @@
  * found, t, u, v, primitive, and the node and primitive counters. "c" itself
  * must find the binary traversal's hits (rt_trace_ray), bit for bit. Then the
  * choice: unknown names fail with a message, NULL picks a supported entry.
+ * Each entry's tile and pixel renderers (the shading with its traversal
+ * inlined) must give the binary traversal's image bit for bit, into a
+ * poisoned buffer, and the counters of c's.
  * The hit records start poisoned (NaN, a wrong id) for every call. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+/* rt_render_tile below: the image of the binary traversal, the reference */
+#define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) rt_trace_ray(s, o, d, tmax, any, hit, cnt)
 #include "backends/cpu_trace.h"
 #include "check.h"
 #include "core/rt_shade.h"
@@ -104,6 +109,49 @@ static void random_rays(Ctx *c, const RtBvh4Node *root, int n)
     }
 }
 
+/* The image of every entry's tile (the whole image as one tile, from its
+ * rows' middle on so the tile starts off the origin) and pixel renderers
+ * against the binary traversal's, bit for bit, and their counters against c's. */
+static void check_renders(const char *path, const RtSceneView *v, const RtCpuIsa *isa, int nisa)
+{
+    const int w = v->cam.width, h = v->cam.height;
+    const size_t n = (size_t)w * (size_t)h * 3;
+    float *ref = malloc(n * sizeof *ref), *img = malloc(n * sizeof *img);
+    RtCounters cr, c0, c;
+    memset(&cr, 0, sizeof cr);
+    memset(&c0, 0, sizeof c0);
+    for (size_t i = 0; i < n; i++)
+        ref[i] = NAN;
+    rt_render_tile(v, 0, 0, w, h, ref, &cr);
+    for (int e = 0; e < nisa; e++)
+        for (int way = 0; way < 2; way++) {
+            for (size_t i = 0; i < n; i++)
+                img[i] = NAN;
+            memset(&c, 0, sizeof c);
+            if (way == 0) {
+                isa[e].tile(v, 0, 0, w, h / 2, img, &c);
+                isa[e].tile(v, 0, h / 2, w, h, img, &c);
+            } else {
+                for (int j = 0; j < h; j++)
+                    for (int i = 0; i < w; i++)
+                        isa[e].pixel(v, i, j, img, &c);
+            }
+            CHECK(memcmp(img, ref, n * sizeof *img) == 0, "%s: %s's %s image differs from the binary traversal's",
+                  path, isa[e].name, way ? "pixel" : "tile");
+            CHECK(c.primary_rays == cr.primary_rays && c.shadow_rays == cr.shadow_rays &&
+                      c.secondary_rays == cr.secondary_rays,
+                  "%s: %s's %s renderer traced other rays", path, isa[e].name, way ? "pixel" : "tile");
+            if (e == 0 && way == 0)
+                c0 = c;
+            CHECK(c.node_visits == c0.node_visits && c.prim_tests == c0.prim_tests,
+                  "%s: %s's %s renderer counted %llu visits, %llu tests; c's tile %llu, %llu", path, isa[e].name,
+                  way ? "pixel" : "tile", (unsigned long long)c.node_visits, (unsigned long long)c.prim_tests,
+                  (unsigned long long)c0.node_visits, (unsigned long long)c0.prim_tests);
+        }
+    free(ref);
+    free(img);
+}
+
 static void check_scene(const char *path, const RtCpuIsa *isa, int nisa)
 {
     RtScene s;
@@ -124,6 +172,7 @@ static void check_scene(const char *path, const RtCpuIsa *isa, int nisa)
         random_rays(&c, &v.wide[0], 20000);
     }
     CHECK(c.bad_ref == 0, "%s: %ld of %ld rays: c differs from the binary traversal", path, c.bad_ref, c.rays);
+    check_renders(path, &v, isa, nisa);
     for (int i = 1; i < nisa; i++) {
         CHECK(c.bad_isa[i] == 0, "%s: %ld of %ld rays: %s differs from c", path, c.bad_isa[i], c.rays, isa[i].name);
         CHECK(c.cnt[i].node_visits == c.cnt[0].node_visits && c.cnt[i].prim_tests == c.cnt[0].prim_tests,

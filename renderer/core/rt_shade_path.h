@@ -1,0 +1,75 @@
+/* rt_shade_path.h - the pixel and tile loop of rt_shade.h, written once for
+ * every ray query: rt_shade.h includes it with RT_PATH_TRACE (the query),
+ * RT_PATH_NAME (how its functions are named) and RT_PATH_FN (how they are
+ * declared) at their defaults, which gives rt_trace_path, rt_render_pixel
+ * and rt_render_tile; backends/cpu_trace.c includes it again per
+ * instruction set, with the CPU traversal inlined as the query, so a tile
+ * renders without a call per ray. No include guard, on purpose: each
+ * inclusion instantiates the functions under the names RT_PATH_NAME gives. */
+
+/* The colour of one primary ray, unclamped: trace() of RENDERING-RULES with
+ * the recursion unrolled into the pending-ray stack. Each popped ray is traced
+ * for its closest hit; the hit's shadow rays are traced in the inner loop over
+ * the lights, as shadow_any queries (RT_ANY_HIT or RT_ANY_HIT_SLOT). The
+ * colour is summed exactly as trace(): ambient, then each light in order,
+ * then weight * local into the pixel.
+ *
+ * The closest-hit and any-hit queries are two call sites, not one loop
+ * serving every ray kind: on the GPU each keeps its own, smaller, traversal
+ * code (docs/gpu.md, "Design and defaults"). */
+RT_PATH_FN RtVec3 RT_PATH_NAME(rt_trace_path)(const RtSceneView *s, RtRay primary, int shadow_any, RtCounters *cnt)
+{
+    RtPending stack[RT_RAY_STACK];
+    RtVec3 color = rt_v3(0.0f, 0.0f, 0.0f);
+    int sp = rt_path_begin(s, primary, stack);
+    while (sp > 0) {
+        RtPending r = rt_path_pop(s, stack, &sp, cnt);
+        RtHit h;
+        if (!RT_PATH_TRACE(s, r.o, r.d, RT_INF, 0, &h, cnt, -1)) {
+            color = rt_add(color, rt_mul(r.w, s->background));
+            continue;
+        }
+        RtSurface sf = rt_surface(s, r.o, r.d, &h);
+        const RtMaterial *m = &s->materials[sf.material];
+        RtVec3 view = rt_neg(r.d);
+        RtVec3 so = rt_shadow_origin(&sf);
+        RtVec3 local = rt_ambient_term(s, m);
+        for (uint32_t li = 0; li < s->nlights; li++) {
+            RtVec3 c, L;
+            float dist;
+            if (!rt_light_sample(s, &sf, m, view, li, &c, &L, &dist))
+                continue;
+            RtHit sh;
+            cnt->shadow_rays++;
+            if (!RT_PATH_TRACE(s, so, L, dist, shadow_any, &sh, cnt, (int)li))
+                local = rt_add(local, c);
+        }
+        color = rt_add(color, rt_mul(r.w, local));
+        if (r.depth > 1)
+            rt_push_children(stack, &sp, &r, &sf, m);
+    }
+    return color;
+}
+
+/* Renders pixel (i, j) into rgb (float RGB, row-major, stride = image
+ * width); shadow_any is the shadow rays' query, RT_ANY_HIT or
+ * RT_ANY_HIT_SLOT (rt_traverse.h): the same image either way. */
+RT_PATH_FN void RT_PATH_NAME(rt_render_pixel)(const RtSceneView *s, int i, int j, int shadow_any, float *rgb,
+                                         RtCounters *cnt)
+{
+    RtVec3 c = RT_PATH_NAME(rt_trace_path)(s, rt_camera_ray(&s->cam, i, j), shadow_any, cnt);
+    float *px = rgb + 3 * ((size_t)j * (size_t)s->cam.width + (size_t)i);
+    px[0] = c.x;
+    px[1] = c.y;
+    px[2] = c.z;
+}
+
+/* Renders pixels [x0,x1) x [y0,y1): the one loop every CPU backend calls. */
+RT_PATH_FN void RT_PATH_NAME(rt_render_tile)(const RtSceneView *s, int x0, int y0, int x1, int y1, float *rgb,
+                                        RtCounters *cnt)
+{
+    for (int j = y0; j < y1; j++)
+        for (int i = x0; i < x1; i++)
+            RT_PATH_NAME(rt_render_pixel)(s, i, j, RT_ANY_HIT, rgb, cnt);
+}
+
