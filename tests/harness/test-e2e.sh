@@ -72,7 +72,7 @@ if "$RT" -q --cache "$T/probe" -r 8x6 -o "$T/p.ppm" scenes/demo.txt > /dev/null 
     "$H" run "$T/cached.conf" --raytrace "$RT" -o "$T/cached.csv" -q 2> "$T/cached.log" || { cat "$T/cached.log"; fail "cached study failed"; }
     [ "$(grep -c 'cache=built' "$T/cached.csv")" -eq 1 ] && [ "$(grep -c 'cache=loaded' "$T/cached.csv")" -eq 2 ] ||
         { cat "$T/cached.csv"; fail "the study did not build once and load twice"; }
-    [ "$(ls "$T/sc" | wc -l)" -eq 1 ] || fail "one cache entry expected in $T/sc"
+    [ "$(ls "$T/sc"/*.rbc | wc -l)" -eq 1 ] || fail "one cache entry expected in $T/sc"
     printf 'study: nocache\nscene_dir: %s/scenes\nscenes: glass\nresolution: 64x48\nrepeats: 2\nwarmup: 0\npin: none\nscene_cache: off\n' \
         "$SRC" > "$T/nocache.conf"
     "$H" run "$T/nocache.conf" --raytrace "$RT" -o "$T/nocache.csv" -q 2> /dev/null || fail "scene_cache: off failed"
