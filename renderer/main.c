@@ -27,6 +27,7 @@ typedef struct Options {
     int max_depth;      /* -1: from the scene */
     int threads;
     int build_threads;  /* 0: every allowed CPU */
+    int huge_pages;     /* the build's large arrays in 2 MiB pages (rt_accel_huge_pages) */
     int tile_w, tile_h;
     RtSchedule schedule;
     RtMpiSchedule mpi_schedule;
@@ -60,6 +61,8 @@ static void usage(FILE *fp)
             "  -t, --threads N          worker threads (openmp; per rank with mpi)\n"
             "      --build-threads N    threads that parse the scene and build the BVH (default: every CPU\n"
             "                           the process may use; the same scene and tree on any number)\n"
+            "      --huge-pages on|off  the BVH build's large arrays in 2 MiB pages (default on; the same\n"
+            "                           tree either way: docs/performance.md, \"Large scenes\")\n"
             "      --tile WxH           tile size in pixels (default 32x32 serial, 16x16 openmp/mpi)\n"
             "      --schedule S         openmp: tiles (dynamic, default) or pixels (the report's collapse(2) static)\n"
             "      --mpi-schedule S     mpi: dynamic (default) or rows (the report's block rows + Gatherv)\n"
@@ -114,7 +117,7 @@ static int opt_error(const char *opt, const char *val, const char *why)
 }
 
 enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE,
-       OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE, OPT_ISA, OPT_SHARE_GPU };
+       OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE, OPT_ISA, OPT_SHARE_GPU, OPT_HUGE_PAGES };
 
 static void print_version(void)
 {
@@ -125,10 +128,15 @@ static void print_version(void)
     printf("\nbuild: %s\n", RT_BUILD_FLAGS);
 }
 
-/* --cache, --build-threads, --runs and --warmup. */
+/* --cache, --build-threads, --huge-pages, --runs and --warmup. */
 static int parse_load_timing(int c, const char *arg, Options *o)
 {
     switch (c) {
+    case OPT_HUGE_PAGES:
+        if (strcmp(arg, "on") != 0 && strcmp(arg, "off") != 0)
+            return opt_error("--huge-pages", arg, "expected on or off");
+        o->huge_pages = strcmp(arg, "on") == 0;
+        return 0;
     case OPT_CACHE:
         if (!*arg)
             return opt_error("--cache", arg, "expected a directory");
@@ -175,6 +183,7 @@ static int parse_options(int argc, char **argv, Options *o)
         {"block", required_argument, NULL, OPT_BLOCK}, {"device", required_argument, NULL, OPT_DEVICE},
         {"runs", required_argument, NULL, OPT_RUNS},  {"warmup", required_argument, NULL, OPT_WARMUP},
         {"build-threads", required_argument, NULL, OPT_BUILD_THREADS}, {"cache", required_argument, NULL, OPT_CACHE},
+        {"huge-pages", required_argument, NULL, OPT_HUGE_PAGES},
         {"verify", no_argument, NULL, OPT_VERIFY},    {"calibrate", no_argument, NULL, OPT_CALIBRATE},    {"quiet", no_argument, NULL, 'q'},
         {"isa", required_argument, NULL, OPT_ISA},    {"share-gpu", no_argument, NULL, OPT_SHARE_GPU},
         {"help", no_argument, NULL, 'h'},             {"version", no_argument, NULL, 'V'},
@@ -185,6 +194,7 @@ static int parse_options(int argc, char **argv, Options *o)
     o->max_depth = -1;
     o->warmup_runs = -1;
     o->warmup_ms = -1.0;
+    o->huge_pages = 1;
     int c;
     opterr = 0;
     while ((c = getopt_long(argc, argv, ":o:b:a:r:d:t:qhV", longopts, NULL)) != -1) {
@@ -236,7 +246,7 @@ static int parse_options(int argc, char **argv, Options *o)
             if (rt_parse_int(optarg, 0, 1023, &o->device) != 0)
                 return opt_error("--device", optarg, "expected a device index");
             break;
-        case OPT_CACHE: case OPT_BUILD_THREADS: case OPT_RUNS: case OPT_WARMUP:
+        case OPT_CACHE: case OPT_BUILD_THREADS: case OPT_RUNS: case OPT_WARMUP: case OPT_HUGE_PAGES:
             if (parse_load_timing(c, optarg, o) != 0)
                 return -1;
             break;
@@ -515,6 +525,7 @@ static int prepare(Run *r, RtError *err)
         return -1;
     }
     t0 = rt_now_ms();
+    rt_accel_huge_pages(o->huge_pages);
     if (!loaded && rt_accel_build_threads(&r->scene, o->accel, o->build_threads, &r->accel, err) != 0)
         return -1;
     r->build_ms = rt_now_ms() - t0;
@@ -667,7 +678,8 @@ static void print_record(const Run *r)
     printf("record: scene=%s width=%d height=%d backend=%s accel=%s threads=%d ranks=%d parse_ms=%.3f "
            "build_ms=%.3f render_ms=%.3f write_ms=%.3f total_ms=%.3f rays=%llu primary_rays=%llu "
            "shadow_rays=%llu secondary_rays=%llu node_visits=%llu prim_tests=%llu mrays_per_s=%.3f "
-           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u runs=%d warmups=%d render_ms_best=%.3f build_threads=%d sah_cost=%.4f cache=%s%s%s%s%s\n",
+           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u runs=%d warmups=%d render_ms_best=%.3f build_threads=%d huge_pages=%s "
+           "sah_cost=%.4f cache=%s%s%s%s%s\n",
            r->scene.name, r->cam.width, r->cam.height, r->be->name, rt_accel_name(o->accel), out->threads_used,
            out->ranks_used, r->parse_ms, r->build_ms, out->render_ms, r->write_ms, total_ms,
            (unsigned long long)rays, (unsigned long long)out->counters.primary_rays,
@@ -675,7 +687,8 @@ static void print_record(const Run *r)
            (unsigned long long)out->counters.node_visits, (unsigned long long)out->counters.prim_tests,
            out->render_ms > 0.0 ? (double)rays / (out->render_ms * 1000.0) : 0.0, (unsigned long long)r->hash, tw,
            th, out->cores[0] ? out->cores : "unknown", r->accel.nprims - r->accel.nsplit, r->accel.nnodes, out->runs,
-           out->warmups, out->render_ms_best, r->accel.build_threads, r->accel.sah_cost, r->cache, min_key, isa_key,
+           out->warmups, out->render_ms_best, r->accel.build_threads, o->huge_pages ? "on" : "off", r->accel.sah_cost,
+           r->cache, min_key, isa_key,
            out->extra, calib_key);
     fflush(stdout);
 }

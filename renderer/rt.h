@@ -97,6 +97,10 @@ typedef struct RtAccel {
 /* Builds the accelerator on `threads` threads (0: as many as OpenMP gives,
  * by default one per allowed CPU); the same tree on any number of them. */
 int rt_accel_build_threads(const RtScene *scene, RtAccelKind kind, int threads, RtAccel *accel, RtError *err);
+/* Whether later builds ask for 2 MiB pages for their large arrays
+ * (madvise(MADV_HUGEPAGE); default on): fewer page faults where the kernel
+ * grants them cheaply, the same tree either way (raytrace --huge-pages). */
+void rt_accel_huge_pages(int on);
 int rt_accel_build(const RtScene *scene, RtAccelKind kind, RtAccel *accel, RtError *err);
 void rt_accel_free(RtAccel *accel);
 /* Checks the BVH invariants: every record slot in exactly one leaf, every

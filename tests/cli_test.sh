@@ -66,6 +66,13 @@ bad() { # bad NAME EXPECTED_SUBSTRING ARGS...
     [ ! -e "$tmp/out.png" ] || fail "$name: wrote an output file"
     ls "$tmp" | grep -q '\.tmp\.' && fail "$name: left a temporary file"
 }
+bad "huge pages" "--huge-pages" --huge-pages maybe "$src/scenes/glass.txt"
+for h in on off; do # the same image and work either way; the record says which
+    out=$("$rt" -q --huge-pages $h -r 40x30 -o "$tmp/h.png" "$src/scenes/glass.txt") || fail "--huge-pages $h failed"
+    echo "$out" | tr ' ' '\n' | grep -qx "huge_pages=$h" || fail "--huge-pages $h: the record lacks huge_pages=$h"
+    echo "$out" | tr ' ' '\n' | grep -E '^(image_fnv1a|node_visits|prim_tests|sah_cost)=' > "$tmp/huge-$h.txt"
+done
+cmp -s "$tmp/huge-on.txt" "$tmp/huge-off.txt" || fail "--huge-pages off changed the image or the tree"
 printf 'sphere: 0 0 -5 1\n\nsphere: 1 2\n' > "$tmp/count.txt"
 bad "wrong count" "count.txt:3:" "$tmp/count.txt"
 printf 'vertex: 0 0 0\ntriangle: 0 1 2\n' > "$tmp/index.txt"

@@ -25,8 +25,10 @@
  * and integer sums, which are exact in any order, and the partition keeps
  * the serial order (Wald 2007, section 4, does the same horizontally). */
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -64,6 +66,32 @@
  * at least two chunks of references bin and partition them in parallel. */
 #define RT_BVH_TASK_MIN 4096
 #define RT_BVH_CHUNK 16384
+
+/* A large array p of n bytes, just allocated, in 2 MiB pages where the
+ * kernel grants them (transparent huge pages on request: madvise mode): a
+ * fresh array then costs one page fault per 2 MiB instead of one per 4 KiB,
+ * and the top nodes' reference arrays are fresh at every level. The
+ * 3,567,202-triangle build on the H100 host's 16 threads took 0.83 of the
+ * time; on the 2-core VM, where the pages are granted without compaction
+ * yet cost more, 1.13 (docs/performance.md, "Large scenes"), so it is an
+ * option (rt_accel_huge_pages). A hint only: the tree is the same. */
+#define RT_HUGE_PAGE ((uintptr_t)2 << 20)
+static int use_huge = 1;
+
+void rt_accel_huge_pages(int on) { use_huge = on != 0; }
+
+static void *huge(void *p, size_t n)
+{
+#ifdef MADV_HUGEPAGE
+    if (p && use_huge && n >= 2 * RT_HUGE_PAGE) {
+        const uintptr_t a = ((uintptr_t)p + RT_HUGE_PAGE - 1) & ~(RT_HUGE_PAGE - 1);
+        const uintptr_t e = ((uintptr_t)p + n) & ~(RT_HUGE_PAGE - 1);
+        if (e > a)
+            (void)madvise((void *)a, e - a, MADV_HUGEPAGE);
+    }
+#endif
+    return p;
+}
 
 typedef struct Box {
     float lo[3], hi[3];
@@ -136,7 +164,7 @@ static RtPrim *make_prims(const RtScene *s, int nt, uint32_t *n_out, RtError *er
                 RT_PRIM_SPHERE_BIT - 1);
         return NULL;
     }
-    RtPrim *p = calloc(n ? n : 1, sizeof *p);
+    RtPrim *p = huge(calloc(n ? n : 1, sizeof *p), (size_t)n * sizeof *p);
     if (!p) {
         rt_fail(err, "out of memory for %llu primitive records", (unsigned long long)n);
         return NULL;
@@ -648,8 +676,8 @@ static int halves(Builder *b, uint32_t count, Ref **left, Ref **right)
 {
     if (*left)
         return 1;
-    *left = malloc((size_t)count * sizeof **left);
-    *right = malloc((size_t)count * sizeof **right);
+    *left = huge(malloc((size_t)count * sizeof **left), (size_t)count * sizeof **left);
+    *right = huge(malloc((size_t)count * sizeof **right), (size_t)count * sizeof **right);
     if (*left && *right)
         return 1;
     free(*left);
@@ -765,8 +793,8 @@ static int sub_init(Builder *s, const Builder *p, uint32_t count, uint32_t budge
     s->refs_left = budget;
     s->spatial_min = p->spatial_min;
     const size_t recs = (size_t)count + budget;
-    s->nodes = malloc(2 * recs * sizeof *s->nodes);
-    s->order = malloc(recs * sizeof *s->order);
+    s->nodes = huge(malloc(2 * recs * sizeof *s->nodes), 2 * recs * sizeof *s->nodes);
+    s->order = huge(malloc(recs * sizeof *s->order), recs * sizeof *s->order);
     if (s->nodes && s->order)
         return 0;
     free(s->nodes);
@@ -1158,7 +1186,7 @@ static int widen(RtAccel *a, int nt)
     w.bin = a->nodes;
     w.n = 0;
     /* At most one wide node per binary inner node, plus the root. */
-    w.wide = malloc(((size_t)a->nnodes + 1) * sizeof *w.wide);
+    w.wide = huge(malloc(((size_t)a->nnodes + 1) * sizeof *w.wide), ((size_t)a->nnodes + 1) * sizeof *w.wide);
     if (!w.wide)
         return -1;
     uint32_t first;
@@ -1234,11 +1262,11 @@ int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAc
      * on a leaf's first record). */
     uint32_t budget = n < RT_WIDE_MAX_FIRST / 4 ? n : 0;
     uint32_t total = n + budget;
-    Ref *refs = malloc((size_t)n * sizeof *refs);
-    float (*verts)[3][3] = malloc((size_t)n * sizeof *verts);
+    Ref *refs = huge(malloc((size_t)n * sizeof *refs), (size_t)n * sizeof *refs);
+    float (*verts)[3][3] = huge(malloc((size_t)n * sizeof *verts), (size_t)n * sizeof *verts);
     /* A binary tree with leaves of >= 1 reference has at most 2 refs - 1 nodes. */
-    RtBvhNode *nodes = malloc((size_t)2 * total * sizeof *nodes);
-    uint32_t *order = malloc((size_t)total * sizeof *order);
+    RtBvhNode *nodes = huge(malloc((size_t)2 * total * sizeof *nodes), (size_t)2 * total * sizeof *nodes);
+    uint32_t *order = huge(malloc((size_t)total * sizeof *order), (size_t)total * sizeof *order);
     if (!refs || !verts || !nodes || !order) {
         free(refs); free(verts); free(nodes); free(order); free(prims);
         return rt_fail(err, "out of memory building a BVH over %u primitives", n);
@@ -1271,7 +1299,8 @@ int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAc
     place_all(&b, nodes, order, 0, 0, 0);
 #endif
     free(verts);
-    RtPrim *ordered = b.oom ? NULL : malloc((size_t)b.norder * sizeof *ordered);
+    const size_t obytes = (size_t)b.norder * sizeof(RtPrim);
+    RtPrim *ordered = b.oom ? NULL : huge(malloc(obytes), obytes);
     if (!ordered) {
         free(nodes); free(order); free(prims);
         return rt_fail(err, "out of memory building a BVH over %u primitives", n);
