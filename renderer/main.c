@@ -27,7 +27,7 @@ typedef struct Options {
     int max_depth;      /* -1: from the scene */
     int threads;
     int build_threads;  /* 0: every allowed CPU */
-    int huge_pages;     /* the build's large arrays in 2 MiB pages (rt_accel_huge_pages) */
+    int huge_pages;     /* 1 on, 0 off, -1 auto (rt_accel_huge_pages) */
     int tile_w, tile_h;
     RtSchedule schedule;
     RtMpiSchedule mpi_schedule;
@@ -61,8 +61,8 @@ static void usage(FILE *fp)
             "  -t, --threads N          worker threads (openmp; per rank with mpi)\n"
             "      --build-threads N    threads that parse the scene and build the BVH (default: every CPU\n"
             "                           the process may use; the same scene and tree on any number)\n"
-            "      --huge-pages on|off  the BVH build's large arrays in 2 MiB pages (default on; the same\n"
-            "                           tree either way: docs/performance.md, \"Large scenes\")\n"
+            "      --huge-pages on|off|auto  the BVH build's large arrays in 2 MiB pages; auto (default):\n"
+            "                           on with 8 or more build threads (the same tree either way)\n"
             "      --tile WxH           tile size in pixels (default 32x32 serial, 16x16 openmp/mpi)\n"
             "      --schedule S         openmp: tiles (dynamic, default) or pixels (the report's collapse(2) static)\n"
             "      --mpi-schedule S     mpi: dynamic (default) or rows (the report's block rows + Gatherv)\n"
@@ -133,9 +133,9 @@ static int parse_load_timing(int c, const char *arg, Options *o)
 {
     switch (c) {
     case OPT_HUGE_PAGES:
-        if (strcmp(arg, "on") != 0 && strcmp(arg, "off") != 0)
-            return opt_error("--huge-pages", arg, "expected on or off");
-        o->huge_pages = strcmp(arg, "on") == 0;
+        if (strcmp(arg, "on") != 0 && strcmp(arg, "off") != 0 && strcmp(arg, "auto") != 0)
+            return opt_error("--huge-pages", arg, "expected on, off or auto");
+        o->huge_pages = strcmp(arg, "on") == 0 ? 1 : strcmp(arg, "off") == 0 ? 0 : -1;
         return 0;
     case OPT_CACHE:
         if (!*arg)
@@ -194,7 +194,7 @@ static int parse_options(int argc, char **argv, Options *o)
     o->max_depth = -1;
     o->warmup_runs = -1;
     o->warmup_ms = -1.0;
-    o->huge_pages = 1;
+    o->huge_pages = -1;
     int c;
     opterr = 0;
     while ((c = getopt_long(argc, argv, ":o:b:a:r:d:t:qhV", longopts, NULL)) != -1) {
@@ -687,7 +687,7 @@ static void print_record(const Run *r)
            (unsigned long long)out->counters.node_visits, (unsigned long long)out->counters.prim_tests,
            out->render_ms > 0.0 ? (double)rays / (out->render_ms * 1000.0) : 0.0, (unsigned long long)r->hash, tw,
            th, out->cores[0] ? out->cores : "unknown", r->accel.nprims - r->accel.nsplit, r->accel.nnodes, out->runs,
-           out->warmups, out->render_ms_best, r->accel.build_threads, o->huge_pages ? "on" : "off", r->accel.sah_cost,
+           out->warmups, out->render_ms_best, r->accel.build_threads, r->accel.huge_pages ? "on" : "off", r->accel.sah_cost,
            r->cache, min_key, isa_key,
            out->extra, calib_key);
     fflush(stdout);

@@ -90,6 +90,7 @@ typedef struct RtAccel {
     uint32_t depth;      /* deepest leaf */
     uint32_t leaves;
     int build_threads;   /* threads the build ran on */
+    int huge_pages;      /* the build asked for 2 MiB pages (rt_accel_huge_pages) */
     double sah_cost;     /* the tree's SAH cost (0 for none): its quality */
     int mapped;          /* the arrays are in the scene's cache mapping: not freed here */
 } RtAccel;
@@ -98,9 +99,11 @@ typedef struct RtAccel {
  * by default one per allowed CPU); the same tree on any number of them. */
 int rt_accel_build_threads(const RtScene *scene, RtAccelKind kind, int threads, RtAccel *accel, RtError *err);
 /* Whether later builds ask for 2 MiB pages for their large arrays
- * (madvise(MADV_HUGEPAGE); default on): fewer page faults where the kernel
- * grants them cheaply, the same tree either way (raytrace --huge-pages). */
-void rt_accel_huge_pages(int on);
+ * (madvise(MADV_HUGEPAGE)): 1 yes, 0 no, -1 (the default) when they run on
+ * RT_HUGE_PAGES_THREADS threads or more, where page faults contend most.
+ * The same tree either way (raytrace --huge-pages). */
+#define RT_HUGE_PAGES_THREADS 8
+void rt_accel_huge_pages(int mode);
 int rt_accel_build(const RtScene *scene, RtAccelKind kind, RtAccel *accel, RtError *err);
 void rt_accel_free(RtAccel *accel);
 /* Checks the BVH invariants: every record slot in exactly one leaf, every

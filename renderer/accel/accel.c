@@ -70,15 +70,17 @@
 /* A large array p of n bytes, just allocated, in 2 MiB pages where the
  * kernel grants them (transparent huge pages on request: madvise mode): a
  * fresh array then costs one page fault per 2 MiB instead of one per 4 KiB,
- * and the top nodes' reference arrays are fresh at every level. The
- * 3,567,202-triangle build on the H100 host's 16 threads took 0.83 of the
- * time; on the 2-core VM, where the pages are granted without compaction
- * yet cost more, 1.13 (docs/performance.md, "Large scenes"), so it is an
- * option (rt_accel_huge_pages). A hint only: the tree is the same. */
+ * and the top nodes' reference arrays are fresh at every level. Measured
+ * (docs/performance.md, "Large scenes"): the 3,567,202-triangle build on the
+ * H100 host's 16 threads took 0.83 of the time; on the 2-core VM, 2 threads
+ * took 1.13 of it (the 891,802-triangle scene, pages granted without
+ * compaction). Hence the default: on from RT_HUGE_PAGES_THREADS threads,
+ * where concurrent faults contend. A hint only: the tree is the same. */
 #define RT_HUGE_PAGE ((uintptr_t)2 << 20)
-static int use_huge = 1;
+static int huge_mode = -1; /* rt_accel_huge_pages */
+static int use_huge;       /* this build's choice */
 
-void rt_accel_huge_pages(int on) { use_huge = on != 0; }
+void rt_accel_huge_pages(int mode) { huge_mode = mode; }
 
 static void *huge(void *p, size_t n)
 {
@@ -1249,6 +1251,8 @@ int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAc
     a->build_threads = 1;
     const int nt = rt_thread_count(threads);
     uint32_t n = 0;
+    use_huge = huge_mode == 1 || (huge_mode < 0 && nt >= RT_HUGE_PAGES_THREADS);
+    a->huge_pages = use_huge;
     RtPrim *prims = make_prims(s, nt, &n, err);
     if (!prims)
         return -1;
