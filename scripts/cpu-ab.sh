@@ -8,14 +8,10 @@
 # name (found under ../shared/scenes/course).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/bench-common.sh
 rounds=5 cpu=1
-while [ $# -gt 0 ]; do
-    case $1 in
-    --rounds) rounds=$2; shift 2 ;;
-    --cpu) cpu=$2; shift 2 ;;
-    *) break ;;
-    esac
-done
+bench_opts "$@"
+set -- ${args[@]+"${args[@]}"}
 [ $# -ge 3 ] || { echo "usage: cpu-ab.sh [--rounds N] [--cpu C] OLD NEW SCENE..." >&2; exit 2; }
 old=$1 new=$2
 shift 2
@@ -23,17 +19,6 @@ for b in "$old" "$new"; do [ -x "$b" ] || { echo "cpu-ab: $b is not an executabl
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 best() { taskset -c "$cpu" "$1" -q --backend serial --runs 3 -o "$tmp/x.ppm" "$2" | tr ' ' '\n' | sed -n 's/^render_ms_best=//p'; }
-echo "| scene | old ms | new ms | new / old |"
-echo "|---|---|---|---|"
-for s in "$@"; do
-    f=$s
-    [ -f "$f" ] || f=$(find ../shared/scenes/course -name "$s.txt" | head -n 1)
-    [ -n "$f" ] && [ -f "$f" ] || { echo "cpu-ab: no scene $s" >&2; exit 1; }
-    a=() b=()
-    for r in $(seq "$rounds"); do
-        a+=("$(best "$old" "$f")")
-        b+=("$(best "$new" "$f")")
-    done
-    o=$(printf '%s\n' "${a[@]}" | sort -g | head -n 1) n=$(printf '%s\n' "${b[@]}" | sort -g | head -n 1)
-    echo "| $(basename "$f" .txt) | $o | $n | $(awk -v a="$o" -v b="$n" 'BEGIN { printf "%.3f", b / a }') |"
-done
+run_old() { best "$old" "$1"; }
+run_new() { best "$new" "$1"; }
+ab_table cpu-ab "old ms" "new ms" b/a run_old run_new "$@"
