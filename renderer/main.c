@@ -82,7 +82,7 @@ static void usage(FILE *fp)
             "      --verify             check the BVH's invariants, poison the image first and fail unless\n"
             "                           every pixel is written\n"
             "      --calibrate          time a fixed CPU workload before rendering (record key calib_ms)\n"
-            "      --isa NAME           CPU traversal: c, sse2 or avx2 (default: the best this CPU runs;\n"
+            "      --isa NAME           CPU traversal: c, sse2, avx2 or avx512 (default: the best this CPU runs;\n"
             "                           the same images and counters with any; record key isa)\n"
             "  -q, --quiet              no progress output (warnings and errors still go to stderr)\n"
             "  -h, --help               this text\n"

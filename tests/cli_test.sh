@@ -43,7 +43,7 @@ echo "$out" | grep -q "secondary_rays=0 " || fail "--max-depth 1 still traced se
 grep -q "^raytrace: --isa: unknown instruction set 'mmx'" "$tmp/isa.err" && [ "$(wc -l < "$tmp/isa.err")" -eq 1 ] ||
     fail "--isa mmx: $(cat "$tmp/isa.err")"
 ref=$("$rt" -q --isa c -r 40x30 -o "$tmp/isa.png" "$src/scenes/glass.txt" | tr ' ' '\n' | grep -E '^(image_fnv1a|node_visits|prim_tests)=')
-for isa in sse2 avx2; do
+for isa in sse2 avx2 avx512; do
     out=$("$rt" -q --isa $isa -r 40x30 -o "$tmp/isa.png" "$src/scenes/glass.txt" 2> /dev/null) || continue # (not this CPU's)
     [ "$(echo "$out" | tr ' ' '\n' | grep -E '^(image_fnv1a|node_visits|prim_tests)=')" = "$ref" ] || fail "--isa $isa differs from c"
     echo "$out" | grep -q " isa=$isa" || fail "--isa $isa: the record says otherwise"

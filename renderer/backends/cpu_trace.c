@@ -64,6 +64,18 @@ static int have_avx2(void)
     __builtin_cpu_init();
     return __builtin_cpu_supports("avx2");
 }
+
+/* Again with AVX-512VL's encoding: still four-lane operations, so the same
+ * numbers, but 32 vector registers instead of 16, so the ray, the node's
+ * bounds and a leaf's edges stay in registers instead of on the stack. */
+CPU_ENTRY(avx512, __attribute__((target("avx2,avx512f,avx512vl"))), node_sse2, leaf_sse2, simd)
+
+static int have_avx512(void)
+{
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("avx512f") &&
+           __builtin_cpu_supports("avx512vl");
+}
 #endif
 
 /* ---- the CPU's copy of the tree ---------------------------------------- */
@@ -135,6 +147,7 @@ static const RtCpuIsa table[] = {
 #if RT_SSE
     {"sse2", trace_sse2, always, tile_sse2, pixel_sse2},
     {"avx2", trace_avx2, have_avx2, tile_avx2, pixel_avx2},
+    {"avx512", trace_avx512, have_avx512, tile_avx512, pixel_avx512},
 #endif
 };
 
@@ -154,7 +167,7 @@ int rt_cpu_isa_select(const char *name, RtError *err)
         if (name ? strcmp(name, table[i].name) == 0 : table[i].supported())
             selected = &table[i];
     if (!selected && name)
-        return rt_fail(err, "--isa: unknown instruction set '%s' (c, sse2, avx2 on x86-64)", name);
+        return rt_fail(err, "--isa: unknown instruction set '%s' (c, sse2, avx2, avx512 on x86-64)", name);
     if (!selected->supported()) {
         rt_fail(err, "--isa: this CPU cannot run %s", name);
         selected = NULL;
