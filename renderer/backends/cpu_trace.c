@@ -1,82 +1,15 @@
-/* cpu_trace.c - the CPU ray query's entries, one per instruction set,
- * picked at run time (dav1d's checkasm pattern: a C reference and faster
- * versions, each tested against it exactly); the traversal they compile is
- * cpu_traverse.h's. Also the CPU's copy of the tree (rt_cpu_prepare). */
+/* cpu_trace.c - the choice of the CPU traversal's entry (cpu_entries.c), at
+ * run time (dav1d's checkasm pattern: a C reference and faster versions,
+ * each tested against it exactly); the query and the tile and pixel
+ * renderers every CPU backend calls, through it or, for scenes without the
+ * CPU's copy of the tree, through rt_trace_ray; and that copy
+ * (rt_cpu_prepare). */
 #include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "cpu_traverse.h"
-
-/* The whole pixel loop per instruction set: rt_shade_path.h instantiated
- * with the entry's traversal inlined as its query, so a tile renders with
- * no call per ray (3-7% of a course mesh's render on the 2-core VM, against
- * calling the entry per ray). The default instantiation (rt_shade.h, through
- * rt_cpu_trace) serves the scenes without the CPU's copy of the tree. */
-#include "core/rt_shade.h"
-#undef RT_PATH_TRACE
-#define RT_PATH_FN CPU_INLINE
-#define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) trace_wide(s, o, d, tmax, any, hit, cnt, node_c, leaf_c)
-#define RT_PATH_NAME(f) f##_c
-#include "core/rt_shade_path.h"
-#undef RT_PATH_TRACE
-#undef RT_PATH_NAME
-#if RT_SSE
-#define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) \
-    trace_wide(s, o, d, tmax, any, hit, cnt, node_sse2, leaf_sse2)
-#define RT_PATH_NAME(f) f##_simd
-#include "core/rt_shade_path.h"
-#undef RT_PATH_TRACE
-#undef RT_PATH_NAME
-#endif
-#undef RT_PATH_FN
-
-/* An entry: its query, tile and pixel, each with its traversal inlined. */
-#define CPU_ENTRY(isa, target, node, leaf, path)                                                                  \
-    target static int trace_##isa(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit,      \
-                                  RtCounters *cnt)                                                               \
-    {                                                                                                            \
-        return trace_wide(s, o, d, tmax, any, hit, cnt, node, leaf);                                             \
-    }                                                                                                            \
-    target static void tile_##isa(const RtSceneView *s, int x0, int y0, int x1, int y1, float *rgb,              \
-                                  RtCounters *cnt)                                                               \
-    {                                                                                                            \
-        rt_render_tile_##path(s, x0, y0, x1, y1, rgb, cnt);                                                      \
-    }                                                                                                            \
-    target static void pixel_##isa(const RtSceneView *s, int i, int j, float *rgb, RtCounters *cnt)              \
-    {                                                                                                            \
-        rt_render_pixel_##path(s, i, j, RT_ANY_HIT, rgb, cnt);                                                   \
-    }
-
-CPU_ENTRY(c, , node_c, leaf_c, c)
-
-static int always(void) { return 1; }
-
-#if RT_SSE
-CPU_ENTRY(sse2, , node_sse2, leaf_sse2, simd)
-
-/* The same code with AVX2's encoding (three-operand VEX forms, fewer moves);
- * the same operations, so the same numbers. */
-CPU_ENTRY(avx2, __attribute__((target("avx2"))), node_sse2, leaf_sse2, simd)
-
-static int have_avx2(void)
-{
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2");
-}
-
-/* Again with AVX-512VL's encoding: still four-lane operations, so the same
- * numbers, but 32 vector registers instead of 16, so the ray, the node's
- * bounds and a leaf's edges stay in registers instead of on the stack. */
-CPU_ENTRY(avx512, __attribute__((target("avx2,avx512f,avx512vl"))), node_sse2, leaf_sse2, simd)
-
-static int have_avx512(void)
-{
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("avx512f") &&
-           __builtin_cpu_supports("avx512vl");
-}
-#endif
+#include "cpu_trace.h"
+#include "core/rt_shade.h" /* rt_render_tile/pixel through rt_cpu_trace: the fallback */
 
 /* ---- the CPU's copy of the tree ---------------------------------------- */
 
@@ -140,28 +73,14 @@ void *rt_cpu_prepare(RtSceneView *v)
     return block;
 }
 
-/* ---- the table and the choice ----------------------------------------- */
-
-static const RtCpuIsa table[] = {
-    {"c", trace_c, always, tile_c, pixel_c},
-#if RT_SSE
-    {"sse2", trace_sse2, always, tile_sse2, pixel_sse2},
-    {"avx2", trace_avx2, have_avx2, tile_avx2, pixel_avx2},
-    {"avx512", trace_avx512, have_avx512, tile_avx512, pixel_avx512},
-#endif
-};
+/* ---- the choice -------------------------------------------------------- */
 
 static const RtCpuIsa *selected;
 
-const RtCpuIsa *rt_cpu_isa_table(int *n)
-{
-    *n = (int)(sizeof table / sizeof table[0]);
-    return table;
-}
-
 int rt_cpu_isa_select(const char *name, RtError *err)
 {
-    const int n = (int)(sizeof table / sizeof table[0]);
+    int n;
+    const RtCpuIsa *table = rt_cpu_isa_table(&n);
     selected = NULL;
     for (int i = n - 1; i >= 0 && !selected; i--) /* the last supported: the fastest */
         if (name ? strcmp(name, table[i].name) == 0 : table[i].supported())

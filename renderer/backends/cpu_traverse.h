@@ -1,8 +1,8 @@
 /* cpu_traverse.h - the CPU traversal itself: the 4-wide tree walked with
  * its node and leaf tests in several instruction sets, each an always-inline
- * function, so that cpu_trace.c's entries (one per instruction set) and the
- * per-set tile renderers compile the whole query into their own code. Only
- * cpu_trace.c and cpu_render_*.c include it.
+ * function, so that cpu_entries.c's entries (one per instruction set: a ray
+ * query and a tile and a pixel renderer) compile the whole query into their
+ * own code. Only cpu_entries.c includes it.
  *
  * The traversal (Wald et al. 2008, "Getting rid of packets", and Dammertz
  * et al. 2008, "Shallow bounding volume hierarchies"): one visit tests a
