@@ -13,14 +13,13 @@
 
 /* ---- the CPU's copy of the tree ---------------------------------------- */
 
-/* The records of each leaf of the tree, in groups of four. */
-static size_t leaf_groups(const RtBvh4Node *w, uint32_t n)
+/* The groups of four records that node n's leaves take. */
+static uint32_t node_groups(const RtBvh4Node *n)
 {
-    size_t groups = 0;
-    for (uint32_t i = 0; i < n; i++)
-        for (uint32_t k = 0; k < w[i].count; k++)
-            if (w[i].child[k] & RT_WIDE_LEAF)
-                groups += ((w[i].child[k] & 7u) + 4u) / 4u;
+    uint32_t groups = 0;
+    for (uint32_t k = 0; k < n->count; k++)
+        if (n->child[k] & RT_WIDE_LEAF)
+            groups += ((n->child[k] & 7u) + 4u) / 4u;
     return groups;
 }
 
@@ -46,28 +45,54 @@ static uint32_t pack_leaf(const RtSceneView *v, uint32_t *ref, RtCpuLeaf4 *leave
     return (count + 3u) / 4u;
 }
 
+/* Node i's leaves into the groups from first[i] on: counted, summed, then
+ * packed, each node on its own, in parallel (a large scene's copy is
+ * hundreds of MB); the same bytes on any number of threads. Returns the
+ * groups in all, or RT_WIDE_MAX_FIRST when there are too many. */
+static size_t group_offsets(const RtBvh4Node *w, uint32_t n, uint32_t *first)
+{
+#pragma omp parallel for schedule(static)
+    for (uint32_t i = 0; i < n; i++)
+        first[i + 1] = node_groups(&w[i]);
+    size_t sum = 0;
+    first[0] = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        sum += first[i + 1];
+        if (sum >= RT_WIDE_MAX_FIRST)
+            return RT_WIDE_MAX_FIRST;
+        first[i + 1] = (uint32_t)sum;
+    }
+    return sum;
+}
+
 void *rt_cpu_prepare(RtSceneView *v)
 {
     v->cpu_wide = NULL;
     v->cpu_leaves = NULL;
     if (!v->wide || v->nnodes == 0)
         return NULL;
-    const size_t groups = leaf_groups(v->wide, v->nwide);
-    const size_t nodes = ((size_t)v->nwide * sizeof(RtBvh4Node) + 63) & ~(size_t)63;
-    if (groups >= RT_WIDE_MAX_FIRST)
+    const uint32_t nw = v->nwide;
+    uint32_t *first = malloc(((size_t)nw + 1) * sizeof *first);
+    const size_t groups = first ? group_offsets(v->wide, nw, first) : RT_WIDE_MAX_FIRST;
+    const size_t nodes = ((size_t)nw * sizeof(RtBvh4Node) + 63) & ~(size_t)63;
+    char *block = groups < RT_WIDE_MAX_FIRST ? aligned_alloc(64, nodes + groups * sizeof(RtCpuLeaf4)) : NULL;
+    if (!block) {
+        free(first);
         return NULL;
-    char *block = aligned_alloc(64, nodes + groups * sizeof(RtCpuLeaf4));
-    if (!block)
-        return NULL;
+    }
     RtBvh4Node *w = (RtBvh4Node *)(void *)block;
     RtCpuLeaf4 *leaves = (RtCpuLeaf4 *)(void *)(block + nodes);
-    memcpy(w, v->wide, (size_t)v->nwide * sizeof *w);
-    memset(leaves, 0, groups * sizeof *leaves); /* (lanes past a leaf: zero triangles, which miss) */
-    uint32_t g = 0;
-    for (uint32_t i = 0; i < v->nwide; i++)
+#pragma omp parallel for schedule(static)
+    for (uint32_t i = 0; i < nw; i++) {
+        w[i] = v->wide[i];
+        /* (lanes past a leaf: zero triangles, which miss) */
+        memset(&leaves[first[i]], 0, (size_t)(first[i + 1] - first[i]) * sizeof *leaves);
+        uint32_t g = first[i];
         for (uint32_t k = 0; k < w[i].count; k++)
             if (w[i].child[k] & RT_WIDE_LEAF)
                 g += pack_leaf(v, &w[i].child[k], leaves, g);
+    }
+    free(first);
     v->cpu_wide = w;
     v->cpu_leaves = leaves;
     return block;
