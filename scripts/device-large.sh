@@ -15,6 +15,8 @@
 #          tree, interleaved, ROUNDS rounds; and the floor every CUDA run pays
 #          (process start and CUDA context): an empty scene at 1x1, and a
 #          one-sphere scene at 1920x1080 with its PNG
+#   warmcpu the same first image on the CPU (this tree, --backend openmp on
+#          every core, at 640x360 and 1920x1080), ROUNDS rounds
 # .devcarry/include/xxhash.h stands in for libxxhash-dev where the machine
 # lacks it (the scene cache needs only the header).
 set -euo pipefail
@@ -82,6 +84,21 @@ for step in "${@:-bench ab}"; do
                 esac
                 k() { printf '%s\n' "$rec" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
                 echo "$r,$b,$(k scene),$(k cmd_ms),$(k total_ms),$(k parse_ms),$(k init_ms),$(k upload_ms),$(k render_ms),$(k write_ms),$(k cache),$(k image_fnv1a)" | tee -a "$f"
+            done
+        done ;;
+    warmcpu)
+        SCENEGEN=build-large/renderer/scenegen scripts/gen-scenes.sh large-4m > /dev/null
+        s=scenes/generated/large-4m.txt
+        sleep 3 # (files changed within 2 s get no hash memo)
+        rt=build-large/renderer/raytrace
+        "$rt" -q --backend openmp --cache /tmp/warm-cpu -r 64x36 -o /tmp/w.png "$s" > /dev/null
+        f="$OUT/warm-cache-4m-cpu.csv"
+        echo "round,resolution,cmd_ms,total_ms,parse_ms,render_ms,write_ms,threads,cache,image_fnv1a" > "$f"
+        for r in $(seq "$ROUNDS"); do
+            for res in 640x360 1920x1080; do
+                rec=$(cmd_ms "$rt" -q --backend openmp --cache /tmp/warm-cpu -r "$res" -o /tmp/w.png "$s")
+                k() { printf '%s\n' "$rec" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
+                echo "$r,$res,$(k cmd_ms),$(k total_ms),$(k parse_ms),$(k render_ms),$(k write_ms),$(k threads),$(k cache),$(k image_fnv1a)" | tee -a "$f"
             done
         done ;;
     *) echo "device-large: unknown step $step" >&2; exit 2 ;;
