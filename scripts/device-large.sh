@@ -15,8 +15,9 @@
 #          tree, interleaved, ROUNDS rounds; and the floor every CUDA run pays
 #          (process start and CUDA context): an empty scene at 1x1, and a
 #          one-sphere scene at 1920x1080 with its PNG
-#   warmcpu the same first image on the CPU (this tree, --backend openmp on
-#          every core, at 640x360 and 1920x1080), ROUNDS rounds
+#   warmcpu the same first image on the CPU (--backend openmp on every core,
+#          at 640x360 and 1920x1080), the older commit and this tree
+#          interleaved, ROUNDS rounds
 # .devcarry/include/xxhash.h stands in for libxxhash-dev where the machine
 # lacks it (the scene cache needs only the header).
 set -euo pipefail
@@ -87,18 +88,24 @@ for step in "${@:-bench ab}"; do
             done
         done ;;
     warmcpu)
+        old_build
         SCENEGEN=build-large/renderer/scenegen scripts/gen-scenes.sh large-4m > /dev/null
         s=scenes/generated/large-4m.txt
         sleep 3 # (files changed within 2 s get no hash memo)
-        rt=build-large/renderer/raytrace
-        "$rt" -q --backend openmp --cache /tmp/warm-cpu -r 64x36 -o /tmp/w.png "$s" > /dev/null
+        for b in old new old new; do # entries built, then loaded once
+            rt=build-large/renderer/raytrace; [ $b = old ] && rt=/tmp/build-old/renderer/raytrace
+            "$rt" -q --backend openmp --cache /tmp/warm-cpu-$b -r 64x36 -o /tmp/w.png "$s" > /dev/null
+        done
         f="$OUT/warm-cache-4m-cpu.csv"
-        echo "round,resolution,cmd_ms,total_ms,parse_ms,render_ms,write_ms,threads,cache,image_fnv1a" > "$f"
+        echo "round,build,resolution,cmd_ms,total_ms,parse_ms,render_ms,write_ms,threads,cache,image_fnv1a" > "$f"
         for r in $(seq "$ROUNDS"); do
             for res in 640x360 1920x1080; do
-                rec=$(cmd_ms "$rt" -q --backend openmp --cache /tmp/warm-cpu -r "$res" -o /tmp/w.png "$s")
-                k() { printf '%s\n' "$rec" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
-                echo "$r,$res,$(k cmd_ms),$(k total_ms),$(k parse_ms),$(k render_ms),$(k write_ms),$(k threads),$(k cache),$(k image_fnv1a)" | tee -a "$f"
+                for b in old new; do
+                    rt=build-large/renderer/raytrace; [ $b = old ] && rt=/tmp/build-old/renderer/raytrace
+                    rec=$(cmd_ms "$rt" -q --backend openmp --cache /tmp/warm-cpu-$b -r "$res" -o /tmp/w.png "$s")
+                    k() { printf '%s\n' "$rec" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
+                    echo "$r,$b,$res,$(k cmd_ms),$(k total_ms),$(k parse_ms),$(k render_ms),$(k write_ms),$(k threads),$(k cache),$(k image_fnv1a)" | tee -a "$f"
+                done
             done
         done ;;
     *) echo "device-large: unknown step $step" >&2; exit 2 ;;
