@@ -43,68 +43,68 @@ args=()
 [ -f /usr/include/xxhash.h ] || args+=("-Dc_args=-I$PWD/.devcarry/include")
 [ -f build-large/build.ninja ] || meson setup build-large -Dgpu_arch=9.0 -Dcourse_dir=none "${args[@]}" > /dev/null
 ninja -C build-large > /dev/null
+rt_of() { [ "$1" = old ] && echo /tmp/build-old/renderer/raytrace || echo build-large/renderer/raytrace; }
+k() { printf '%s\n' "$rec" | tr ' ' '\n' | sed -n "s/^$1=//p"; } # a key of the record in $rec
+emit() { # emit FILE PREFIX KEY...: one CSV row, PREFIX then the keys of $rec
+    local f=$1 line=$2
+    shift 2
+    for key in "$@"; do line="$line,$(k "$key")"; done
+    echo "$line" | tee -a "$f"
+}
+scene_4m() { # the older build, the scene in $s, settled for its hash memo
+    old_build
+    SCENEGEN=build-large/renderer/scenegen scripts/gen-scenes.sh large-4m > /dev/null
+    s=scenes/generated/large-4m.txt
+    sleep 3 # (files changed within 2 s get no hash memo: docs/scene-format.md)
+}
+prime() { # prime BACKEND CACHE: each build's cache entry built, then loaded once
+    for b in old new old new; do
+        "$(rt_of $b)" -q --backend "$1" --cache "$2-$b" -r 64x36 -o /tmp/w.png "$s" > /dev/null
+    done
+}
 for step in "${@:-bench ab}"; do
     case $step in
     bench)
         scripts/bench-large.sh --build build-large --backend cuda --resolution 1920x1080 --threads "$(nproc)" \
             --repeats 3 --out "$OUT/bench-large-h100" ;;
     ab)
-        old_build
-        SCENEGEN=build-large/renderer/scenegen scripts/gen-scenes.sh large-4m > /dev/null
-        s=scenes/generated/large-4m.txt
-        echo "round,build,parse_ms,build_ms,render_ms,node_visits,image_fnv1a,sah_cost" > "$OUT/large-4m-ab.csv"
+        scene_4m
+        f="$OUT/large-4m-ab.csv"
+        echo "round,build,parse_ms,build_ms,render_ms,node_visits,image_fnv1a,sah_cost" > "$f"
         for r in $(seq "$ROUNDS"); do
             for b in old new; do
-                rt=build-large/renderer/raytrace; [ $b = old ] && rt=/tmp/build-old/renderer/raytrace
-                rec=$("$rt" -q --backend cuda -r 1920x1080 -o /tmp/ab.ppm "$s")
-                k() { printf '%s\n' "$rec" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
-                echo "$r,$b,$(k parse_ms),$(k build_ms),$(k render_ms),$(k node_visits),$(k image_fnv1a),$(k sah_cost)" |
-                    tee -a "$OUT/large-4m-ab.csv"
+                rec=$("$(rt_of $b)" -q --backend cuda -r 1920x1080 -o /tmp/ab.ppm "$s")
+                emit "$f" "$r,$b" parse_ms build_ms render_ms node_visits image_fnv1a sah_cost
             done
         done ;;
     warm)
-        old_build
-        SCENEGEN=build-large/renderer/scenegen scripts/gen-scenes.sh large-4m > /dev/null
-        s=scenes/generated/large-4m.txt
+        scene_4m
         : > /tmp/empty.txt
         printf 'film_resolution: 1920 1080\nsphere: 0 0 -5 1\n' > /tmp/one.txt
-        sleep 3 # (files changed within 2 s get no hash memo: docs/scene-format.md)
-        for b in old new old new; do # entries built, then loaded once
-            rt=build-large/renderer/raytrace; [ $b = old ] && rt=/tmp/build-old/renderer/raytrace
-            "$rt" -q --backend cuda --cache /tmp/warm-$b -r 1920x1080 -o /tmp/w.png "$s" > /dev/null
-        done
+        prime cuda /tmp/warm
         f="$OUT/warm-cache-4m-ab.csv"
         echo "round,build,scene,cmd_ms,total_ms,parse_ms,init_ms,upload_ms,render_ms,write_ms,cache,image_fnv1a" > "$f"
         for r in $(seq "$ROUNDS"); do
             for b in old new floor-empty floor-one; do
-                rt=build-large/renderer/raytrace; [ $b = old ] && rt=/tmp/build-old/renderer/raytrace
+                rt=$(rt_of $b)
                 case $b in
                 floor-empty) rec=$(cmd_ms "$rt" -q --backend cuda -r 1x1 -o /tmp/w.ppm /tmp/empty.txt) ;;
                 floor-one) rec=$(cmd_ms "$rt" -q --backend cuda -o /tmp/w.png /tmp/one.txt) ;;
                 *) rec=$(cmd_ms "$rt" -q --backend cuda --cache /tmp/warm-$b -r 1920x1080 -o /tmp/w.png "$s") ;;
                 esac
-                k() { printf '%s\n' "$rec" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
-                echo "$r,$b,$(k scene),$(k cmd_ms),$(k total_ms),$(k parse_ms),$(k init_ms),$(k upload_ms),$(k render_ms),$(k write_ms),$(k cache),$(k image_fnv1a)" | tee -a "$f"
+                emit "$f" "$r,$b" scene cmd_ms total_ms parse_ms init_ms upload_ms render_ms write_ms cache image_fnv1a
             done
         done ;;
     warmcpu)
-        old_build
-        SCENEGEN=build-large/renderer/scenegen scripts/gen-scenes.sh large-4m > /dev/null
-        s=scenes/generated/large-4m.txt
-        sleep 3 # (files changed within 2 s get no hash memo)
-        for b in old new old new; do # entries built, then loaded once
-            rt=build-large/renderer/raytrace; [ $b = old ] && rt=/tmp/build-old/renderer/raytrace
-            "$rt" -q --backend openmp --cache /tmp/warm-cpu-$b -r 64x36 -o /tmp/w.png "$s" > /dev/null
-        done
+        scene_4m
+        prime openmp /tmp/warm-cpu
         f="$OUT/warm-cache-4m-cpu.csv"
         echo "round,build,resolution,cmd_ms,total_ms,parse_ms,render_ms,write_ms,threads,cache,image_fnv1a" > "$f"
         for r in $(seq "$ROUNDS"); do
             for res in 640x360 1920x1080; do
                 for b in old new; do
-                    rt=build-large/renderer/raytrace; [ $b = old ] && rt=/tmp/build-old/renderer/raytrace
-                    rec=$(cmd_ms "$rt" -q --backend openmp --cache /tmp/warm-cpu-$b -r "$res" -o /tmp/w.png "$s")
-                    k() { printf '%s\n' "$rec" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
-                    echo "$r,$b,$res,$(k cmd_ms),$(k total_ms),$(k parse_ms),$(k render_ms),$(k write_ms),$(k threads),$(k cache),$(k image_fnv1a)" | tee -a "$f"
+                    rec=$(cmd_ms "$(rt_of $b)" -q --backend openmp --cache /tmp/warm-cpu-$b -r "$res" -o /tmp/w.png "$s")
+                    emit "$f" "$r,$b,$res" cmd_ms total_ms parse_ms render_ms write_ms threads cache image_fnv1a
                 done
             done
         done ;;
