@@ -77,15 +77,16 @@
  * compaction). Hence the default: on from RT_HUGE_PAGES_THREADS threads,
  * where concurrent faults contend. A hint only: the tree is the same. */
 #define RT_HUGE_PAGE ((uintptr_t)2 << 20)
-static int huge_mode = -1; /* rt_accel_huge_pages */
-static int use_huge;       /* this build's choice */
+static int huge_mode = -1; /* rt_accel_huge_pages: a setting, read by each build */
 
 void rt_accel_huge_pages(int mode) { huge_mode = mode; }
 
-static void *huge(void *p, size_t n)
+/* (on: this build's choice, kept by the build itself, so builds running at
+ * once do not decide for each other) */
+static void *huge(void *p, size_t n, int on)
 {
 #ifdef MADV_HUGEPAGE
-    if (p && use_huge && n >= 2 * RT_HUGE_PAGE) {
+    if (p && on && n >= 2 * RT_HUGE_PAGE) {
         const uintptr_t a = ((uintptr_t)p + RT_HUGE_PAGE - 1) & ~(RT_HUGE_PAGE - 1);
         const uintptr_t e = ((uintptr_t)p + n) & ~(RT_HUGE_PAGE - 1);
         if (e > a)
@@ -158,7 +159,7 @@ int rt_accel_parse(const char *s, RtAccelKind *k)
     return -1;
 }
 
-static RtPrim *make_prims(const RtScene *s, int nt, uint32_t *n_out, RtError *err)
+static RtPrim *make_prims(const RtScene *s, int nt, int on, uint32_t *n_out, RtError *err)
 {
     uint64_t n = (uint64_t)s->nspheres + s->ntriangles;
     if (n >= RT_PRIM_SPHERE_BIT) {
@@ -166,7 +167,7 @@ static RtPrim *make_prims(const RtScene *s, int nt, uint32_t *n_out, RtError *er
                 RT_PRIM_SPHERE_BIT - 1);
         return NULL;
     }
-    RtPrim *p = huge(calloc(n ? n : 1, sizeof *p), (size_t)n * sizeof *p);
+    RtPrim *p = huge(calloc(n ? n : 1, sizeof *p), (size_t)n * sizeof *p, on);
     if (!p) {
         rt_fail(err, "out of memory for %llu primitive records", (unsigned long long)n);
         return NULL;
@@ -240,6 +241,7 @@ typedef struct Builder {
     uint32_t spatial_min; /* the smallest node that tries spatial splits */
     uint32_t max_depth, leaves;
     int oom;
+    int huge;             /* large arrays in 2 MiB pages (huge) */
     /* Subtrees built by tasks, not yet copied: each holds a hole of its size
      * in this builder's arrays at (at_node, at_order), filled once at the
      * end (place_all), so every node is copied once, not once per level. */
@@ -678,8 +680,8 @@ static int halves(Builder *b, uint32_t count, Ref **left, Ref **right)
 {
     if (*left)
         return 1;
-    *left = huge(malloc((size_t)count * sizeof **left), (size_t)count * sizeof **left);
-    *right = huge(malloc((size_t)count * sizeof **right), (size_t)count * sizeof **right);
+    *left = huge(malloc((size_t)count * sizeof **left), (size_t)count * sizeof **left, b->huge);
+    *right = huge(malloc((size_t)count * sizeof **right), (size_t)count * sizeof **right, b->huge);
     if (*left && *right)
         return 1;
     free(*left);
@@ -794,9 +796,10 @@ static int sub_init(Builder *s, const Builder *p, uint32_t count, uint32_t budge
     s->verts = p->verts;
     s->refs_left = budget;
     s->spatial_min = p->spatial_min;
+    s->huge = p->huge;
     const size_t recs = (size_t)count + budget;
-    s->nodes = huge(malloc(2 * recs * sizeof *s->nodes), 2 * recs * sizeof *s->nodes);
-    s->order = huge(malloc(recs * sizeof *s->order), recs * sizeof *s->order);
+    s->nodes = huge(malloc(2 * recs * sizeof *s->nodes), 2 * recs * sizeof *s->nodes, p->huge);
+    s->order = huge(malloc(recs * sizeof *s->order), recs * sizeof *s->order, p->huge);
     if (s->nodes && s->order)
         return 0;
     free(s->nodes);
@@ -1188,7 +1191,8 @@ static int widen(RtAccel *a, int nt)
     w.bin = a->nodes;
     w.n = 0;
     /* At most one wide node per binary inner node, plus the root. */
-    w.wide = huge(malloc(((size_t)a->nnodes + 1) * sizeof *w.wide), ((size_t)a->nnodes + 1) * sizeof *w.wide);
+    w.wide = huge(malloc(((size_t)a->nnodes + 1) * sizeof *w.wide), ((size_t)a->nnodes + 1) * sizeof *w.wide,
+                  a->huge_pages);
     if (!w.wide)
         return -1;
     uint32_t first;
@@ -1251,9 +1255,9 @@ int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAc
     a->build_threads = 1;
     const int nt = rt_thread_count(threads);
     uint32_t n = 0;
-    use_huge = huge_mode == 1 || (huge_mode < 0 && nt >= RT_HUGE_PAGES_THREADS);
-    a->huge_pages = use_huge;
-    RtPrim *prims = make_prims(s, nt, &n, err);
+    const int on = huge_mode == 1 || (huge_mode < 0 && nt >= RT_HUGE_PAGES_THREADS);
+    a->huge_pages = on;
+    RtPrim *prims = make_prims(s, nt, on, &n, err);
     if (!prims)
         return -1;
     a->nprims = n;
@@ -1266,11 +1270,11 @@ int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAc
      * on a leaf's first record). */
     uint32_t budget = n < RT_WIDE_MAX_FIRST / 4 ? n : 0;
     uint32_t total = n + budget;
-    Ref *refs = huge(malloc((size_t)n * sizeof *refs), (size_t)n * sizeof *refs);
-    float (*verts)[3][3] = huge(malloc((size_t)n * sizeof *verts), (size_t)n * sizeof *verts);
+    Ref *refs = huge(malloc((size_t)n * sizeof *refs), (size_t)n * sizeof *refs, on);
+    float (*verts)[3][3] = huge(malloc((size_t)n * sizeof *verts), (size_t)n * sizeof *verts, on);
     /* A binary tree with leaves of >= 1 reference has at most 2 refs - 1 nodes. */
-    RtBvhNode *nodes = huge(malloc((size_t)2 * total * sizeof *nodes), (size_t)2 * total * sizeof *nodes);
-    uint32_t *order = huge(malloc((size_t)total * sizeof *order), (size_t)total * sizeof *order);
+    RtBvhNode *nodes = huge(malloc((size_t)2 * total * sizeof *nodes), (size_t)2 * total * sizeof *nodes, on);
+    uint32_t *order = huge(malloc((size_t)total * sizeof *order), (size_t)total * sizeof *order, on);
     if (!refs || !verts || !nodes || !order) {
         free(refs); free(verts); free(nodes); free(order); free(prims);
         return rt_fail(err, "out of memory building a BVH over %u primitives", n);
@@ -1289,6 +1293,7 @@ int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAc
     b.nodes = nodes;
     b.order = order;
     b.refs_left = budget;
+    b.huge = on;
     b.spatial_min = n / RT_BVH_SPATIAL_SHARE > RT_BVH_SPATIAL_MIN ? n / RT_BVH_SPATIAL_SHARE : RT_BVH_SPATIAL_MIN;
 #ifdef _OPENMP
 #pragma omp parallel num_threads(nt)
@@ -1304,7 +1309,7 @@ int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAc
 #endif
     free(verts);
     const size_t obytes = (size_t)b.norder * sizeof(RtPrim);
-    RtPrim *ordered = b.oom ? NULL : huge(malloc(obytes), obytes);
+    RtPrim *ordered = b.oom ? NULL : huge(malloc(obytes), obytes, on);
     if (!ordered) {
         free(nodes); free(order); free(prims);
         return rt_fail(err, "out of memory building a BVH over %u primitives", n);

@@ -100,40 +100,43 @@ void *rt_cpu_prepare(RtSceneView *v)
 
 /* ---- the choice -------------------------------------------------------- */
 
+/* The entry in use: found in a local and published with one atomic store,
+ * so a thread that reads it (rt_cpu_current) sees NULL or a whole entry. */
 static const RtCpuIsa *selected;
 
 int rt_cpu_isa_select(const char *name, RtError *err)
 {
     int n;
-    const RtCpuIsa *table = rt_cpu_isa_table(&n);
-    selected = NULL;
-    for (int i = n - 1; i >= 0 && !selected; i--) /* the last supported: the fastest */
+    const RtCpuIsa *table = rt_cpu_isa_table(&n), *pick = NULL;
+    for (int i = n - 1; i >= 0 && !pick; i--) /* the last supported: the fastest */
         if (name ? strcmp(name, table[i].name) == 0 : table[i].supported())
-            selected = &table[i];
-    if (!selected && name)
+            pick = &table[i];
+    if (!pick && name)
         return rt_fail(err, "--isa: unknown instruction set '%s' (c, sse2, avx2, avx512 on x86-64)", name);
-    if (!selected->supported()) {
-        rt_fail(err, "--isa: this CPU cannot run %s", name);
-        selected = NULL;
-        return -1;
-    }
+    if (!pick->supported())
+        return rt_fail(err, "--isa: this CPU cannot run %s", name);
+    __atomic_store_n(&selected, pick, __ATOMIC_RELEASE);
     return 0;
 }
 
-const char *rt_cpu_isa_name(void)
+/* The selected entry, the best this CPU runs when none was chosen. */
+static const RtCpuIsa *rt_cpu_current(void)
 {
-    if (!selected)
-        rt_cpu_isa_select(NULL, NULL);
-    return selected->name;
+    const RtCpuIsa *e = __atomic_load_n(&selected, __ATOMIC_ACQUIRE);
+    if (!e) {
+        rt_cpu_isa_select(NULL, NULL); /* (entry 0, "c", is always supported) */
+        e = __atomic_load_n(&selected, __ATOMIC_ACQUIRE);
+    }
+    return e;
 }
+
+const char *rt_cpu_isa_name(void) { return rt_cpu_current()->name; }
 
 int rt_cpu_trace(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit, RtCounters *cnt)
 {
     if (!s->cpu_wide)
         return rt_trace_ray(s, o, d, tmax, any, hit, cnt);
-    if (!selected)
-        rt_cpu_isa_select(NULL, NULL);
-    return selected->trace(s, o, d, tmax, any, hit, cnt);
+    return rt_cpu_current()->trace(s, o, d, tmax, any, hit, cnt);
 }
 
 void rt_cpu_render_tile(const RtSceneView *s, int x0, int y0, int x1, int y1, float *rgb, RtCounters *cnt)
@@ -142,9 +145,7 @@ void rt_cpu_render_tile(const RtSceneView *s, int x0, int y0, int x1, int y1, fl
         rt_render_tile(s, x0, y0, x1, y1, rgb, cnt);
         return;
     }
-    if (!selected)
-        rt_cpu_isa_select(NULL, NULL);
-    selected->tile(s, x0, y0, x1, y1, rgb, cnt);
+    rt_cpu_current()->tile(s, x0, y0, x1, y1, rgb, cnt);
 }
 
 void rt_cpu_render_pixel(const RtSceneView *s, int i, int j, float *rgb, RtCounters *cnt)
@@ -153,7 +154,5 @@ void rt_cpu_render_pixel(const RtSceneView *s, int i, int j, float *rgb, RtCount
         rt_render_pixel(s, i, j, RT_ANY_HIT, rgb, cnt);
         return;
     }
-    if (!selected)
-        rt_cpu_isa_select(NULL, NULL);
-    selected->pixel(s, i, j, rgb, cnt);
+    rt_cpu_current()->pixel(s, i, j, rgb, cnt);
 }

@@ -59,8 +59,16 @@ static XXH128_hash_t hash_big(const void *data, size_t len)
 {
     const size_t n = len / RT_HASH_CHUNK + 1;
     XXH128_hash_t *part = malloc(n * sizeof *part);
-    if (!part)
-        return XXH3_128bits(data, len);
+    if (!part) { /* the same value, one piece at a time */
+        XXH3_state_t st;
+        XXH3_128bits_reset(&st);
+        for (size_t i = 0; i < n; i++) {
+            const size_t a = i * RT_HASH_CHUNK, b = a + RT_HASH_CHUNK < len ? a + RT_HASH_CHUNK : len;
+            const XXH128_hash_t h = XXH3_128bits((const char *)data + a, b - a);
+            XXH3_128bits_update(&st, &h, sizeof h);
+        }
+        return XXH3_128bits_digest(&st);
+    }
 #pragma omp parallel for schedule(dynamic, 1)
     for (size_t i = 0; i < n; i++) {
         const size_t a = i * RT_HASH_CHUNK, b = a + RT_HASH_CHUNK < len ? a + RT_HASH_CHUNK : len;

@@ -1134,8 +1134,9 @@ static int parse_chunks(Parser *p, const char *buf, size_t len, int nt)
                                 : rt_fail(p->err, "%s: out of memory", p->file);
     for (int i = 0; i < n && rc == 0; i++)
         rc = chunk_merge(p, &c[i], buf, line, bad[i], &q);
-    if (rc == 0)
-        pass2_fill(p->s, &q, nt);
+    /* (also after an error: the runs placed before it, as the serial parser
+     * left them) */
+    pass2_fill(p->s, &q, nt);
     free(q.runs);
     free(line);
     free(bad);
