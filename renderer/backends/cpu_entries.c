@@ -4,10 +4,6 @@
  * of its own: with these large always-inline instantiations beside it, GCC
  * stopped inlining rt_trace_ray's primitive tests into rt_cpu_trace (the
  * brute-force path), 20% more instructions there. */
-#include <stddef.h>
-#include <stdlib.h>
-#include <string.h>
-
 #include "cpu_traverse.h"
 
 /* The whole pixel loop per instruction set: rt_shade_path.h instantiated

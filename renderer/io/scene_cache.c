@@ -53,8 +53,15 @@ typedef struct CacheHeader {
     double sah_cost;
 } CacheHeader;
 
-/* XXH3-128 of a buffer, over RT_HASH_CHUNK pieces in parallel, then of the pieces'
- * hashes: the same value on any number of threads. */
+/* XXH3-128 of piece i (RT_HASH_CHUNK bytes, the last one shorter) of a buffer. */
+static XXH128_hash_t hash_piece(const void *data, size_t len, size_t i)
+{
+    const size_t a = i * RT_HASH_CHUNK, b = a + RT_HASH_CHUNK < len ? a + RT_HASH_CHUNK : len;
+    return XXH3_128bits((const char *)data + a, b - a);
+}
+
+/* XXH3-128 of a buffer, over RT_HASH_CHUNK pieces in parallel, then of the
+ * pieces' hashes: the same value on any number of threads. */
 static XXH128_hash_t hash_big(const void *data, size_t len)
 {
     const size_t n = len / RT_HASH_CHUNK + 1;
@@ -63,17 +70,14 @@ static XXH128_hash_t hash_big(const void *data, size_t len)
         XXH3_state_t st;
         XXH3_128bits_reset(&st);
         for (size_t i = 0; i < n; i++) {
-            const size_t a = i * RT_HASH_CHUNK, b = a + RT_HASH_CHUNK < len ? a + RT_HASH_CHUNK : len;
-            const XXH128_hash_t h = XXH3_128bits((const char *)data + a, b - a);
+            const XXH128_hash_t h = hash_piece(data, len, i);
             XXH3_128bits_update(&st, &h, sizeof h);
         }
         return XXH3_128bits_digest(&st);
     }
 #pragma omp parallel for schedule(dynamic, 1)
-    for (size_t i = 0; i < n; i++) {
-        const size_t a = i * RT_HASH_CHUNK, b = a + RT_HASH_CHUNK < len ? a + RT_HASH_CHUNK : len;
-        part[i] = XXH3_128bits((const char *)data + a, b - a);
-    }
+    for (size_t i = 0; i < n; i++)
+        part[i] = hash_piece(data, len, i);
     XXH128_hash_t h = XXH3_128bits(part, n * sizeof *part);
     free(part);
     return h;

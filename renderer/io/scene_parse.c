@@ -363,6 +363,17 @@ static int cmd_light(Parser *p, const char *cmd, const char *v)
  * -1 (rt_fail), so the value cannot be mistaken for one. */
 #define NOT_MINE 1
 
+/* A triangle's record from its checked indices (normal indices in
+ * ix[3..5] when `normals`) and its material. */
+static void set_triangle(RtTriangle *t, const int64_t *ix, int normals, uint32_t material)
+{
+    for (int i = 0; i < 3; i++) {
+        t->v[i] = (uint32_t)ix[i];
+        t->n[i] = normals ? (int32_t)ix[3 + i] : -1;
+    }
+    t->material = material;
+}
+
 /* A triangle with the current material, its indices (normal indices in
  * ix[3..5] when `normals`) checked against the nv vertices and nn normals
  * defined before its line: for the serial parser and the chunks' pass 2. */
@@ -377,12 +388,7 @@ static int add_triangle(Parser *p, const char *cmd, const int64_t *ix, int norma
             return -1;
     if (GROW(p, triangles, "triangles") != 0)
         return -1;
-    RtTriangle *t = &sc->triangles[sc->ntriangles++];
-    for (int i = 0; i < 3; i++) {
-        t->v[i] = (uint32_t)ix[i];
-        t->n[i] = normals ? (int32_t)ix[3 + i] : -1;
-    }
-    t->material = p->material;
+    set_triangle(&sc->triangles[sc->ntriangles++], ix, normals, p->material);
     return 0;
 }
 
@@ -1005,7 +1011,7 @@ static int chunk_merge(Parser *p, const Chunk *c, const char *buf, char *line, u
     return 0;
 }
 
-/* The placed runs written, in parallel: add_triangle's records. */
+/* The placed runs written, in parallel: the records add_triangle writes. */
 static void pass2_fill(RtScene *sc, const Pass2 *q, int nt)
 {
     (void)nt;
@@ -1014,12 +1020,8 @@ static void pass2_fill(RtScene *sc, const Pass2 *q, int nt)
         const TriRun *run = &q->runs[r];
         for (uint32_t k = 0; k < run->n; k++) {
             const TriRec *t = &run->t[k];
-            RtTriangle *o = &sc->triangles[run->out + k];
-            for (int i = 0; i < 3; i++) {
-                o->v[i] = t->v[i];
-                o->n[i] = t->line < 0 ? (int32_t)t->n[i] : -1;
-            }
-            o->material = run->material;
+            const int64_t ix[6] = {t->v[0], t->v[1], t->v[2], t->n[0], t->n[1], t->n[2]};
+            set_triangle(&sc->triangles[run->out + k], ix, t->line < 0, run->material);
         }
     }
 }
