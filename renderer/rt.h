@@ -46,13 +46,33 @@ typedef struct RtScene {
     char path[4096];    /* file it came from */
     /* lines that set camera values (0: default), for error messages */
     int line_fwd, line_up, line_fov, line_res, line_depth, line_output;
-    int models;         /* mesh: lines read (their files are not in the cache's key) */
+    int models;         /* mesh: lines read */
+    /* The bytes the scene was made of: the hash of the scene file as parsed
+     * (rt_content_hash), and every other file read for it (models and the
+     * files they reference), each with the hash of the bytes read. The scene
+     * cache keys the first and checks the others; MPI ranks agree on all. */
+    uint8_t file_hash[16];
+    struct RtDep *deps; uint32_t ndeps;
     /* the scene cache's mapping the arrays live in (rt_cache_load); NULL: malloc'd */
     void *cache_map;
     size_t cache_len;
 } RtScene;
 
 typedef void (*RtWarnFn)(void *ctx, const char *msg);
+
+/* A file a scene read besides itself, as opened, and the hash of its bytes. */
+typedef struct RtDep {
+    char *path;
+    uint8_t hash[16];
+} RtDep;
+/* Records that scene read len bytes from path (the bytes' hash is kept). */
+int rt_scene_add_dep(RtScene *scene, const char *path, const void *bytes, size_t len, RtError *err);
+/* A 128-bit hash of len bytes: XXH3-128 where the build has xxhash, else
+ * two FNV-1a 64 (the same value on any number of threads). */
+void rt_content_hash(const void *bytes, size_t len, uint8_t out[16]);
+/* One digest of the scene's file_hash and every dependency's path and
+ * hash: what MPI ranks compare. */
+void rt_scene_digest(const RtScene *scene, uint8_t out[16]);
 
 /* Parses path into scene (which the caller zeroes or frees). Unknown commands
  * go to warn (may be NULL). Returns 0, or -1 with "path:line: message". */
@@ -289,6 +309,16 @@ int rt_parse_wxh(const char *s, int maxside, int *w, int *h);
  * with "path: cannot open: ..." or "path: not a regular file". */
 struct stat;
 int rt_open_regular(const char *path, struct stat *st, RtError *err);
+/* Input files (scenes, models, cache entries) larger than this are refused
+ * before a byte is read. */
+#define RT_MAX_FILE (1ull << 30)
+/* Reads a whole regular file of at most max bytes into memory (malloc'd,
+ * NUL-terminated, *len bytes), once: read, never mapped, so a file
+ * truncated underneath is an error rather than a SIGBUS, and the file's
+ * size, mtime and ctime are compared before and after, so a file written
+ * meanwhile is refused ("changed while it was read") instead of mixed.
+ * 0, or -1 with "path: ..." in err. */
+int rt_read_file(const char *path, size_t max, char **data, size_t *len, RtError *err);
 /* The median of v[0..n), n >= 1 (v is sorted in place: v[0] is the least). */
 double rt_median(double *v, int n);
 /* Whether another untimed warm-up render is due after `done` of them, the

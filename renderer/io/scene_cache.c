@@ -83,6 +83,13 @@ static XXH128_hash_t hash_big(const void *data, size_t len)
     return h;
 }
 
+void rt_content_hash(const void *bytes, size_t len, uint8_t out[16])
+{
+    const XXH128_hash_t h = hash_big(bytes, len);
+    memcpy(out, &h.high64, 8);
+    memcpy(out + 8, &h.low64, 8);
+}
+
 /* The whole of a regular, non-empty file in a private mapping (writable:
  * copy on write, so the loaded arrays are the very bytes that were checked);
  * NULL otherwise. */
@@ -419,5 +426,15 @@ int rt_cache_store(const char *dir, const char *key, const RtScene *scene, const
 }
 
 const char *rt_cache_unavailable(void) { return "this build has no scene cache (it needs libxxhash)"; }
+
+void rt_content_hash(const void *bytes, size_t len, uint8_t out[16])
+{
+    const uint64_t a = rt_fnv1a64(bytes, len);
+    uint8_t salted[8];
+    memcpy(salted, &a, 8);
+    const uint64_t b = rt_fnv1a64(salted, 8) ^ (uint64_t)len;
+    memcpy(out, &a, 8);
+    memcpy(out + 8, &b, 8);
+}
 
 #endif

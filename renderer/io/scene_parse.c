@@ -28,8 +28,6 @@
 
 /* Longest line accepted; longer is an error, not a silent truncation. */
 #define RT_MAX_LINE 65536
-/* Largest scene file accepted (1 GiB). */
-#define RT_MAX_FILE (1ull << 30)
 /* Pool sizes beyond this are refused (indices must fit 31 bits). */
 #define RT_MAX_POOL 0x7fffffffu
 
@@ -1169,32 +1167,19 @@ int rt_scene_load_threads(const char *path, int threads, RtScene *scene, RtWarnF
                           RtError *err)
 {
     memset(scene, 0, sizeof *scene);
-    struct stat st;
-    const int fd = rt_open_regular(path, &st, err);
-    if (fd < 0)
-        return -1;
-    if (rt_model_supported(path)) { /* raytrace MODEL: Assimp reads it */
-        close(fd);
+    if (rt_model_supported(path)) /* raytrace MODEL: Assimp reads it (through model.c's own file access) */
         return rt_model_scene(path, scene, err);
-    }
-    if ((unsigned long long)st.st_size > RT_MAX_FILE) {
-        close(fd);
-        return rt_fail(err, "%s: file of %lld bytes is larger than the %llu-byte limit", path, (long long)st.st_size,
-                       (unsigned long long)RT_MAX_FILE);
-    }
-    const size_t len = (size_t)st.st_size;
-    if (len == 0) {
-        close(fd);
-        return rt_scene_parse_buffer_threads(path, "", 0, threads, scene, warn, warn_ctx, err);
-    }
-    /* Mapped, not read: no copy of a file of hundreds of MB, and the threads
-     * of the parse fault its pages in side by side. */
-    void *map = mmap(NULL, len, PROT_READ, MAP_PRIVATE, fd, 0);
-    close(fd);
-    if (map == MAP_FAILED)
-        return rt_fail(err, "%s: cannot map: %s", path, strerror(errno));
-    const int rc = rt_scene_parse_buffer_threads(path, map, len, threads, scene, warn, warn_ctx, err);
-    munmap(map, len);
+    /* Read once, whole: the bytes parsed are the bytes hashed (the cache's
+     * key, MPI's agreement), and a file truncated underneath is an error,
+     * not a SIGBUS in a mapping. */
+    char *buf = NULL;
+    size_t len = 0;
+    if (rt_read_file(path, RT_MAX_FILE, &buf, &len, err) != 0)
+        return -1;
+    const int rc = rt_scene_parse_buffer_threads(path, buf, len, threads, scene, warn, warn_ctx, err);
+    if (rc == 0)
+        rt_content_hash(buf, len, scene->file_hash);
+    free(buf);
     return rc;
 }
 
@@ -1215,5 +1200,8 @@ void rt_scene_free(RtScene *s)
         free(s->materials);
         free(s->lights);
     }
+    for (uint32_t i = 0; i < s->ndeps; i++)
+        free(s->deps[i].path);
+    free(s->deps);
     memset(s, 0, sizeof *s);
 }

@@ -1,0 +1,120 @@
+/* files.c - input files read once and whole, and the record of every file
+ * a scene was made of (the scene cache keys them, MPI ranks agree on them). */
+#define _GNU_SOURCE
+#include <errno.h>
+#include <fcntl.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "rt.h"
+
+/* Pieces a large file is read in, side by side: the page cache copies at a
+ * few GB/s per core, so a file of hundreds of MB takes one core's time
+ * divided by the cores. */
+#define RT_READ_PIECE (8u << 20)
+
+static int same_file_state(const struct stat *a, const struct stat *b)
+{
+    return a->st_dev == b->st_dev && a->st_ino == b->st_ino && a->st_size == b->st_size &&
+           a->st_mtim.tv_sec == b->st_mtim.tv_sec && a->st_mtim.tv_nsec == b->st_mtim.tv_nsec &&
+           a->st_ctim.tv_sec == b->st_ctim.tv_sec && a->st_ctim.tv_nsec == b->st_ctim.tv_nsec;
+}
+
+/* Reads [off, off+n) of fd into buf; 0 when all n bytes came. */
+static int read_at(int fd, char *buf, size_t n, off_t off)
+{
+    while (n > 0) {
+        const ssize_t r = pread(fd, buf, n, off);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r <= 0)
+            return -1;
+        buf += r, n -= (size_t)r, off += r;
+    }
+    return 0;
+}
+
+int rt_read_file(const char *path, size_t max, char **data, size_t *len, RtError *err)
+{
+    struct stat st, after;
+    const int fd = rt_open_regular(path, &st, err);
+    if (fd < 0)
+        return -1;
+    if (st.st_size < 0 || (unsigned long long)st.st_size > max) {
+        close(fd);
+        return rt_fail(err, "%s: file of %lld bytes is larger than the %llu-byte limit", path, (long long)st.st_size,
+                       (unsigned long long)max);
+    }
+    const size_t n = (size_t)st.st_size;
+    char *buf = malloc(n + 1);
+    if (!buf) {
+        close(fd);
+        return rt_fail(err, "%s: out of memory for %zu bytes", path, n);
+    }
+    const long pieces = (long)((n + RT_READ_PIECE - 1) / RT_READ_PIECE);
+    int bad = 0;
+#pragma omp parallel for schedule(dynamic, 1) reduction(| : bad) if (pieces > 2)
+    for (long i = 0; i < pieces; i++) {
+        const size_t a = (size_t)i * RT_READ_PIECE, b = a + RT_READ_PIECE < n ? a + RT_READ_PIECE : n;
+        bad |= read_at(fd, buf + a, b - a, (off_t)a) != 0;
+    }
+    /* one byte more must not exist: a file that grew is a file that changed */
+    char extra;
+    const int grew = !bad && pread(fd, &extra, 1, (off_t)n) > 0;
+    const int changed = bad || grew || fstat(fd, &after) != 0 || !same_file_state(&st, &after);
+    close(fd);
+    if (changed) {
+        free(buf);
+        return rt_fail(err, "%s: changed while it was read (written or truncated meanwhile); run again", path);
+    }
+    buf[n] = '\0';
+    *data = buf;
+    *len = n;
+    return 0;
+}
+
+int rt_scene_add_dep(RtScene *s, const char *path, const void *bytes, size_t len, RtError *err)
+{
+    for (uint32_t i = 0; i < s->ndeps; i++) /* a file read twice is one dependency, if its bytes were the same */
+        if (strcmp(s->deps[i].path, path) == 0) {
+            uint8_t h[16];
+            rt_content_hash(bytes, len, h);
+            if (memcmp(h, s->deps[i].hash, 16) != 0)
+                return rt_fail(err, "%s: changed while the scene was read; run again", path);
+            return 0;
+        }
+    RtDep *nd = realloc(s->deps, (s->ndeps + 1) * sizeof *nd);
+    if (!nd)
+        return rt_fail(err, "%s: out of memory", path);
+    s->deps = nd;
+    RtDep *d = &s->deps[s->ndeps];
+    if (!(d->path = strdup(path)))
+        return rt_fail(err, "%s: out of memory", path);
+    rt_content_hash(bytes, len, d->hash);
+    s->ndeps++;
+    return 0;
+}
+
+void rt_scene_digest(const RtScene *s, uint8_t out[16])
+{
+    size_t n = 16;
+    for (uint32_t i = 0; i < s->ndeps; i++)
+        n += strlen(s->deps[i].path) + 1 + 16;
+    uint8_t *buf = malloc(n);
+    if (!buf) { /* (the scene file alone: still a digest every rank computes alike) */
+        memcpy(out, s->file_hash, 16);
+        return;
+    }
+    size_t at = 0;
+    memcpy(buf, s->file_hash, 16), at += 16;
+    for (uint32_t i = 0; i < s->ndeps; i++) {
+        const size_t l = strlen(s->deps[i].path) + 1;
+        memcpy(buf + at, s->deps[i].path, l), at += l;
+        memcpy(buf + at, s->deps[i].hash, 16), at += 16;
+    }
+    rt_content_hash(buf, at, out);
+    free(buf);
+}
