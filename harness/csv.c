@@ -7,6 +7,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/file.h>
@@ -253,126 +254,212 @@ int hx_csv_append_row(int fd, const char *const *vals)
     return rc;
 }
 
-/* ---- reader ---- */
+/* ---- reader ----
+ * The file's text is read once and parsed in place: each field is unquoted
+ * where it stands and NUL-terminated, and a row keeps only the offsets of
+ * its fields. A field therefore costs its own bytes plus 4, so reading a CSV
+ * takes about 1.5x its size (a field of its own allocation took 256 bytes
+ * or more: a million-row study needed gigabytes). */
 
-static void push_field(char ***row, int *n, int *cap, HxBuf *f)
+typedef struct {
+    char *p, *w;   /* read and write positions: w <= p, text before w is parsed */
+    int line;
+} Cursor;
+
+/* One field at c->p, unquoted at c->w and NUL-terminated there. Returns 1
+ * when a comma follows (more fields), 0 at the row's end (a newline, CRLF,
+ * a lone CR or the text's end), -1 for a quoted field that never closes. */
+static int next_field(Cursor *c)
 {
-    if (*n == *cap) {
-        *cap = *cap ? 2 * *cap : 32;
-        *row = hx_xrealloc(*row, (size_t)*cap * sizeof **row);
+    if (*c->p == '"') {
+        c->p++;
+        for (;;) {
+            if (*c->p == '\0')
+                return -1;
+            if (*c->p == '"' && c->p[1] != '"') {
+                c->p++;
+                break;
+            }
+            if (*c->p == '"')
+                c->p++; /* "" is one quote */
+            else if (*c->p == '\n')
+                c->line++;
+            *c->w++ = *c->p++;
+        }
     }
-    (*row)[(*n)++] = f->s ? f->s : hx_strdup("");
-    f->s = NULL;
-    f->len = f->cap = 0;
+    while (*c->p && *c->p != ',' && *c->p != '\n' && *c->p != '\r')
+        *c->w++ = *c->p++;
+    /* the delimiter is consumed before the NUL goes where it may have been */
+    char d = *c->p;
+    if (d == ',' || d == '\r')
+        c->p++;
+    if (d != ',' && *c->p == '\n') {
+        c->p++;
+        c->line++;
+    }
+    *c->w++ = '\0';
+    return d == ',';
+}
+
+/* One row: the offset of each field from the row's start into off[0..max)
+ * (fields past max are only counted). Returns the field count, -1 for an
+ * unterminated quote, -2 for a row over 4 GiB (its offsets would not fit). */
+static int next_row(Cursor *c, uint32_t *off, int max)
+{
+    const char *row = c->w;
+    int n = 0, more;
+    do {
+        size_t at = (size_t)(c->w - row);
+        if (at > UINT32_MAX)
+            return -2;
+        if (n < max)
+            off[n] = (uint32_t)at;
+        n++;
+        more = next_field(c);
+    } while (more == 1);
+    return more < 0 ? -1 : n;
 }
 
 /* After a parse error in the last row of a file that does not end in a
- * newline: that row was cut short (a killed study, a full disk). */
-static void torn_hint(const char *text, const char *p, char *err, size_t errlen)
+ * newline: that row was cut short (a killed study, a full disk). p is where
+ * parsing stopped; the text from there on is as read. */
+static void torn_hint(int ends_nl, const char *p, char *err, size_t errlen)
 {
-    size_t len = strlen(text), used = strlen(err);
-    if (len && text[len - 1] != '\n' && !strchr(p, '\n') && used < errlen)
+    size_t used = strlen(err);
+    if (!ends_nl && !strchr(p, '\n') && used < errlen)
         snprintf(err + used, errlen - used, "; the last row is torn (cut short): `harness run CONFIG "
                  "-o FILE --resume` drops it and runs it again");
 }
 
-int hx_csv_parse(const char *text, HxCsv *csv, char *err, size_t errlen)
+/* The header's names, pointing into the text. 0, or -1 with err. */
+static int parse_header(Cursor *c, HxCsv *csv, char *err, size_t errlen)
 {
-    memset(csv, 0, sizeof *csv);
-    size_t rcap = 0;
-    const char *p = text;
-    int line = 1;
-    while (*p) {
-        char **row = NULL;
-        int n = 0, cap = 0;
-        HxBuf f = {0};
-        int start_line = line;
-        for (;;) {
-            if (*p == '"') {
-                p++;
-                for (;;) {
-                    if (*p == '\0') {
-                        snprintf(err, errlen, "line %d: unterminated quoted field", start_line);
-                        torn_hint(text, p, err, errlen);
-                        hx_buf_free(&f);
-                        for (int i = 0; i < n; i++)
-                            free(row[i]);
-                        free(row);
-                        hx_csv_free(csv);
-                        return -1;
-                    }
-                    if (*p == '"' && p[1] == '"') {
-                        hx_buf_putn(&f, "\"", 1);
-                        p += 2;
-                    } else if (*p == '"') {
-                        p++;
-                        break;
-                    } else {
-                        if (*p == '\n')
-                            line++;
-                        hx_buf_putn(&f, p++, 1);
-                    }
-                }
-            }
-            while (*p && *p != ',' && *p != '\n' && *p != '\r')
-                hx_buf_putn(&f, p++, 1);
-            push_field(&row, &n, &cap, &f);
-            if (*p == ',') {
-                p++;
-                continue;
-            }
-            if (*p == '\r')
-                p++;
-            if (*p == '\n') {
-                p++;
-                line++;
-            }
-            break;
+    int cap = 0, more;
+    do {
+        if (csv->ncol == cap) {
+            cap = cap ? 2 * cap : 64;
+            csv->cols = hx_xrealloc(csv->cols, (size_t)cap * sizeof *csv->cols);
         }
-        if (csv->ncol == 0 && csv->cols == NULL) {
-            csv->cols = row;
-            csv->ncol = n;
-            continue;
-        }
-        if (n == 1 && row[0][0] == '\0') { /* blank line */
-            free(row[0]);
-            free(row);
-            continue;
-        }
-        if (n != csv->ncol) {
+        csv->cols[csv->ncol++] = c->w;
+        more = next_field(c);
+    } while (more == 1);
+    if (more < 0)
+        snprintf(err, errlen, "line 1: unterminated quoted field");
+    return more < 0 ? -1 : 0;
+}
+
+/* Room for row csv->nrows: the first guess is one row per newline, which a
+ * file with lone CRs as line ends outgrows. */
+static void reserve_row(HxCsv *csv, size_t *cap)
+{
+    if (csv->nrows < *cap)
+        return;
+    *cap = *cap ? 2 * *cap : 64;
+    csv->row_at = hx_xrealloc(csv->row_at, *cap * sizeof *csv->row_at);
+    csv->field_at = hx_xrealloc(csv->field_at, *cap * (size_t)csv->ncol * sizeof *csv->field_at);
+}
+
+static int parse_rows(Cursor *c, HxCsv *csv, int ends_nl, char *err, size_t errlen)
+{
+    size_t cap = 1;
+    for (const char *q = c->p; (q = strchr(q, '\n')) != NULL; q++)
+        cap++;
+    csv->row_at = hx_xmalloc(cap * sizeof *csv->row_at);
+    csv->field_at = hx_xmalloc(cap * (size_t)csv->ncol * sizeof *csv->field_at);
+    while (*c->p) {
+        reserve_row(csv, &cap);
+        int start_line = c->line;
+        char *row = c->w;
+        int n = next_row(c, csv->field_at + csv->nrows * (size_t)csv->ncol, csv->ncol);
+        if (n == -1)
+            snprintf(err, errlen, "line %d: unterminated quoted field", start_line);
+        else if (n == -2)
+            snprintf(err, errlen, "line %d: a row over 4 GiB", start_line);
+        else if (n == 1 && *row == '\0')
+            continue; /* blank line */
+        else if (n != csv->ncol)
             snprintf(err, errlen, "line %d: %d fields, header has %d", start_line, n, csv->ncol);
-            torn_hint(text, p, err, errlen);
-            for (int i = 0; i < n; i++)
-                free(row[i]);
-            free(row);
-            hx_csv_free(csv);
+        if (n < 0 || n != csv->ncol) {
+            torn_hint(ends_nl, c->p, err, errlen);
             return -1;
         }
-        if (csv->nrows == rcap) {
-            rcap = rcap ? 2 * rcap : 64;
-            csv->rows = hx_xrealloc(csv->rows, rcap * sizeof *csv->rows);
-        }
-        csv->rows[csv->nrows++] = row;
+        csv->row_at[csv->nrows++] = (size_t)(row - csv->text);
     }
-    if (!csv->cols) {
+    return 0;
+}
+
+int hx_csv_parse_buf(HxBuf *text, HxCsv *csv, char *err, size_t errlen)
+{
+    memset(csv, 0, sizeof *csv);
+    csv->text = text->s ? text->s : hx_strdup("");
+    size_t len = text->s ? text->len : 0;
+    text->s = NULL;
+    text->len = text->cap = 0;
+    Cursor c = {csv->text, csv->text, 1};
+    if (!*c.p) {
         snprintf(err, errlen, "empty file (no header)");
+        hx_csv_free(csv);
+        return -1;
+    }
+    int ends_nl = len > 0 && csv->text[len - 1] == '\n';
+    if (parse_header(&c, csv, err, errlen) != 0 || parse_rows(&c, csv, ends_nl, err, errlen) != 0) {
+        hx_csv_free(csv);
         return -1;
     }
     return 0;
+}
+
+int hx_csv_parse(const char *text, HxCsv *csv, char *err, size_t errlen)
+{
+    HxBuf b = {0};
+    hx_buf_put(&b, text);
+    return hx_csv_parse_buf(&b, csv, err, errlen);
+}
+
+int hx_csv_read_text(const char *path, HxBuf *b)
+{
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0)
+        return -1;
+    /* sized once from the file's size: growing by doubling could hold
+     * twice the file */
+    struct stat st;
+    if (fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
+        b->cap = b->len + (size_t)st.st_size + 1;
+        b->s = hx_xrealloc(b->s, b->cap);
+    }
+    for (;;) {
+        char more[65536];
+        int full = b->len + 1 >= b->cap; /* the file grew, or its size was unknown */
+        ssize_t r = full ? read(fd, more, sizeof more) : read(fd, b->s + b->len, b->cap - b->len - 1);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r <= 0) {
+            int e = errno;
+            close(fd);
+            if (b->s)
+                b->s[b->len] = '\0';
+            errno = e;
+            return r < 0 ? -1 : 0;
+        }
+        if (full)
+            hx_buf_putn(b, more, (size_t)r);
+        else
+            b->len += (size_t)r;
+    }
 }
 
 int hx_csv_read(const char *path, HxCsv *csv, char *err, size_t errlen)
 {
     memset(csv, 0, sizeof *csv);
     HxBuf b = {0};
-    if (hx_read_file(path, &b) != 0) {
+    if (hx_csv_read_text(path, &b) != 0) {
         snprintf(err, errlen, "%s: cannot read: %s", path, strerror(errno));
         hx_buf_free(&b);
         return -1;
     }
     char e[256];
-    int rc = hx_csv_parse(b.s ? b.s : "", csv, e, sizeof e);
-    hx_buf_free(&b);
+    int rc = hx_csv_parse_buf(&b, csv, e, sizeof e);
     if (rc)
         snprintf(err, errlen, "%s: %s", path, e);
     return rc;
@@ -380,15 +467,10 @@ int hx_csv_read(const char *path, HxCsv *csv, char *err, size_t errlen)
 
 void hx_csv_free(HxCsv *csv)
 {
-    for (size_t r = 0; r < csv->nrows; r++) {
-        for (int i = 0; i < csv->ncol; i++)
-            free(csv->rows[r][i]);
-        free(csv->rows[r]);
-    }
-    free(csv->rows);
-    for (int i = 0; i < csv->ncol; i++)
-        free(csv->cols[i]);
+    free(csv->text);
     free(csv->cols);
+    free(csv->row_at);
+    free(csv->field_at);
     memset(csv, 0, sizeof *csv);
 }
 
@@ -400,8 +482,13 @@ int hx_csv_col(const HxCsv *csv, const char *name)
     return -1;
 }
 
+const char *hx_csv_cell(const HxCsv *csv, size_t row, int col)
+{
+    return csv->text + csv->row_at[row] + csv->field_at[row * (size_t)csv->ncol + (size_t)col];
+}
+
 const char *hx_csv_get(const HxCsv *csv, size_t row, const char *name)
 {
     int c = hx_csv_col(csv, name);
-    return c < 0 ? "" : csv->rows[row][c];
+    return c < 0 ? "" : hx_csv_cell(csv, row, c);
 }

@@ -119,7 +119,7 @@ static int put_val(sqlite3_stmt *st, sqlite3_int64 run, const char *key, const c
 static int put_row_vals(sqlite3_stmt *st, sqlite3_int64 run, const HxCsv *csv, size_t r)
 {
     for (int c = 0; c < csv->ncol; c++) {
-        const char *v = csv->rows[r][c];
+        const char *v = hx_csv_cell(csv, r, c);
         if (*v && strcmp(csv->cols[c], "extra") != 0 && put_val(st, run, csv->cols[c], v) != 0)
             return -1;
     }
@@ -245,15 +245,15 @@ static int add_one(sqlite3 *db, const char *dbpath, const char *path, int allow_
 {
     HxBuf text = {0};
     HxCsv csv;
-    char err[512];
-    if (hx_read_file(path, &text) != 0 || hx_csv_parse(text.s ? text.s : "", &csv, err, sizeof err) != 0) {
-        fprintf(stderr, "harness history add: %s: %s\n", path, text.s ? err : "cannot read");
+    char err[512] = "cannot read", hash[20];
+    /* the hash of the text as read: the parse below takes it over */
+    int bad = hx_csv_read_text(path, &text) != 0;
+    hx_fnv1a_hex(text.s, hash);
+    if (bad || hx_csv_parse_buf(&text, &csv, err, sizeof err) != 0) {
+        fprintf(stderr, "harness history add: %s: %s\n", path, err);
         hx_buf_free(&text);
         return -1;
     }
-    char hash[20];
-    hx_fnv1a_hex(text.s, hash);
-    hx_buf_free(&text);
     sqlite3_int64 study = 0;
     int rc = check_commits(path, &csv, allow_dirty);
     if (rc == 0)
@@ -318,7 +318,7 @@ static int history_show(sqlite3 *db, const char *dbpath)
             snprintf(cbuf, sizeof cbuf, "%d commits", sqlite3_column_int(st, 4));
         else
             snprintf(cbuf, sizeof cbuf, "%s", commit ? commit : "-");
-        printf("%-4d %-20s %-12s %5d %-12s %-12s %-16s %s\n", sqlite3_column_int(st, 0),
+        hx_put_clean_line(stdout, "%-4d %-20s %-12s %5d %-12s %-12s %-16s %s", sqlite3_column_int(st, 0),
                (const char *)sqlite3_column_text(st, 1), (const char *)sqlite3_column_text(st, 2),
                sqlite3_column_int(st, 3), cbuf, sqlite3_column_text(st, 6) ? (const char *)sqlite3_column_text(st, 6) : "-",
                sqlite3_column_text(st, 7) ? (const char *)sqlite3_column_text(st, 7) : "-",
@@ -556,7 +556,7 @@ static int check_series(const Series *s, const StepRule *rule, const char *metri
         }
         if (best_p > 1.0)
             continue;
-        printf("STEP %s [%s]: %s at commit %s (after %s): %+.1f%%, p=%.2g\n", lab, s->fingerprint,
+        hx_put_clean_line(stdout, "STEP %s [%s]: %s at commit %s (after %s): %+.1f%%, p=%.2g", lab, s->fingerprint,
                metric, s->p[best].sha, s->p[best - 1].sha, 100.0 * (best_r - 1.0), best_p);
         slow += best_r > 1.0;
         best_p = 2.0;

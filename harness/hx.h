@@ -9,6 +9,7 @@
 #define HX_H
 
 #include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
 
 /* ---- small containers (util.c) ---- */
@@ -72,6 +73,12 @@ static inline int hx_is_ctrl(unsigned char c)
 {
     return c < 0x20 || c == 0x7f;
 }
+/* Text from a CSV or a database on a terminal: each control character (a
+ * terminal escape, a newline that would fake a line) as '?', and with md
+ * a '|' as "\|", so that a Markdown table cell does not end early. */
+void hx_fput_clean(FILE *o, const char *s, int md);
+/* printf of one line cleaned so, then a newline. */
+void hx_put_clean_line(FILE *o, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 /* 1 when s holds a control character. */
 int hx_has_ctrl(const char *s);
 
@@ -234,17 +241,27 @@ int hx_column_index(const char *name);     /* schema index or -1 */
 /* Maps a record key to its fixed column, or NULL (goes to `extra`). */
 const char *hx_record_column(const char *key);
 
+/* The file's text parsed in place (every field NUL-terminated where it
+ * stands) and 4 bytes per field: hx_csv_cell and hx_csv_get read it. */
 typedef struct {
     int ncol;
-    char **cols;
+    char **cols;         /* header names, into text */
     size_t nrows;
-    char ***rows;    /* rows[i][j], j < ncol */
+    char *text;
+    size_t *row_at;      /* row r starts at text + row_at[r] */
+    uint32_t *field_at;  /* field c of row r at that + field_at[r * ncol + c] */
 } HxCsv;
 
 int hx_csv_read(const char *path, HxCsv *csv, char *err, size_t errlen);
 int hx_csv_parse(const char *text, HxCsv *csv, char *err, size_t errlen);
+/* Reads a whole file into b in one allocation of its size; -1 with errno. */
+int hx_csv_read_text(const char *path, HxBuf *b);
+/* hx_csv_parse of text->s, parsed in place: csv takes its memory (text is
+ * left empty, also on failure). */
+int hx_csv_parse_buf(HxBuf *text, HxCsv *csv, char *err, size_t errlen);
 void hx_csv_free(HxCsv *csv);
 int hx_csv_col(const HxCsv *csv, const char *name);
+const char *hx_csv_cell(const HxCsv *csv, size_t row, int col);
 const char *hx_csv_get(const HxCsv *csv, size_t row, const char *name);
 void hx_csv_field(HxBuf *b, const char *s);   /* RFC 4180 quoting */
 /* Formats one row of hx_ncolumns values (NULL -> empty) with a newline. */

@@ -14,6 +14,7 @@
 #include <fcntl.h>
 #include <getopt.h>
 #include <poll.h>
+#include <pwd.h>
 #include <stdarg.h>
 #include <stdint.h>
 #include <signal.h>
@@ -291,27 +292,58 @@ typedef struct {
     int bind;        /* bind the child with hwloc before exec */
 } Command;
 
+/* dir as a private folder (0700), made with its parent if missing (an
+ * existing one is kept as it is: raytrace refuses one that others can
+ * write). 0 when dir is a folder now. */
+static int private_dir(const char *parent, const char *dir)
+{
+    if (mkdir(parent, 0700) != 0 && errno != EEXIST)
+        return -1;
+    return mkdir(dir, 0700) == 0 || hx_is_dir(dir) ? 0 : -1;
+}
+
 /* Resolves cfg->scene_cache once per study (docs/harness.md, "Scene
  * cache"): kept as the config gives it (a directory, or "off"), else the
- * user's cache directory ($XDG_CACHE_HOME or ~/.cache, then raybench;
- * created here), so build_command only reads it. */
-static void resolve_scene_cache(HxConfig *cfg)
+ * first of $XDG_CACHE_HOME/raybench, $HOME/.cache/raybench and
+ * ~/.cache/raybench with ~ the user's home in the password database that
+ * can be made; else (no home: a service user) a new private folder
+ * raybench-cache-XXXXXX beside the study's CSV. Never a fixed name in /tmp,
+ * which another user could create first and fill. build_command only reads
+ * the result. */
+static void resolve_scene_cache(HxConfig *cfg, const char *out_path)
 {
     if (cfg->scene_cache)
         return;
-    char buf[4096];
     const char *x = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
-    if (x && x[0] == '/') {
-        snprintf(buf, sizeof buf, "%s/raybench", x);
-        mkdir(x, 0755); /* (raytrace warns if the cache cannot be written) */
-    } else if (home && home[0] == '/') {
-        snprintf(buf, sizeof buf, "%s/.cache", home);
-        mkdir(buf, 0755);
-        snprintf(buf, sizeof buf, "%s/.cache/raybench", home);
-    } else {
-        snprintf(buf, sizeof buf, "/tmp/raybench-cache-%u", (unsigned)getuid());
+    struct passwd *pw = getpwuid(getuid());
+    const char *base[3] = {x, home, pw ? pw->pw_dir : NULL};
+    HxBuf parent = {0}, dir = {0};
+    for (int i = 0; i < 3 && !cfg->scene_cache; i++) {
+        if (!base[i] || base[i][0] != '/' || (i > 0 && !hx_is_dir(base[i])))
+            continue;
+        parent.len = dir.len = 0;
+        hx_buf_printf(&parent, i == 0 ? "%s" : "%s/.cache", base[i]);
+        hx_buf_printf(&dir, "%s/raybench", parent.s);
+        if (private_dir(parent.s, dir.s) == 0)
+            cfg->scene_cache = hx_strdup(dir.s);
     }
-    cfg->scene_cache = hx_strdup(buf);
+    if (!cfg->scene_cache) {
+        /* the CSV's folder: -o's, else the default's (results/ or here) */
+        char *folder = out_path ? hx_dirname(out_path) : hx_strdup(hx_is_dir("results") ? "results" : ".");
+        dir.len = 0;
+        hx_buf_printf(&dir, "%s/raybench-cache-XXXXXX", folder);
+        free(folder);
+        char *abs = mkdtemp(dir.s) ? realpath(dir.s, NULL) : NULL; /* runs may start elsewhere */
+        if (abs) {
+            cfg->scene_cache = abs;
+        } else {
+            fprintf(stderr, "harness run: no cache folder (no home, and %s: %s): runs without the scene cache\n",
+                    dir.s, strerror(errno));
+            cfg->scene_cache = hx_strdup("off");
+        }
+    }
+    hx_buf_free(&parent);
+    hx_buf_free(&dir);
 }
 
 /* The run's rankfile beside its image; argv gets --rankfile FILE. 0, or -1
@@ -1269,7 +1301,7 @@ int hx_cmd_run(int argc, char **argv)
     st.quiet = quiet;
     if (hx_config_open(argv[optind], &st.cfg))
         return 1;
-    resolve_scene_cache(&st.cfg);
+    resolve_scene_cache(&st.cfg, out_path);
     /* the command line wins: the same config runs on a workstation with
      * mpirun and in a Slurm job (harness slurm) with srun */
     if (launcher_set)

@@ -441,14 +441,7 @@ static void emit_row(Emit *e, const char *const *cells, int n)
         /* a cell from someone's CSV: no control character, and a '|' that
          * does not end the cell */
         fputc(' ', e->out);
-        for (const unsigned char *p = (const unsigned char *)cells[i]; *p; p++) {
-            if (hx_is_ctrl(*p))
-                fputc('?', e->out);
-            else if (*p == '|')
-                fputs("\\|", e->out);
-            else
-                fputc(*p, e->out);
-        }
+        hx_fput_clean(e->out, cells[i], 1);
         fputs(" |", e->out);
     }
     fputc('\n', e->out);

@@ -315,6 +315,36 @@ void hx_gp_quote(HxBuf *b, const char *s)
     hx_buf_put(b, "'");
 }
 
+void hx_fput_clean(FILE *o, const char *s, int md)
+{
+    for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
+        if (hx_is_ctrl(*p))
+            fputc('?', o);
+        else if (md && *p == '|')
+            fputs("\\|", o);
+        else
+            fputc(*p, o);
+    }
+}
+
+void hx_put_clean_line(FILE *o, const char *fmt, ...)
+{
+    HxBuf b = {0};
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(NULL, 0, fmt, ap);
+    va_end(ap);
+    if (n > 0) {
+        b.s = hx_xmalloc((size_t)n + 1);
+        va_start(ap, fmt);
+        vsnprintf(b.s, (size_t)n + 1, fmt, ap);
+        va_end(ap);
+        hx_fput_clean(o, b.s, 0);
+    }
+    fputc('\n', o);
+    hx_buf_free(&b);
+}
+
 int hx_has_ctrl(const char *s)
 {
     for (const unsigned char *p = (const unsigned char *)s; *p; p++)

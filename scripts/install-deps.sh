@@ -8,10 +8,16 @@
 # that it uses); libpmix2 is the PMIx that srun --mpi=pmix starts Open MPI's
 # ranks with. libsqlite3-dev is the harness's history database; valgrind
 # (cachegrind) counts the instructions of the CI performance check.
+# The tools the tests run that a minbase Debian 12 lacks (it has only the
+# Essential packages: coreutils, util-linux, diffutils, grep, sed, mawk, ...):
+# procps (pgrep, ps: the leftover-process checks), python3 (JSON and CSV
+# checks), git (provenance, `harness history`), time (/usr/bin/time: peak
+# memory) and binutils (strings).
 set -euo pipefail
 pkgs=(meson ninja-build gcc pkg-config libpng-dev libhwloc-dev hwloc
       libopenmpi-dev openmpi-bin gnuplot-nox libxxhash-dev libassimp-dev assimp-testmodels
-      libembree-dev slurm-wlm slurm-client munge libpmix2 libsqlite3-dev valgrind)
+      libembree-dev slurm-wlm slurm-client munge libpmix2 libsqlite3-dev valgrind
+      procps python3 git time binutils)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

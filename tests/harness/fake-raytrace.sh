@@ -19,9 +19,9 @@ cpu=$(cut -d' ' -f39 /proc/self/stat)
 hash=00000000000000aa
 case "$scene" in
   crash) kill -SEGV $$ ;;
-  hang) sleep 31 & wait; exit 0 ;;   # the grandchild must die with the group
+  hang) sleep "${FAKE_HANG_S:-31}" & wait; exit 0 ;;   # the grandchild must die with the group
   slow) sleep 0.3 ;;
-  escape) setsid sleep 32 < /dev/null > /dev/null 2>&1 & echo $! > "$FAKE_ESCAPE_PID"; sleep 31 & wait; exit 0 ;;
+  escape) setsid sleep 32 < /dev/null > /dev/null 2>&1 & echo $! > "$FAKE_ESCAPE_PID"; sleep "${FAKE_HANG_S:-31}" & wait; exit 0 ;;
   fail) echo "raytrace: $1:3: bad thing" >&2; exit 1 ;;
   silent) exit 0 ;;
   wrong) [ "$accel" = none ] && hash=00000000000000bb ;;

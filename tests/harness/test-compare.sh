@@ -29,10 +29,9 @@ grep -q "0 regression(s), 1 improvement(s)" c2.out || { cat c2.out; fail "improv
 "$H" compare slow.csv unset.csv > c3.out && { cat c3.out; fail "a 2x slowdown passed"; }
 grep -q "^REGRESSION ok " c3.out || { cat c3.out; fail "the regression is not reported"; }
 "$H" compare --format json slow.csv unset.csv > c4.json && fail "json: a 2x slowdown passed"
-if command -v python3 > /dev/null; then
-    python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); assert d["schema"]=="raybench-compare/1"; assert d["regressions"]==1; v=d["verdicts"][0]; assert v["verdict"]=="REGRESSION" and abs(v["ratio"]-2)<1e-9' c4.json ||
-        fail "compare JSON: $(cat c4.json)"
-fi
+command -v python3 > /dev/null || fail "python3 missing (it reads the JSON; scripts/install-deps.sh)"
+python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); assert d["schema"]=="raybench-compare/1"; assert d["regressions"]==1; v=d["verdicts"][0]; assert v["verdict"]=="REGRESSION" and abs(v["ratio"]-2)<1e-9' c4.json ||
+    fail "compare JSON: $(cat c4.json)"
 # a configuration whose first repeat crashed is still the same configuration
 awk -F, -v OFS=, 'NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; print; next }
                   NR == 2 { $c["status"] = "crash"; $c["render_ms"] = ""; $c["rec_accel"] = ""; $c["width"] = "" }

@@ -5,7 +5,8 @@
 # gnuplot is missing, after the parts that do not need it have run.
 # usage: test-e2e.sh HARNESS RAYTRACE SOURCE_ROOT
 set -u
-fail() { echo "FAIL: $*"; exit 1; }
+. "$(dirname "$0")/common.sh" # need_pgrep, pids_matching
+need_pgrep
 # meson passes build-relative paths; make them absolute before the cd
 abs() { (cd "$(dirname "$1")" && echo "$(pwd)/$(basename "$1")") || fail "no such file $1"; }
 H=$(abs "$1") RT=$(abs "$2") SRC=$3
@@ -61,7 +62,8 @@ if command -v mpirun > /dev/null && ! "$RT" -V | grep -q 'mpi(not built)'; then
         "$T/deep" > "$T/deepmpi.conf"
     "$H" run "$T/deepmpi.conf" --raytrace "$RT" -o "$T/deepmpi.csv" -q 2> "$T/deepmpi.log"
     grep -q ',timeout,' "$T/deepmpi.csv" || { cat "$T/deepmpi.log" "$T/deepmpi.csv"; fail "the MPI deep render was not ended as TLE"; }
-    left=$(pgrep -f "$T/deep/deep.txt")
+    pids_matching "$T/deep/deep.txt"
+    left=$PIDS
     [ -z "$left" ] || { ps -fp $left; fail "MPI ranks outlived the harness's kill"; }
 fi
 # the scene cache across a study's repeats: the first run builds, the

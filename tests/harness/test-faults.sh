@@ -77,18 +77,17 @@ grep -q "come from a configuration with other settings" resC.err || fail "resume
 [ "$(($(wc -l < res.csv) - 1))" -eq 2 ] || fail "--resume did not complete the study"
 
 # ---- provenance: the study's own CSV does not make the commit dirty
-if command -v git > /dev/null; then
-    git init -q repo && mkdir repo/bin repo/results && ln -s "$FAKE" repo/bin/raytrace
-    printf 'study: prov\nscene_dir: %s\nscenes: ok\nrepeats: 1\npin: none\n' "$T" > repo/prov.conf
-    "$H" run repo/prov.conf --raytrace repo/bin/raytrace -o repo/results/prov.csv -q 2> /dev/null || fail "prov study"
-    git -C repo add -A && git -C repo -c user.name=t -c user.email=t@t commit -q -m prov || fail "git commit"
-    "$H" run repo/prov.conf --raytrace repo/bin/raytrace -o repo/results/prov.csv --overwrite -q 2> /dev/null || fail "prov again"
-    c=$(git -C repo rev-parse --short HEAD)
-    grep -q ",$c," repo/results/prov.csv || fail "git_commit is not $c: $(tail -1 repo/results/prov.csv)"
-    echo "# changed" >> repo/prov.conf
-    "$H" run repo/prov.conf --raytrace repo/bin/raytrace -o repo/results/prov.csv --overwrite -q 2> /dev/null || fail "prov dirty"
-    grep -q ",$c-dirty," repo/results/prov.csv || fail "a changed tracked file did not make the commit dirty"
-    uname_r=$(uname -r)
-    grep -q ",Linux $uname_r," repo/results/prov.csv || fail "no kernel column"
-fi
+command -v git > /dev/null || fail "git missing (scripts/install-deps.sh)"
+git init -q repo && mkdir repo/bin repo/results && ln -s "$FAKE" repo/bin/raytrace
+printf 'study: prov\nscene_dir: %s\nscenes: ok\nrepeats: 1\npin: none\n' "$T" > repo/prov.conf
+"$H" run repo/prov.conf --raytrace repo/bin/raytrace -o repo/results/prov.csv -q 2> /dev/null || fail "prov study"
+git -C repo add -A && git -C repo -c user.name=t -c user.email=t@t commit -q -m prov || fail "git commit"
+"$H" run repo/prov.conf --raytrace repo/bin/raytrace -o repo/results/prov.csv --overwrite -q 2> /dev/null || fail "prov again"
+c=$(git -C repo rev-parse --short HEAD)
+grep -q ",$c," repo/results/prov.csv || fail "git_commit is not $c: $(tail -1 repo/results/prov.csv)"
+echo "# changed" >> repo/prov.conf
+"$H" run repo/prov.conf --raytrace repo/bin/raytrace -o repo/results/prov.csv --overwrite -q 2> /dev/null || fail "prov dirty"
+grep -q ",$c-dirty," repo/results/prov.csv || fail "a changed tracked file did not make the commit dirty"
+uname_r=$(uname -r)
+grep -q ",Linux $uname_r," repo/results/prov.csv || fail "no kernel column"
 echo "faults test passed"

@@ -82,9 +82,31 @@ else
 fi
 [ "$(grep -c . runh.csv)" -eq 11 ] || fail "run --history: the CSV"
 
-if command -v gnuplot > /dev/null; then
-    "$H" history plot render_ms --db h.db -o hist > plot.out 2>&1 || { cat plot.out; fail "plot"; }
-    [ -s hist-history.png ] && [ -s hist-history.svg ] || fail "no PNG/SVG"
-    [ "$(grep -c '^[0-9]' hist-history.dat)" -eq 24 ] || { cat hist-history.dat; fail "plot data: 12 commits x 2 series"; }
-fi
+command -v gnuplot > /dev/null || fail "gnuplot missing (scripts/install-deps.sh installs gnuplot-nox)"
+"$H" history plot render_ms --db h.db -o hist > plot.out 2>&1 || { cat plot.out; fail "plot"; }
+[ -s hist-history.png ] && [ -s hist-history.svg ] || fail "no PNG/SVG"
+[ "$(grep -c '^[0-9]' hist-history.dat)" -eq 24 ] || { cat hist-history.dat; fail "plot data: 12 commits x 2 series"; }
+# control characters from a CSV (a terminal escape that clears the screen,
+# a bell, a backspace, a carriage return, a quoted newline) reach show and
+# check as '?': the twelve studies again, with them in text fields
+e=$(printf '\033[2J\a\b\r')
+for k in $(seq 1 12); do
+    awk -F, -v OFS=, -v e="$e" '
+        NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; print; next }
+        { q = "\""; $c["study"] = q "st" e "udy" q; $c["host"] = q "ho" e "st" q
+          $c["fingerprint"] = q "fp" e q; $c["scene"] = q $c["scene"] e "\nx" q
+          sub(/scene=ok/, "scene=ok" e, $c["run_id"]); $c["run_id"] = q $c["run_id"] q; print }' "c$k.csv" > "esc$k.csv"
+done
+grep -q "$(printf '\033')" esc1.csv || fail "escape: no ESC in the CSV"
+"$H" history add --db esc.db esc{1..12}.csv > esc-add.out || { cat -A esc-add.out; fail "escape: add"; }
+"$H" history show --db esc.db > esc-show.out || fail "escape: show"
+grep -q "^12 studies in esc.db" esc-show.out || { cat -A esc-show.out; fail "escape: show: study count"; }
+grep -q 'st?\[2J???udy .* ho?\[2J???st  *fp?\[2J???  *esc1.csv$' esc-show.out ||
+    { cat -A esc-show.out; fail "escape: show: the fields not shown with '?'"; }
+"$H" history check --db esc.db > esc-check.out && { cat -A esc-check.out; fail "escape: check found no step"; }
+grep -q '^STEP scene=ok?\[2J???a .*\[fp?\[2J???\]: render_ms at commit c0ffee07' esc-check.out ||
+    { cat -A esc-check.out; fail "escape: check: the STEP line"; }
+for f in esc-show.out esc-check.out; do
+    LC_ALL=C grep -q "$(printf '[\001-\010\013-\037\177]')" "$f" && { cat -A "$f"; fail "escape: $f holds a control character"; }
+done
 echo "history: ok"

@@ -8,6 +8,8 @@ H=$1 FAKE=$2
 T=$(mktemp -d /tmp/hx-runner-XXXXXX)
 trap 'rm -rf "$T"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
+. "$(dirname "$0")/common.sh" # need_pgrep, pids_matching
+need_pgrep
 for s in ok crash hang fail wrong silent; do echo "# dummy" > "$T/$s.txt"; done
 cat > "$T/study.conf" <<CONF
 study: fake
@@ -45,7 +47,8 @@ n() { grep -c -- "$1" "$T/out.csv"; }
 [ "$(n ',wrong-image,image_fnv1a 00000000000000bb != reference')" -eq 2 ] || fail "wrong-image rows"
 grep -q 'newkey=1' "$T/out.csv" || fail "unknown record key not kept in extra"
 grep -q ',yes,ok,' "$T/out.csv" || fail "pin_held=yes missing (cores_actual vs planned)"
-pgrep -f 'sleep 31' >/dev/null && fail "a grandchild of a timed-out run survived"
+pids_matching "^sleep $FAKE_HANG_S\$"
+[ -z "$PIDS" ] || fail "a grandchild of a timed-out run survived"
 [ $((end - start)) -lt 15 ] || fail "study took $((end - start)) s: timeouts not enforced"
 # resume: nothing left to do; then drop 3 rows and resume runs exactly 3
 "$H" run "$T/study.conf" -o "$T/out.csv" --resume -q 2> "$T/log2" || fail "resume failed"
@@ -70,7 +73,8 @@ done
 "$H" run "$T/study.conf" --dry-run > "$T/dry" || fail "dry-run failed"
 grep -q 'cores=0' "$T/dry" || fail "dry-run shows no planned cores"
 # only the CPUs the process may use are planned (taskset, a Slurm allocation)
-if [ "$(nproc --all)" -ge 2 ] && command -v taskset > /dev/null; then
+command -v taskset > /dev/null || fail "taskset missing (util-linux)"
+if [ "$(nproc --all)" -ge 2 ]; then
     taskset -c 1 "$H" run "$T/study.conf" --dry-run > "$T/dry1" || fail "dry-run under taskset failed"
     grep -q 'cores=0' "$T/dry1" && fail "under taskset -c 1 a run was planned on core 0"
     grep -q 'cores=1' "$T/dry1" || fail "under taskset -c 1 no run was planned on core 1"

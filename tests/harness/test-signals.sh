@@ -9,6 +9,7 @@
 set -u
 . "$(dirname "$0")/common.sh"
 test_setup signals "$1" "$2"
+need_pgrep
 mkdir tmp
 export TMPDIR=$T/tmp
 for s in ok hang escape; do echo "# dummy" > "$s.txt"; done
@@ -19,8 +20,8 @@ for sig in TERM INT; do
     "$H" run sig.conf -o sig.csv -q 2> run.err &
     h=$!
     # wait for the hanging run: its sleep is a grandchild of the harness
-    for _ in $(seq 100); do pgrep -f "sleep 31" > /dev/null && break; sleep 0.05; done
-    pgrep -f "sleep 31" > /dev/null || fail "the hanging run did not start"
+    for _ in $(seq 100); do pids_matching "^sleep $FAKE_HANG_S\$"; [ -n "$PIDS" ] && break; sleep 0.05; done
+    [ -n "$PIDS" ] || fail "the hanging run did not start"
     [ -n "$(ls tmp)" ] || fail "no temporary folder while running"
     kill -$sig $h
     wait $h
@@ -28,7 +29,8 @@ for sig in TERM INT; do
     want=$((128 + $(kill -l $sig)))
     [ $rc -eq $want ] || { cat run.err; fail "SIG$sig: exit $rc, want $want"; }
     sleep 0.2
-    pgrep -f "sleep 31" > /dev/null && fail "SIG$sig: the run's process outlived the harness"
+    pids_matching "^sleep $FAKE_HANG_S\$"
+    [ -z "$PIDS" ] || { ps -fp $PIDS; fail "SIG$sig: the run's process outlived the harness"; }
     [ -z "$(ls tmp)" ] || fail "SIG$sig: temporary files left: $(ls tmp)"
     [ "$(($(wc -l < sig.csv) - 1))" -eq 1 ] || fail "SIG$sig: expected the one finished row: $(cat sig.csv)"
     grep -q -- "--resume" run.err || fail "SIG$sig: the message does not say how to continue: $(cat run.err)"

@@ -57,8 +57,7 @@ grep -q 'slower than 1 worker' w.md || fail "a slowdown is not noted"
 
 # JSON
 "$H" table --format json hyb.csv > t.json || fail "json"
-if command -v python3 > /dev/null; then
-    python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); assert d["schema"]=="raybench-table/1"; assert len(d["configurations"])==4; assert len(d["fits"])==4; assert all(0<=f["serial_fraction"]<=1 for f in d["fits"]); assert all(c["median_ci95_ms"][0]<=c["median_ms"]<=c["median_ci95_ms"][1] for c in d["configurations"]); assert all(c["speedup_a_ci95"][0]<=c["speedup_a"]<=c["speedup_a_ci95"][1] for c in d["configurations"] if c["axis"]>1)' t.json ||
-        fail "the JSON does not hold the study: $(cat t.json)"
-fi
+command -v python3 > /dev/null || fail "python3 missing (it reads the JSON; scripts/install-deps.sh)"
+python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); assert d["schema"]=="raybench-table/1"; assert len(d["configurations"])==4; assert len(d["fits"])==4; assert all(0<=f["serial_fraction"]<=1 for f in d["fits"]); assert all(c["median_ci95_ms"][0]<=c["median_ms"]<=c["median_ci95_ms"][1] for c in d["configurations"]); assert all(c["speedup_a_ci95"][0]<=c["speedup_a"]<=c["speedup_a_ci95"][1] for c in d["configurations"] if c["axis"]>1)' t.json ||
+    fail "the JSON does not hold the study: $(cat t.json)"
 echo "stats test passed"

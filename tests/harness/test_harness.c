@@ -409,6 +409,53 @@ static void test_csv(void)
     free(other);
 }
 
+/* The reader parses the text in place: quotes, doubled quotes, newlines
+ * inside quotes, CRLF and lone CR line ends, blank lines, a last row
+ * without a newline, and the line numbers of its errors. */
+static void test_csv_parse(void)
+{
+    HxCsv csv;
+    char err[512];
+    const char *text = "a,b,c\r\n"
+                       "\"x,\"\"y\"\"\",,\"two\nlines\"\n"
+                       "\n"
+                       "1,\"\",3\r"
+                       "p\"q\"r,\"s\"t,";
+    CHECK(hx_csv_parse(text, &csv, err, sizeof err) == 0);
+    CHECK(csv.ncol == 3 && csv.nrows == 3);
+    CHECK_STR(csv.cols[0], "a");
+    CHECK_STR(csv.cols[2], "c");
+    CHECK_STR(hx_csv_cell(&csv, 0, 0), "x,\"y\"");
+    CHECK_STR(hx_csv_cell(&csv, 0, 1), "");
+    CHECK_STR(hx_csv_get(&csv, 0, "c"), "two\nlines");
+    CHECK_STR(hx_csv_get(&csv, 1, "a"), "1");
+    CHECK_STR(hx_csv_get(&csv, 1, "b"), "");
+    CHECK_STR(hx_csv_get(&csv, 1, "c"), "3");
+    CHECK_STR(hx_csv_get(&csv, 2, "a"), "p\"q\"r"); /* a quote inside a plain field is kept */
+    CHECK_STR(hx_csv_get(&csv, 2, "b"), "st");       /* a quoted part, then plain text */
+    CHECK_STR(hx_csv_get(&csv, 2, "c"), "");
+    CHECK_STR(hx_csv_get(&csv, 2, "nosuch"), "");
+    hx_csv_free(&csv);
+    /* line numbers count the newlines inside quoted fields */
+    CHECK(hx_csv_parse("a,b\n\"1\n2\",3\n4\n", &csv, err, sizeof err) != 0);
+    CHECK(strstr(err, "line 4: 1 fields, header has 2") != NULL);
+    CHECK(hx_csv_parse("a,b\n1,\"open\n", &csv, err, sizeof err) != 0);
+    CHECK(strstr(err, "line 2: unterminated quoted field") != NULL);
+    CHECK(hx_csv_parse("a,b\n1,2\n3", &csv, err, sizeof err) != 0);
+    CHECK(strstr(err, "line 3: 1 fields") != NULL && strstr(err, "torn") != NULL);
+    CHECK(hx_csv_parse("", &csv, err, sizeof err) != 0 && strstr(err, "empty file") != NULL);
+    /* a header alone: no rows */
+    CHECK(hx_csv_parse("a,b", &csv, err, sizeof err) == 0 && csv.ncol == 2 && csv.nrows == 0);
+    hx_csv_free(&csv);
+    /* read from a file, sized once: the same rows */
+    char *path = tpath("parse.csv");
+    write_file(path, text);
+    CHECK(hx_csv_read(path, &csv, err, sizeof err) == 0 && csv.nrows == 3);
+    CHECK_STR(hx_csv_get(&csv, 0, "c"), "two\nlines");
+    hx_csv_free(&csv);
+    free(path);
+}
+
 /* ---- compare on synthetic studies ---- */
 
 /* Writes a study CSV: per scene two configurations, `reps` samples of
@@ -530,8 +577,10 @@ int main(int argc, char **argv)
         test_expand();
     else if (strcmp(argv[1], "stats") == 0)
         test_stats();
-    else if (strcmp(argv[1], "csv") == 0)
+    else if (strcmp(argv[1], "csv") == 0) {
         test_csv();
+        test_csv_parse();
+    }
     else if (strcmp(argv[1], "compare") == 0)
         test_compare();
     else {
