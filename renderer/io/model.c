@@ -6,16 +6,18 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include "config.h"
+#include "model_io.h"
 #include "rt.h"
 
 #if HAVE_ASSIMP
 #include <assimp/cimport.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+
+/* The most triangles one model may expand to (rt_model_set_max_triangles). */
+static uint64_t max_triangles = RT_MODEL_MAX_TRIANGLES;
 
 /* Grows a scene pool to hold `more` further elements. */
 static int reserve(void **arr, uint32_t *cap, uint32_t n, uint64_t more, size_t elem)
@@ -106,46 +108,176 @@ static int append_mesh(const struct aiMesh *m, const float *xf, const float *nm,
     return 0;
 }
 
-int rt_model_append(const char *file, const float xf[12], uint32_t material, RtScene *s, RtError *err)
+/* What a node graph adds once every instance is flattened: vertices,
+ * normals, triangles (64-bit, saturating). */
+typedef struct Totals {
+    uint64_t v, n, t;
+} Totals;
+
+static uint64_t sat_add(uint64_t a, uint64_t b) { return a + b < a ? UINT64_MAX : a + b; }
+
+/* Assimp recursed as deep to build the tree; a bound keeps this walk's
+ * stack small whatever the format. */
+#define MAX_NODE_DEPTH 4096
+
+static int count_node(const struct aiScene *sc, const struct aiNode *nd, const uint64_t *tris, Totals *tot,
+                      int depth)
 {
-    /* A regular file only: Assimp would wait on a FIFO forever. */
-    struct stat st;
-    const int fd = rt_open_regular(file, &st, err);
-    if (fd < 0)
+    if (depth > MAX_NODE_DEPTH)
         return -1;
-    close(fd);
-    const struct aiScene *sc = aiImportFile(file, aiProcess_Triangulate | aiProcess_PreTransformVertices |
-                                                      aiProcess_JoinIdenticalVertices | aiProcess_SortByPType |
-                                                      aiProcess_ValidateDataStructure);
-    if (!sc) {
-        char msg[400];
-        one_line(msg, sizeof msg, aiGetErrorString());
-        return rt_fail(err, "%s: %s", file, msg);
+    for (unsigned i = 0; i < nd->mNumMeshes; i++) {
+        if (nd->mMeshes[i] >= sc->mNumMeshes)
+            return -1;
+        const struct aiMesh *m = sc->mMeshes[nd->mMeshes[i]];
+        tot->v = sat_add(tot->v, m->mNumVertices);
+        tot->n = sat_add(tot->n, m->mNormals ? m->mNumVertices : 0);
+        tot->t = sat_add(tot->t, tris[nd->mMeshes[i]]);
     }
-    uint64_t nv = 0, nn = 0, nt = 0;
+    for (unsigned i = 0; i < nd->mNumChildren; i++)
+        if (count_node(sc, nd->mChildren[i], tris, tot, depth + 1) != 0)
+            return -1;
+    return 0;
+}
+
+/* A node's transform after its parent's: g = parent * local (4x4, row-major). */
+static void compose(const double *parent, const struct aiMatrix4x4 *l, double *g)
+{
+    const double m[16] = {l->a1, l->a2, l->a3, l->a4, l->b1, l->b2, l->b3, l->b4,
+                          l->c1, l->c2, l->c3, l->c4, l->d1, l->d2, l->d3, l->d4};
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++)
+            g[4 * r + c] = parent[4 * r] * m[c] + parent[4 * r + 1] * m[4 + c] + parent[4 * r + 2] * m[8 + c] +
+                           parent[4 * r + 3] * m[12 + c];
+}
+
+/* Appends every mesh instance under nd, each through xf after its node's
+ * accumulated transform g (the flattening aiProcess_PreTransformVertices
+ * would do, here after the count has been checked). */
+static int append_node(const struct aiScene *sc, const struct aiNode *nd, const double *parent, const float *xf,
+                       uint32_t material, RtScene *s)
+{
+    double g[16];
+    compose(parent, &nd->mTransformation, g);
+    if (nd->mNumMeshes) {
+        float f[12], nm[9];
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 4; c++)
+                f[4 * r + c] = (float)(xf[4 * r] * g[c] + xf[4 * r + 1] * g[4 + c] + xf[4 * r + 2] * g[8 + c] +
+                                       xf[4 * r + 3] * g[12 + c]);
+        normal_matrix(f, nm);
+        for (unsigned i = 0; i < nd->mNumMeshes; i++)
+            if (append_mesh(sc->mMeshes[nd->mMeshes[i]], f, nm, material, s) != 0)
+                return -1;
+    }
+    for (unsigned i = 0; i < nd->mNumChildren; i++)
+        if (append_node(sc, nd->mChildren[i], g, xf, material, s) != 0)
+            return -1;
+    return 0;
+}
+
+/* The imported scene's triangles into s: counted over the node graph and
+ * checked against the limit before anything grows. */
+static int append_scene(const char *file, const struct aiScene *sc, const float *xf, uint32_t material, RtScene *s,
+                        RtError *err)
+{
+    uint64_t *tris = calloc(sc->mNumMeshes + 1, sizeof *tris), plain = 0;
+    if (!tris)
+        return rt_fail(err, "%s: out of memory", file);
+    for (unsigned i = 0; i < sc->mNumMeshes; i++) {
+        for (unsigned f = 0; f < sc->mMeshes[i]->mNumFaces; f++)
+            tris[i] += sc->mMeshes[i]->mFaces[f].mNumIndices == 3;
+        plain += tris[i];
+    }
+    Totals tot = {0, 0, 0};
+    const int bad = !sc->mRootNode || count_node(sc, sc->mRootNode, tris, &tot, 0) != 0;
+    free(tris);
+    if (bad)
+        return rt_fail(err, "%s: a node graph nested deeper than %d or naming a mesh that is not there", file,
+                       MAX_NODE_DEPTH);
+    if (tot.t > max_triangles)
+        return rt_model_fail_expands(err, file, max_triangles, "triangles", tot.t > plain);
+    if (tot.t == 0)
+        return rt_fail(err, "%s: no triangles in the model", file);
+    if (reserve((void **)&s->vertices, &s->cap_vertices, s->nvertices, tot.v, sizeof *s->vertices) ||
+        reserve((void **)&s->normals, &s->cap_normals, s->nnormals, tot.n, sizeof *s->normals) ||
+        reserve((void **)&s->triangles, &s->cap_triangles, s->ntriangles, tot.t, sizeof *s->triangles))
+        return rt_fail(err, "%s: out of memory for %llu triangles", file, (unsigned long long)tot.t);
+    static const double id[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    if (append_node(sc, sc->mRootNode, id, xf, material, s) != 0)
+        return rt_fail(err, "%s: a vertex that is not finite (after the transform) or a face index out of range",
+                       file);
+    return 0;
+}
+
+/* Whether every face has vertices, all inside its mesh: what Assimp's
+ * post-processing steps assume without checking. */
+static int faces_valid(const struct aiScene *sc)
+{
     for (unsigned i = 0; i < sc->mNumMeshes; i++) {
         const struct aiMesh *m = sc->mMeshes[i];
-        nv += m->mNumVertices;
-        nn += m->mNormals ? m->mNumVertices : 0;
-        for (unsigned f = 0; f < m->mNumFaces; f++)
-            nt += m->mFaces[f].mNumIndices == 3;
+        if (!m || (m->mNumVertices && !m->mVertices) || (m->mNumFaces && !m->mFaces))
+            return 0;
+        for (unsigned f = 0; f < m->mNumFaces; f++) {
+            const struct aiFace *fc = &m->mFaces[f];
+            if (fc->mNumIndices == 0 || !fc->mIndices)
+                return 0;
+            for (unsigned k = 0; k < fc->mNumIndices; k++)
+                if (fc->mIndices[k] >= m->mNumVertices)
+                    return 0;
+        }
     }
+    return 1;
+}
+
+int rt_model_set_max_triangles(uint64_t n)
+{
+    if (n == 0)
+        return -1;
+    max_triangles = n;
+    return 0;
+}
+
+/* The import, through our file system (model_io.c): the model's bytes are
+ * checked first, and a reference the file system refused fails the import
+ * even where Assimp went on without it. */
+int rt_model_append(const char *file, const float xf[12], uint32_t material, RtScene *s, RtError *err)
+{
+    ModelIO *io = rt_model_io_open(file, s, err);
+    if (!io)
+        return -1;
+    size_t len;
+    const char *bytes = rt_model_io_bytes(io, &len);
+    if (rt_model_check_bytes(file, bytes, len, max_triangles, err) != 0) {
+        rt_model_io_close(io);
+        return -1;
+    }
+    /* Post-processing waits until the faces are checked: Assimp 5.2.5's
+     * PLY loader can leave faces without indices, which its SortByPType
+     * step reads past. ValidateDataStructure, the one step that can fail,
+     * runs in the import: aiApplyPostProcessing's failure path frees the
+     * scene twice. No aiProcess_PreTransformVertices: it would copy every
+     * instance before the count could refuse them. */
+    const struct aiScene *sc = aiImportFileEx(file, aiProcess_ValidateDataStructure, rt_model_io_fs(io));
     int rc = 0;
-    if (nt == 0) {
-        rc = rt_fail(err, "%s: no triangles in the model", file);
-    } else if (reserve((void **)&s->vertices, &s->cap_vertices, s->nvertices, nv, sizeof *s->vertices) ||
-               reserve((void **)&s->normals, &s->cap_normals, s->nnormals, nn, sizeof *s->normals) ||
-               reserve((void **)&s->triangles, &s->cap_triangles, s->ntriangles, nt, sizeof *s->triangles)) {
-        rc = rt_fail(err, "%s: out of memory for %llu triangles", file, (unsigned long long)nt);
+    if (rt_model_io_refusal(io)) {
+        rc = rt_fail(err, "%s", rt_model_io_refusal(io));
+    } else if (!sc) {
+        char msg[400];
+        one_line(msg, sizeof msg, aiGetErrorString());
+        rc = rt_fail(err, "%s: %s", file, msg);
+    } else if (!faces_valid(sc)) {
+        rc = rt_fail(err, "%s: a face without vertices or with an index past its mesh's vertices", file);
+    } else if (!(sc = aiApplyPostProcessing(sc, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                                                   aiProcess_SortByPType))) {
+        char msg[400]; /* (not expected: these steps do not fail) */
+        one_line(msg, sizeof msg, aiGetErrorString());
+        rc = rt_fail(err, "%s: %s", file, msg);
     } else {
-        float nm[9];
-        normal_matrix(xf, nm);
-        for (unsigned i = 0; i < sc->mNumMeshes && rc == 0; i++)
-            if (append_mesh(sc->mMeshes[i], xf, nm, material, s) != 0)
-                rc = rt_fail(err, "%s: a vertex that is not finite (after the transform) or a face index out of range",
-                             file);
+        rc = append_scene(file, sc, xf, material, s, err);
     }
-    aiReleaseImport(sc);
+    if (sc)
+        aiReleaseImport(sc);
+    rt_model_io_close(io);
     return rc;
 }
 
@@ -174,6 +306,8 @@ int rt_model_supported(const char *path)
 }
 
 const char *rt_model_unavailable(void) { return "this build cannot read models (it needs Assimp)"; }
+
+int rt_model_set_max_triangles(uint64_t n) { return n ? 0 : -1; }
 
 #endif
 
