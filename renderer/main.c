@@ -77,8 +77,10 @@ static void usage(FILE *fp)
             "                           fewer past 4 s of kernel time)\n"
             "      --warmup N|Tms       untimed renders first: N of them, or as many as take T ms, at least\n"
             "                           one (default 0; cuda 50ms)\n"
-            "      --cache DIR          keep the parsed scene and its BVH in DIR, keyed by the scene's\n"
-            "                           content, the options and this program; a later run maps it\n"
+            "      --cache DIR          keep the parsed scene and its BVH in DIR (a folder of your own), keyed\n"
+            "                           by the files read, the options and this program; a later run loads it\n"
+            "      --max-model-triangles N  refuse a model that expands to more than N triangles (instanced\n"
+            "                           nodes counted; default 50000000)\n"
             "      --verify             check the BVH's invariants, poison the image first and fail unless\n"
             "                           every pixel is written\n"
             "      --calibrate          time a fixed CPU workload before rendering (record key calib_ms)\n"
@@ -117,7 +119,8 @@ static int opt_error(const char *opt, const char *val, const char *why)
 }
 
 enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE,
-       OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE, OPT_ISA, OPT_SHARE_GPU, OPT_HUGE_PAGES };
+       OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE, OPT_ISA, OPT_SHARE_GPU, OPT_HUGE_PAGES,
+       OPT_MAX_MODEL_TRIS };
 
 static void print_version(void)
 {
@@ -128,7 +131,7 @@ static void print_version(void)
     printf("\nbuild: %s\n", RT_BUILD_FLAGS);
 }
 
-/* --cache, --build-threads, --huge-pages, --runs and --warmup. */
+/* --cache, --max-model-triangles, --build-threads, --huge-pages, --runs and --warmup. */
 static int parse_load_timing(int c, const char *arg, Options *o)
 {
     switch (c) {
@@ -144,6 +147,14 @@ static int parse_load_timing(int c, const char *arg, Options *o)
             return opt_error("--cache", arg, rt_cache_unavailable());
         o->cache = arg;
         return 0;
+    case OPT_MAX_MODEL_TRIS: {
+        char *end;
+        errno = 0;
+        const unsigned long long n = strtoull(arg, &end, 10);
+        if (errno || end == arg || *end || arg[0] == '-' || rt_model_set_max_triangles((uint64_t)n) != 0)
+            return opt_error("--max-model-triangles", arg, "expected a positive integer");
+        return 0;
+    }
     case OPT_BUILD_THREADS:
         if (rt_parse_int(arg, 1, 4096, &o->build_threads) != 0)
             return opt_error("--build-threads", arg, "expected an integer from 1 to 4096");
@@ -164,7 +175,7 @@ static int parse_isa(const char *arg, Options *o)
 {
     RtError e;
     if (rt_cpu_isa_select(arg, &e) != 0) {
-        fprintf(stderr, "%s: %s\n", prog, e.msg);
+        fprintf(stderr, "%s: ", prog), rt_say(e.msg);
         return -1;
     }
     o->isa = arg;
@@ -183,6 +194,7 @@ static int parse_options(int argc, char **argv, Options *o)
         {"block", required_argument, NULL, OPT_BLOCK}, {"device", required_argument, NULL, OPT_DEVICE},
         {"runs", required_argument, NULL, OPT_RUNS},  {"warmup", required_argument, NULL, OPT_WARMUP},
         {"build-threads", required_argument, NULL, OPT_BUILD_THREADS}, {"cache", required_argument, NULL, OPT_CACHE},
+        {"max-model-triangles", required_argument, NULL, OPT_MAX_MODEL_TRIS},
         {"huge-pages", required_argument, NULL, OPT_HUGE_PAGES},
         {"verify", no_argument, NULL, OPT_VERIFY},    {"calibrate", no_argument, NULL, OPT_CALIBRATE},    {"quiet", no_argument, NULL, 'q'},
         {"isa", required_argument, NULL, OPT_ISA},    {"share-gpu", no_argument, NULL, OPT_SHARE_GPU},
@@ -247,6 +259,7 @@ static int parse_options(int argc, char **argv, Options *o)
                 return opt_error("--device", optarg, "expected a device index");
             break;
         case OPT_CACHE: case OPT_BUILD_THREADS: case OPT_RUNS: case OPT_WARMUP: case OPT_HUGE_PAGES:
+        case OPT_MAX_MODEL_TRIS:
             if (parse_load_timing(c, optarg, o) != 0)
                 return -1;
             break;
@@ -294,11 +307,12 @@ static void progress_cb(void *ctx, uint64_t done, uint64_t total)
     }
 }
 
-/* SIGINT/SIGTERM: no half-written OUT.tmp.XXXXXX is left beside the image;
- * then the default action, so the parent sees the signal. */
+/* SIGINT/SIGTERM: no half-written file is left (the named temporary file
+ * where a file system lacks O_TMPFILE: io/atomic.c); then the default
+ * action, so the parent sees the signal. */
 static void on_stop_signal(int sig)
 {
-    rt_image_abandon();
+    rt_atomic_abandon();
     signal(sig, SIG_DFL);
     raise(sig);
 }
@@ -306,7 +320,7 @@ static void on_stop_signal(int sig)
 static void warn_cb(void *ctx, const char *msg)
 {
     (void)ctx;
-    fprintf(stderr, "%s\n", msg);
+    rt_say(msg);
 }
 
 /* A material that both reflects and transmits doubles the rays at every
@@ -335,33 +349,6 @@ static void warn_deep(const RtScene *s, const RtCamera *cam)
             "%s: warning: max_depth %d with a material that both reflects and transmits: up to %.3g rays per pixel, "
             "%.3g in all; lower max_depth, or bound the run (harness timeout)\n",
             where, s->max_depth, per_pixel, worst);
-}
-
-/* The directory of the output must be writable: checked before rendering, so
- * a long render never ends in a write error. */
-static int check_output(const char *path, RtError *err)
-{
-    if (rt_image_format_for(path) == RT_IMG_UNKNOWN)
-        return rt_fail(err, "%s: unknown image format (use .png, .bmp or .ppm)", path);
-#if !HAVE_PNG
-    if (rt_image_format_for(path) == RT_IMG_PNG)
-        return rt_fail(err, "%s: this build has no libpng: write .bmp or .ppm", path);
-#endif
-    char dir[4096];
-    snprintf(dir, sizeof dir, "%s", path);
-    char *slash = strrchr(dir, '/');
-    if (slash == dir)
-        dir[1] = '\0';
-    else if (slash)
-        *slash = '\0';
-    else
-        snprintf(dir, sizeof dir, ".");
-    struct stat st;
-    if (stat(path, &st) == 0 && S_ISDIR(st.st_mode))
-        return rt_fail(err, "%s: is a directory", path);
-    if (access(dir, W_OK) != 0)
-        return rt_fail(err, "%s: cannot write into directory '%s': %s", path, dir, strerror(errno));
-    return 0;
 }
 
 /* The rank a launcher (mpirun, srun) gave this process, known before
@@ -460,11 +447,25 @@ typedef struct {
 
 /* The scene and its accelerator from --cache, if every process finds them
  * there (MPI: a rank that missed would wait in the others' broadcast).
- * 1: loaded; 0: parse and build (an unreadable scene is reported there). */
-static int cache_load(Run *r)
+ * 1: loaded; 0: parse and build (an unreadable scene is reported there);
+ * -1: the cache folder is refused (err says why). */
+static int cache_load(Run *r, RtError *err)
 {
-    RtError scratch;
-    int loaded = rt_cache_load(r->o->cache, r->o->scene, r->o->accel, &r->scene, &r->accel, r->cache_key, &scratch) == 1;
+    RtError why;
+    int loaded = rt_cache_load(r->o->cache, r->o->scene, r->o->accel, &r->scene, &r->accel, r->cache_key, &why);
+    if (loaded < 0)
+        rt_fail(err, "%s: %.1000s", prog, why.msg);
+    /* a folder refused on any rank fails every rank, together */
+    if (r->col ? r->col->agree(loaded < 0, err) != 0 : loaded < 0) {
+        if (loaded == 1) {
+            rt_accel_free(&r->accel);
+            rt_scene_free(&r->scene);
+        }
+        return -1;
+    }
+    if (loaded == 0 && why.msg[0] && r->is_root)
+        fprintf(stderr, "%s: warning: ", prog), rt_say(why.msg);
+    RtError scratch = {""};
     if (r->col && r->col->agree(!loaded, &scratch) != 0 && loaded) {
         rt_accel_free(&r->accel);
         rt_scene_free(&r->scene);
@@ -474,9 +475,9 @@ static int cache_load(Run *r)
 }
 
 /* Stores the scene as parsed (before the -r and -d overrides, which the key
- * does not cover) with its accelerator. Scenes that pull in model files are
- * not stored: the key covers the scene file's bytes only. */
-static void cache_store(const Run *r, const RtScene *parsed)
+ * does not cover) with its accelerator, under the key of the bytes it was
+ * parsed from. */
+static void cache_store(Run *r, const RtScene *parsed)
 {
     RtScene st = r->scene;
     st.width = parsed->width;
@@ -484,8 +485,8 @@ static void cache_store(const Run *r, const RtScene *parsed)
     st.max_depth = parsed->max_depth;
     st.line_res = parsed->line_res;
     RtError cerr;
-    if (!st.models && rt_cache_store(r->o->cache, r->cache_key, &st, &r->accel, &cerr) != 0)
-        fprintf(stderr, "%s: warning: %s\n", prog, cerr.msg); /* the run goes on */
+    if (rt_cache_store(r->o->cache, &st, &r->accel, r->cache_key, &cerr) != 0)
+        fprintf(stderr, "%s: warning: ", prog), rt_say(cerr.msg); /* the run goes on */
 }
 
 /* The scene loaded with the overrides applied, the camera checked, the
@@ -496,13 +497,23 @@ static int prepare(Run *r, RtError *err)
     double t0 = rt_now_ms();
     /* warnings are not progress: --quiet keeps them (README) */
     RtWarnFn warn = r->is_root ? warn_cb : NULL;
-    const int loaded = o->cache ? cache_load(r) : 0;
-    r->cache = loaded ? "loaded" : (o->cache ? "built" : "off");
-    if (!loaded && (r->col && r->col->scene_load
-                        ? r->col->scene_load(o->scene, o->mpi_scene, &r->scene, warn, NULL, err) != 0
-                        : rt_scene_load_threads(o->scene, o->build_threads, &r->scene, warn, NULL, err) != 0))
+    const int loaded = o->cache ? cache_load(r, err) : 0;
+    if (loaded < 0)
         return -1;
+    r->cache = loaded ? "loaded" : (o->cache ? "built" : "off");
+    const int lrc = !loaded && (r->col && r->col->scene_load
+                                    ? r->col->scene_load(o->scene, o->mpi_scene, &r->scene, warn, NULL, err) != 0
+                                    : rt_scene_load_threads(o->scene, o->build_threads, &r->scene, warn, NULL, err) != 0);
     r->parse_ms = rt_now_ms() - t0;
+    if (r->col && r->col->same) { /* every rank rendering the same bytes, parsed or loaded */
+        uint8_t digest[16] = {0};
+        if (!lrc)
+            rt_scene_digest(&r->scene, digest);
+        if (r->col->agree(lrc, err) != 0 || r->col->same(digest, err) != 0)
+            return -1;
+    } else if (lrc) {
+        return -1;
+    }
     const RtScene parsed = r->scene; /* (the settings as read, for the cache) */
     if (o->width) {
         r->scene.width = o->width;
@@ -517,7 +528,7 @@ static int prepare(Run *r, RtError *err)
         warn_deep(&r->scene, &r->cam);
     r->output = o->output ? o->output : r->scene.output;
     /* only the root writes the image, so only its directory matters */
-    if (r->is_root && check_output(r->output, err) != 0) {
+    if (r->is_root && ((!o->output && rt_scene_output_check(r->output, err) != 0) || rt_output_check(r->output, err) != 0)) {
         if (!o->output && r->scene.line_output) { /* the name came from the scene: say where */
             RtError e2 = *err;
             rt_fail(err, "%s:%d: output_image: %s", r->scene.path, r->scene.line_output, e2.msg);
@@ -722,7 +733,7 @@ int main(int argc, char **argv)
     if (signal(SIGTERM, on_stop_signal) == SIG_IGN)
         signal(SIGTERM, SIG_IGN);
     if (be->init && be->init(&argc, &argv, &err) != 0) {
-        fprintf(stderr, "%s: %s\n", prog, err.msg);
+        fprintf(stderr, "%s: ", prog), rt_say(err.msg);
         return 1;
     }
     if (be->prewarm) /* (the GPU's context while the scene loads) */
@@ -743,7 +754,7 @@ int main(int argc, char **argv)
     int rc = 0;
     if (failed || render(&r, &err) != 0 || (r.out.is_root && write_image(&r, &err) != 0)) {
         if (r.is_root)
-            fprintf(stderr, "%s\n", err.msg);
+            rt_say(err.msg);
         rc = 1;
     } else if (r.out.is_root) {
         print_record(&r);

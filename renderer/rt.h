@@ -73,6 +73,15 @@ void rt_content_hash(const void *bytes, size_t len, uint8_t out[16]);
 /* One digest of the scene's file_hash and every dependency's path and
  * hash: what MPI ranks compare. */
 void rt_scene_digest(const RtScene *scene, uint8_t out[16]);
+/* The dependency list as bytes (malloc'd; the cache's entries and MPI's
+ * broadcast carry it) and back; unpack checks every length. */
+int rt_scene_deps_pack(const RtScene *scene, char **blob, size_t *len);
+int rt_scene_deps_unpack(RtScene *scene, const char *blob, size_t len, RtError *err);
+struct RtAccel;
+/* Checks every index a renderer follows (vertices, normals, materials,
+ * light types, primitive ids) and the settings it relies on, as for a scene
+ * that did not come from the parser (a cache entry). */
+int rt_scene_check(const RtScene *scene, const struct RtAccel *accel, RtError *err);
 
 /* Parses path into scene (which the caller zeroes or frees). Unknown commands
  * go to warn (may be NULL). Returns 0, or -1 with "path:line: message". */
@@ -88,6 +97,8 @@ int rt_scene_parse_buffer(const char *name, const char *buf, size_t len, RtScene
 int rt_scene_parse_buffer_threads(const char *name, const char *buf, size_t len, int threads, RtScene *scene,
                                   RtWarnFn warn, void *warn_ctx, RtError *err);
 void rt_scene_free(RtScene *scene);
+/* Frees the dependency list alone (and empties it). */
+void rt_scene_free_deps(RtScene *scene);
 /* Sets the scene's name (the file name without directory and extension) and path. */
 void rt_scene_name(RtScene *scene, const char *path);
 /* Checks the camera and resolution (after CLI overrides) and builds the camera. */
@@ -148,20 +159,34 @@ int rt_model_append(const char *file, const float xf[12], uint32_t material, RtS
 int rt_model_supported(const char *path);
 /* A scene around one model: a camera that frames it, a light, a material. */
 int rt_model_scene(const char *path, RtScene *scene, RtError *err);
+/* The most triangles one model may expand to (instanced nodes counted
+ * before any expansion; default 50,000,000; --max-model-triangles): 0, or
+ * -1 for 0. */
+int rt_model_set_max_triangles(uint64_t n);
 /* NULL when this build reads models; else why not. */
 const char *rt_model_unavailable(void);
 
 /* ---------------------------------------------------------------- scene cache */
 
 /* The parsed scene and its accelerator for scene_path from the cache
- * directory dir (docs/scene-format.md, "Scene cache"): 1 loaded (the arrays
- * mapped; rt_scene_free and rt_accel_free release them), 0 a miss (a stale
- * or corrupt entry is removed), -1 an error. key (33 bytes) receives the
- * entry's name for rt_cache_store. */
+ * folder dir (docs/scene-format.md, "Scene cache"): 1, loaded (the arrays
+ * in the scene's own mapping; key gets the entry's 32 hex digits); 0, a
+ * miss (parse and build; err->msg says why when an entry was refused, else
+ * it is empty); -1 when the folder is refused (another user's, writable by
+ * others, a link). */
 int rt_cache_load(const char *dir, const char *scene_path, RtAccelKind kind, RtScene *scene, RtAccel *accel,
                   char *key, RtError *err);
-/* Stores a scene and its accelerator under key (written whole or not at all). */
-int rt_cache_store(const char *dir, const char *key, const RtScene *scene, const RtAccel *accel, RtError *err);
+/* Stores a scene as parsed and its accelerator, keyed by the bytes it was
+ * parsed from (scene->file_hash) and listing the other files it read
+ * (written whole or not at all); key gets the entry's name. */
+int rt_cache_store(const char *dir, const RtScene *scene, const RtAccel *accel, char *key, RtError *err);
+/* An entry's bytes (len of them, at a 64-byte aligned address, kept while
+ * the scene is used) as a scene and accelerator, after checking its header,
+ * its hash and everything the renderer follows: 0, or -1 with why. The
+ * fuzz test calls it directly, after rt_cache_entry_seal (which sets the
+ * payload hash, as anyone who can write the folder could). */
+int rt_cache_entry_parse(void *bytes, size_t len, RtAccelKind kind, RtScene *scene, RtAccel *accel, RtError *err);
+void rt_cache_entry_seal(void *bytes, size_t len);
 /* NULL when this build has the cache; else why not. */
 const char *rt_cache_unavailable(void);
 
@@ -173,9 +198,6 @@ RtImageFormat rt_image_format_for(const char *path);
 /* Writes 8-bit RGB, row-major from the top; the file appears whole or not at
  * all (written under a temporary name, then renamed). */
 int rt_image_write(const char *path, const uint8_t *rgb, int width, int height, RtError *err);
-/* Removes the temporary file of a write in progress, if any: for a SIGINT or
- * SIGTERM handler (async-signal-safe). */
-void rt_image_abandon(void);
 /* Reads PNG (8/16-bit, any colour type), BMP (24-bit) or PPM (P6) into 8-bit RGB (malloc'd). */
 int rt_image_read(const char *path, uint8_t **rgb, int *width, int *height, RtError *err);
 void rt_image_quantize(const float *rgbf, uint8_t *rgb, size_t npixels);
@@ -275,6 +297,10 @@ typedef struct RtCollective {
      * how is NULL (the backend's default) or a backend-specific mode. */
     int (*scene_load)(const char *path, const char *how, RtScene *scene, RtWarnFn warn, void *warn_ctx,
                       RtError *err);
+    /* Collective: nonzero on every process unless every one holds the same
+     * 16 bytes as the root (the scene's digest: ranks that read different
+     * bytes must not render one image together); err then names a rank. */
+    int (*same)(const uint8_t digest[16], RtError *err);
 } RtCollective;
 
 const RtBackend *rt_backend_find(const char *name);
@@ -309,6 +335,32 @@ int rt_parse_wxh(const char *s, int maxside, int *w, int *h);
  * with "path: cannot open: ..." or "path: not a regular file". */
 struct stat;
 int rt_open_regular(const char *path, struct stat *st, RtError *err);
+/* A file written whole or not at all (io/atomic.c): unnamed until it is
+ * complete (O_TMPFILE, then linkat and renameat), so no signal, SIGKILL
+ * included, leaves a partial file; where the file system lacks O_TMPFILE a
+ * named temporary file that rt_atomic_abandon() removes from a signal
+ * handler. rt_atomic_open creates name in dirfd (AT_FDCWD for a path; a
+ * name with '/' is opened in its own folder), with mode 0666 less the
+ * umask; write to f->fd, then rt_atomic_commit (which closes it) or
+ * rt_atomic_abort. */
+typedef struct RtAtomicFile {
+    int fd, dirfd, own_dir;
+    char base[256];  /* the final name in dirfd */
+    char tmp[300];   /* the temporary name, once there is one */
+} RtAtomicFile;
+int rt_atomic_open(RtAtomicFile *f, int dirfd, const char *name, RtError *err);
+int rt_atomic_commit(RtAtomicFile *f, RtError *err);
+void rt_atomic_abort(RtAtomicFile *f);
+void rt_atomic_abandon(void);
+/* Where a run may write (io/output.c): an image path whose format is known
+ * and whose folder is writable (checked before rendering, so a long render
+ * never ends in a write error); a scene's own output_image, which must stay
+ * inside the working folder (relative, no "..", no link out of it). */
+int rt_output_check(const char *path, RtError *err);
+int rt_scene_output_check(const char *out, RtError *err);
+/* Writes msg and a newline to stderr with every byte a terminal could act
+ * on (control characters, bytes that are not UTF-8) escaped as \xNN. */
+void rt_say(const char *msg);
 /* Input files (scenes, models, cache entries) larger than this are refused
  * before a byte is read. */
 #define RT_MAX_FILE (1ull << 30)
@@ -319,6 +371,8 @@ int rt_open_regular(const char *path, struct stat *st, RtError *err);
  * meanwhile is refused ("changed while it was read") instead of mixed.
  * 0, or -1 with "path: ..." in err. */
 int rt_read_file(const char *path, size_t max, char **data, size_t *len, RtError *err);
+/* As rt_read_file, with the file's state the bytes were read in. */
+int rt_read_file_stat(const char *path, size_t max, char **data, size_t *len, struct stat *st, RtError *err);
 /* The median of v[0..n), n >= 1 (v is sorted in place: v[0] is the least). */
 double rt_median(double *v, int n);
 /* Whether another untimed warm-up render is due after `done` of them, the

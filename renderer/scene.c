@@ -261,3 +261,48 @@ int rt_thread_count(int asked)
     return 1;
 #endif
 }
+
+/* Whether the primitive records name the scene's primitives: the id's
+ * sphere bit set exactly for the spheres, every id in range. */
+static int check_prims(const RtScene *s, const RtAccel *a, RtError *err)
+{
+    const uint64_t nscene = (uint64_t)s->nspheres + s->ntriangles;
+    if (a->nsplit > a->nprims || (uint64_t)(a->nprims - a->nsplit) != nscene)
+        return rt_fail(err, "%u primitive records (%u split copies) for %llu primitives", a->nprims, a->nsplit,
+                       (unsigned long long)nscene);
+    if (a->kind == RT_ACCEL_NONE && (a->nsplit || a->nnodes || a->nwide))
+        return rt_fail(err, "a brute-force accelerator with a tree");
+    if (a->kind == RT_ACCEL_BVH && a->nprims && (!a->nodes || !a->nnodes))
+        return rt_fail(err, "a BVH without nodes");
+    for (uint32_t i = 0; i < a->nprims; i++) {
+        const uint32_t id = a->prims[i].id, gid = id & ~RT_PRIM_SPHERE_BIT;
+        if (gid >= nscene || !(id & RT_PRIM_SPHERE_BIT) != (gid >= s->nspheres))
+            return rt_fail(err, "primitive record %u names primitive %u (sphere bit %u)", i, gid,
+                           !!(id & RT_PRIM_SPHERE_BIT));
+    }
+    return 0;
+}
+
+int rt_scene_check(const RtScene *s, const RtAccel *a, RtError *err)
+{
+    if (s->max_depth < 0 || s->max_depth > RT_MAX_DEPTH)
+        return rt_fail(err, "max_depth %d outside 0..%d", s->max_depth, RT_MAX_DEPTH);
+    for (uint32_t i = 0; i < s->ntriangles; i++) {
+        const RtTriangle *t = &s->triangles[i];
+        const int smooth = t->n[0] >= 0;
+        for (int k = 0; k < 3; k++)
+            if (t->v[k] >= s->nvertices || (smooth && (t->n[k] < 0 || (uint32_t)t->n[k] >= s->nnormals)))
+                return rt_fail(err, "triangle %u: vertex or normal index out of range", i);
+        if (t->material >= s->nmaterials)
+            return rt_fail(err, "triangle %u: material %u of %u", i, t->material, s->nmaterials);
+    }
+    for (uint32_t i = 0; i < s->nspheres; i++)
+        if (s->spheres[i].material >= s->nmaterials || !(s->spheres[i].r > 0.0f))
+            return rt_fail(err, "sphere %u: material %u of %u, radius %g", i, s->spheres[i].material, s->nmaterials,
+                           (double)s->spheres[i].r);
+    for (uint32_t i = 0; i < s->nlights; i++)
+        if (s->lights[i].type != RT_LIGHT_POINT && s->lights[i].type != RT_LIGHT_DIRECTIONAL &&
+            s->lights[i].type != RT_LIGHT_SPOT)
+            return rt_fail(err, "light %u: unknown type %d", i, s->lights[i].type);
+    return a ? check_prims(s, a, err) : 0;
+}

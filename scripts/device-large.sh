@@ -18,6 +18,9 @@
 #   warmcpu the same first image on the CPU (--backend openmp on every core,
 #          at 640x360 and 1920x1080), the older commit and this tree
 #          interleaved, ROUNDS rounds
+#   check  what checking the scene's cache entry costs (benchmarks/cache_check.c:
+#          the whole parse of this tree's entry, and the index and tree
+#          checks alone, ROUNDS rounds each; after warmcpu)
 # .devcarry/include/xxhash.h stands in for libxxhash-dev where the machine
 # lacks it (the scene cache needs only the header).
 set -euo pipefail
@@ -107,6 +110,10 @@ for step in "${@:-bench ab}"; do
                     emit "$f" "$r,$b,$res" cmd_ms total_ms parse_ms render_ms write_ms threads cache image_fnv1a
                 done
             done
+        done ;;
+    check)
+        for e in /tmp/warm-cpu-new/*.rbc; do
+            build-large/benchmarks/cache-check "$e" bvh "$ROUNDS" | tee -a "$OUT/cache-check-4m.txt"
         done ;;
     *) echo "device-large: unknown step $step" >&2; exit 2 ;;
     esac

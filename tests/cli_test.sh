@@ -103,6 +103,35 @@ printf 'film_resolution: 8 6\noutput_image: out.xyz\nsphere: 0 0 -5 1\n' > "$tmp
 # -o overrides the scene's name, so the scene's unusable name cannot matter
 "$rt" -q -o "$tmp/ok.ppm" "$tmp/badout.txt" > /dev/null || fail "-o did not override a bad output_image"
 
+# A scene's own output_image stays in the working folder: an absolute path,
+# "..", or a folder that is a link out are refused with the scene's file and
+# line, and no file is written there; -o stays the user's free choice.
+mkdir -p "$tmp/victim" "$tmp/work/sub" && ln -s "$tmp/victim" "$tmp/work/out"
+for o in "$tmp/victim/photo.png" ../victim/photo.png sub/../../victim/photo.png out/photo.png; do
+    printf 'film_resolution: 8 6\noutput_image: %s\nsphere: 0 0 -5 1\n' "$o" > "$tmp/work/esc.txt"
+    (cd "$tmp/work" && "$rt" -q esc.txt > stdout 2> stderr)
+    [ $? -eq 1 ] || fail "output_image $o: not refused"
+    grep -q "^esc.txt:2: output_image: '$o'" "$tmp/work/stderr" || fail "output_image $o: stderr '$(cat "$tmp/work/stderr")'"
+    [ -z "$(ls -A "$tmp/victim")" ] || fail "output_image $o: wrote $(ls -A "$tmp/victim")"
+done
+printf 'film_resolution: 8 6\noutput_image: sub/in.ppm\nsphere: 0 0 -5 1\n' > "$tmp/work/in.txt"
+(cd "$tmp/work" && "$rt" -q in.txt > /dev/null) && [ -s "$tmp/work/sub/in.ppm" ] || fail "output_image sub/in.ppm inside the folder refused"
+"$rt" -q -o "$tmp/victim/mine.ppm" "$tmp/work/esc.txt" > /dev/null && [ -s "$tmp/victim/mine.ppm" ] || fail "-o outside the folder refused"
+
+# Bytes that are not UTF-8 quoted from a scene into a message come out
+# escaped (\xNN; the parser already refuses control bytes as binary data);
+# UTF-8 text is kept.
+for v in '\377\233' '\303\251'; do
+    printf "film_resolution: 8 6\\nsphere: 0 0 -5 1$v\\n" > "$tmp/esc2.txt"
+    "$rt" -q -o "$tmp/e.ppm" "$tmp/esc2.txt" > /dev/null 2> "$tmp/stderr"
+    [ $? -eq 1 ] || fail "a bad value with bytes $v: wrong exit status"
+    LC_ALL=C grep -q "$(printf '[\001-\010\013-\037\177\377\233]')" "$tmp/stderr" && fail "raw bytes in a message: $(od -c "$tmp/stderr" | head -3)"
+done
+grep -q "esc2.txt:2: .*'1$(printf '\303\251')'" "$tmp/stderr" || fail "UTF-8 in a message was escaped: '$(cat "$tmp/stderr")'"
+printf 'film_resolution: 8 6\nsphere: 0 0 -5 1\377\233\n' > "$tmp/esc2.txt"
+"$rt" -q -o "$tmp/e.ppm" "$tmp/esc2.txt" > /dev/null 2> "$tmp/stderr"
+grep -q "esc2.txt:2: .*'1\\\\xff\\\\x9b'" "$tmp/stderr" || fail "escaped message: '$(cat "$tmp/stderr")'"
+
 # --- the course's tools write ior 0 for opaque materials: such a scene renders
 printf 'film_resolution: 16 12\nmaterial: .1 .7 0 .1 .7 0 0 0 0 0 0 0 0 0\nsphere: 0 0 -5 1\n' > "$tmp/ior0.txt"
 printf 'film_resolution: 16 12\nmaterial: .1 .7 0 .1 .7 0 0 0 0 0 0 0 0 1\nsphere: 0 0 -5 1\n' > "$tmp/ior1.txt"
@@ -124,26 +153,27 @@ grep -q "deep.txt:2: warning: max_depth 32 .* 4.29e+09 rays per pixel" "$tmp/std
 "$rt" -q -d 5 -o "$tmp/deep.ppm" "$tmp/deep.txt" > /dev/null 2> "$tmp/stderr" || fail "deep scene at -d 5"
 [ ! -s "$tmp/stderr" ] || fail "a warning at max_depth 5: '$(cat "$tmp/stderr")'"
 
-# --- SIGTERM while the image is being written: the temporary file goes with
-# the process (a 6000x6000 PPM takes about half a second to write, so the
-# test waits for the temporary file to appear, then signals). SIGINT takes
-# the same handler, but a shell's background job ignores it, so it is not
-# tried here.
+# --- SIGTERM or SIGKILL while the image is being written: no file of any
+# name is left. The image is written unnamed (O_TMPFILE) and named only once
+# whole, so the test waits until the process holds a file open in the
+# output folder (/proc/PID/fd: a 6000x6000 PPM takes about half a second to
+# write), then signals. SIGINT takes SIGTERM's handler, but a shell's
+# background job ignores it, so it is not tried here.
 printf 'film_resolution: 6000 6000\n' > "$tmp/big.txt"
 mkdir "$tmp/sig"
-for sig in TERM; do
+for sig in TERM KILL; do
     "$rt" -q -o "$tmp/sig/big.ppm" "$tmp/big.txt" > /dev/null 2>&1 &
     pid=$!
     seen=0
     for _ in $(seq 3000); do
-        if ls "$tmp/sig" | grep -q '\.tmp\.'; then seen=1; break; fi
+        if ls -l /proc/$pid/fd 2> /dev/null | grep -q "$tmp/sig/"; then seen=1; break; fi
         kill -0 $pid 2> /dev/null || break
         sleep 0.005
     done
     kill -$sig $pid 2> /dev/null
     wait $pid
-    [ $seen = 1 ] || fail "SIG$sig: the temporary image file never showed (the write was too quick to catch)"
-    [ -z "$(ls "$tmp/sig")" ] || fail "SIG$sig during the write left: $(ls "$tmp/sig")"
+    [ $seen = 1 ] || fail "SIG$sig: the image file being written never showed (the write was too quick to catch)"
+    [ -z "$(ls -A "$tmp/sig")" ] || fail "SIG$sig during the write left: $(ls -A "$tmp/sig")"
 done
 
 # --- --quiet hides progress, not warnings (README)

@@ -1360,7 +1360,7 @@ static int wide_check(const RtAccel *a, RtError *err)
 {
     uint8_t *seen_node = calloc(a->nwide, 1), *seen_prim = calloc(a->nprims, 1);
     /* each entry: node index, and its box as the parent saw it */
-    typedef struct { uint32_t node; float lo[3], hi[3]; } Entry;
+    typedef struct { uint32_t node, depth; float lo[3], hi[3]; } Entry;
     Entry *stack = malloc(((size_t)a->nwide + 1) * sizeof *stack);
     int rc = 0, sp = 0;
     if (!seen_node || !seen_prim || !stack) {
@@ -1368,6 +1368,7 @@ static int wide_check(const RtAccel *a, RtError *err)
         goto out;
     }
     stack[sp].node = 0;
+    stack[sp].depth = 0;
     for (int k = 0; k < 3; k++) {
         stack[sp].lo[k] = a->nodes[0].lo[k];
         stack[sp].hi[k] = a->nodes[0].hi[k];
@@ -1413,8 +1414,11 @@ static int wide_check(const RtAccel *a, RtError *err)
                 rc = rt_fail(err, "BVH check: wide node %u: child %u -> node %u of %u", e.node, k, c, a->nwide);
             } else if (sp >= (int)a->nwide) {
                 rc = rt_fail(err, "BVH check: the wide tree has a cycle");
+            } else if (e.depth + 1 > RT_BVH_MAX_DEPTH) { /* (the traversals' stacks are sized for this depth) */
+                rc = rt_fail(err, "BVH check: the wide tree is deeper than %d", RT_BVH_MAX_DEPTH);
             } else {
                 stack[sp].node = c;
+                stack[sp].depth = e.depth + 1;
                 memcpy(stack[sp].lo, lo, sizeof lo);
                 memcpy(stack[sp].hi, hi, sizeof hi);
                 sp++;

@@ -118,6 +118,41 @@ static void bcast_bytes(void *p, size_t n)
     }
 }
 
+static int mpi_same(const uint8_t digest[16], RtError *err)
+{
+    uint8_t root[16];
+    memcpy(root, digest, 16);
+    RT_MPI_CHECK(MPI_Bcast(root, 16, MPI_BYTE, 0, MPI_COMM_WORLD));
+    const int differs = memcmp(root, digest, 16) != 0;
+    if (differs)
+        rt_fail(err, "the scene this rank read differs from rank 0's (its files changed between the ranks' reads, "
+                     "or the ranks see different files)");
+    return rt_mpi_agree(differs, err);
+}
+
+/* The dependency list from rank 0 (the receivers' pointers were rank 0's). */
+static int bcast_deps(RtScene *scene, RtError *err)
+{
+    char *blob = NULL;
+    size_t len = 0;
+    int bad = rt_mpi_rank == 0 && rt_scene_deps_pack(scene, &blob, &len) != 0;
+    unsigned long long n = len;
+    RT_MPI_CHECK(MPI_Bcast(&n, 1, MPI_UNSIGNED_LONG_LONG, 0, MPI_COMM_WORLD));
+    if (rt_mpi_rank != 0) {
+        scene->deps = NULL, scene->ndeps = 0;
+        bad = !(blob = malloc(n ? (size_t)n : 1));
+    }
+    int any = 0;
+    RT_MPI_CHECK(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD));
+    if (!any) {
+        bcast_bytes(blob, (size_t)n);
+        if (rt_mpi_rank != 0)
+            any = rt_scene_deps_unpack(scene, blob, (size_t)n, err) != 0;
+    }
+    free(blob);
+    return any ? rt_fail(err, "out of memory for the scene's file list") : 0;
+}
+
 static int scene_load_bcast(const char *path, RtScene *scene, RtWarnFn warn, void *warn_ctx, RtError *err)
 {
     int st = 0;
@@ -129,6 +164,8 @@ static int scene_load_bcast(const char *path, RtScene *scene, RtWarnFn warn, voi
     /* The struct first (counts, camera, names), then the six flat arrays;
      * receivers replace rank 0's pointers by their own copies. */
     bcast_bytes(scene, sizeof *scene);
+    if (rt_mpi_rank != 0)
+        scene->deps = NULL, scene->ndeps = 0; /* (rank 0's pointers: bcast_deps sends the list) */
     struct { void **p; uint32_t n, *cap; size_t size; } a[] = {
         {(void **)&scene->vertices, scene->nvertices, &scene->cap_vertices, sizeof *scene->vertices},
         {(void **)&scene->normals, scene->nnormals, &scene->cap_normals, sizeof *scene->normals},
@@ -151,7 +188,7 @@ static int scene_load_bcast(const char *path, RtScene *scene, RtWarnFn warn, voi
         return rt_fail(err, "%s: out of memory for the broadcast scene", path);
     for (int i = 0; i < na; i++)
         bcast_bytes(*a[i].p, (size_t)a[i].n * a[i].size);
-    return 0;
+    return bcast_deps(scene, err);
 }
 
 static int mpi_scene_load(const char *path, const char *how, RtScene *scene, RtWarnFn warn, void *warn_ctx,
@@ -424,6 +461,6 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     return 0;
 }
 
-const RtCollective rt_mpi_collective = {mpi_is_root, rt_mpi_agree, mpi_scene_load};
+const RtCollective rt_mpi_collective = {mpi_is_root, rt_mpi_agree, mpi_scene_load, mpi_same};
 
 const RtBackend rt_backend_mpi = {"mpi", NULL, rt_mpi_init, render_mpi, rt_mpi_finalize, &rt_mpi_collective, 0, NULL, 0};

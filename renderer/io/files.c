@@ -16,11 +16,14 @@
  * divided by the cores. */
 #define RT_READ_PIECE (8u << 20)
 
+/* Whether a file's bytes may have changed between two states: any write
+ * or truncation moves its size or mtime. (Not its ctime: that also moves
+ * when the file is renamed away or replaced under its name, as an editor
+ * saves, while the bytes being read stay the same.) */
 static int same_file_state(const struct stat *a, const struct stat *b)
 {
     return a->st_dev == b->st_dev && a->st_ino == b->st_ino && a->st_size == b->st_size &&
-           a->st_mtim.tv_sec == b->st_mtim.tv_sec && a->st_mtim.tv_nsec == b->st_mtim.tv_nsec &&
-           a->st_ctim.tv_sec == b->st_ctim.tv_sec && a->st_ctim.tv_nsec == b->st_ctim.tv_nsec;
+           a->st_mtim.tv_sec == b->st_mtim.tv_sec && a->st_mtim.tv_nsec == b->st_mtim.tv_nsec;
 }
 
 /* Reads [off, off+n) of fd into buf; 0 when all n bytes came. */
@@ -38,6 +41,12 @@ static int read_at(int fd, char *buf, size_t n, off_t off)
 }
 
 int rt_read_file(const char *path, size_t max, char **data, size_t *len, RtError *err)
+{
+    struct stat st;
+    return rt_read_file_stat(path, max, data, len, &st, err);
+}
+
+int rt_read_file_stat(const char *path, size_t max, char **data, size_t *len, struct stat *stp, RtError *err)
 {
     struct stat st, after;
     const int fd = rt_open_regular(path, &st, err);
@@ -73,6 +82,7 @@ int rt_read_file(const char *path, size_t max, char **data, size_t *len, RtError
     buf[n] = '\0';
     *data = buf;
     *len = n;
+    *stp = st;
     return 0;
 }
 
@@ -117,4 +127,64 @@ void rt_scene_digest(const RtScene *s, uint8_t out[16])
     }
     rt_content_hash(buf, at, out);
     free(buf);
+}
+
+/* The packed list: per dependency its hash (16 bytes), its path's length
+ * (4 bytes, little-endian on every host this runs on) and the path. */
+int rt_scene_deps_pack(const RtScene *s, char **blob, size_t *len)
+{
+    size_t n = 0;
+    for (uint32_t i = 0; i < s->ndeps; i++)
+        n += 20 + strlen(s->deps[i].path);
+    char *b = malloc(n ? n : 1);
+    if (!b)
+        return -1;
+    size_t at = 0;
+    for (uint32_t i = 0; i < s->ndeps; i++) {
+        const uint32_t l = (uint32_t)strlen(s->deps[i].path);
+        memcpy(b + at, s->deps[i].hash, 16);
+        memcpy(b + at + 16, &l, 4);
+        memcpy(b + at + 20, s->deps[i].path, l);
+        at += 20 + l;
+    }
+    *blob = b;
+    *len = n;
+    return 0;
+}
+
+int rt_scene_deps_unpack(RtScene *s, const char *blob, size_t len, RtError *err)
+{
+    s->deps = NULL;
+    s->ndeps = 0;
+    size_t at = 0;
+    while (at < len) {
+        uint32_t l;
+        if (len - at < 20 || (memcpy(&l, blob + at + 16, 4), l == 0) || l >= 4096 || l > len - at - 20 ||
+            memchr(blob + at + 20, '\0', l))
+            return rt_fail(err, "the list of files the scene read is damaged");
+        RtDep *nd = realloc(s->deps, (s->ndeps + 1) * sizeof *nd);
+        char *path = malloc(l + 1);
+        if (nd)
+            s->deps = nd;
+        if (!nd || !path) {
+            free(path);
+            return rt_fail(err, "out of memory");
+        }
+        memcpy(path, blob + at + 20, l);
+        path[l] = '\0';
+        s->deps[s->ndeps].path = path;
+        memcpy(s->deps[s->ndeps].hash, blob + at, 16);
+        s->ndeps++;
+        at += 20 + l;
+    }
+    return 0;
+}
+
+void rt_scene_free_deps(RtScene *s)
+{
+    for (uint32_t i = 0; i < s->ndeps; i++)
+        free(s->deps[i].path);
+    free(s->deps);
+    s->deps = NULL;
+    s->ndeps = 0;
 }

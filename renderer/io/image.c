@@ -1,7 +1,8 @@
 /* image.c - PNG (libpng), BMP and PPM, chosen by the file name's extension.
- * Writes go to a temporary file in the same directory, then rename(2), so an
- * image appears whole or not at all. */
+ * Writes go through io/atomic.c: an image appears whole or not at all. */
+#define _GNU_SOURCE
 #include <errno.h>
+#include <fcntl.h>
 #include <setjmp.h>
 #include <signal.h>
 #include <stdio.h>
@@ -124,69 +125,17 @@ static int write_bmp(FILE *fp, const uint8_t *rgb, int w, int h)
     return 0;
 }
 
-static int write_tmp(int fd, const char *tmp, RtImageFormat fmt, const uint8_t *rgb, int w, int h, const char *path,
-                     RtError *err);
-
-/* The temporary file being written, for rt_image_abandon() in a signal
- * handler (only async-signal-safe work there: a flag and unlink). */
-static char pending_tmp[4096];
-static volatile sig_atomic_t pending_set;
-
-void rt_image_abandon(void)
+/* The image in f's file (fmt), then given its name: whole or not at all. */
+static int write_into(RtAtomicFile *f, RtImageFormat fmt, const uint8_t *rgb, int w, int h, const char *path,
+                      RtError *err)
 {
-    if (pending_set)
-        unlink(pending_tmp);
-}
-
-static void pending_begin(const char *tmp)
-{
-    snprintf(pending_tmp, sizeof pending_tmp, "%s", tmp);
-    pending_set = strlen(tmp) < sizeof pending_tmp;
-}
-
-int rt_image_write(const char *path, const uint8_t *rgb, int w, int h, RtError *err)
-{
-    RtImageFormat fmt = rt_image_format_for(path);
-    if (fmt == RT_IMG_UNKNOWN)
-        return rt_fail(err, "%s: unknown image format (use .png, .bmp or .ppm)", path);
-    size_t n = strlen(path);
-    char *tmp = malloc(n + 16);
-    if (!tmp)
-        return rt_fail(err, "%s: out of memory", path);
-    snprintf(tmp, n + 16, "%s.tmp.XXXXXX", path);
-    int fd = mkstemp(tmp);
-    if (fd < 0) {
-        int e = errno;
-        free(tmp);
-        return rt_fail(err, "%s: cannot create: %s", path, strerror(e));
-    }
-    pending_begin(tmp);
-    int rc = write_tmp(fd, tmp, fmt, rgb, w, h, path, err);
-    pending_set = 0;
-    free(tmp);
-    return rc;
-}
-
-/* Writes the image into the temporary file fd (tmp), then renames it to
- * path; on any failure the temporary file is removed. */
-static int write_tmp(int fd, const char *tmp, RtImageFormat fmt, const uint8_t *rgb, int w, int h, const char *path,
-                     RtError *err)
-{
-    /* mkstemp creates the file 0600; the image should get the mode any
-     * other new file gets (0666 less the umask). */
-    mode_t mask = umask(0);
-    umask(mask);
-    if (fchmod(fd, 0666 & ~mask) != 0) {
-        int e = errno;
-        close(fd);
-        unlink(tmp);
-        return rt_fail(err, "%s: cannot set permissions: %s", path, strerror(e));
-    }
-    FILE *fp = fdopen(fd, "wb");
+    const int fd2 = dup(f->fd); /* (fclose closes this one; the commit needs f->fd) */
+    FILE *fp = fd2 >= 0 ? fdopen(fd2, "wb") : NULL;
     if (!fp) {
-        int e = errno;
-        close(fd);
-        unlink(tmp);
+        const int e = errno;
+        if (fd2 >= 0)
+            close(fd2);
+        rt_atomic_abort(f);
         return rt_fail(err, "%s: cannot open: %s", path, strerror(e));
     }
     char msg[300] = "write error";
@@ -210,15 +159,24 @@ static int write_tmp(int fd, const char *tmp, RtImageFormat fmt, const uint8_t *
         rc = -1, e = errno;
     if (fclose(fp) != 0 && rc == 0)
         rc = -1, e = errno;
-    if (rc == 0 && rename(tmp, path) != 0)
-        rc = -1, e = errno;
     if (rc != 0) {
-        unlink(tmp);
+        rt_atomic_abort(f);
         if (strcmp(msg, "write error") != 0)
             return rt_fail(err, "%s: %s", path, msg);
         return rt_fail(err, "%s: write failed: %s", path, strerror(e));
     }
-    return 0;
+    return rt_atomic_commit(f, err);
+}
+
+int rt_image_write(const char *path, const uint8_t *rgb, int w, int h, RtError *err)
+{
+    RtImageFormat fmt = rt_image_format_for(path);
+    if (fmt == RT_IMG_UNKNOWN)
+        return rt_fail(err, "%s: unknown image format (use .png, .bmp or .ppm)", path);
+    RtAtomicFile f;
+    if (rt_atomic_open(&f, AT_FDCWD, path, err) != 0)
+        return -1;
+    return write_into(&f, fmt, rgb, w, h, path, err);
 }
 
 #if HAVE_PNG

@@ -1163,12 +1163,32 @@ int rt_scene_parse_buffer(const char *name, const char *buf, size_t len, RtScene
     return rt_scene_parse_buffer_threads(name, buf, len, 1, scene, warn, warn_ctx, err);
 }
 
+/* raytrace MODEL: the scene's file hash is that of the model's bytes as
+ * Assimp read them (the first file model.c recorded under that name). */
+static int model_scene(const char *path, RtScene *scene, RtError *err)
+{
+    if (rt_model_scene(path, scene, err) != 0)
+        return -1;
+    for (uint32_t i = 0; i < scene->ndeps; i++)
+        if (strcmp(scene->deps[i].path, path) == 0) {
+            memcpy(scene->file_hash, scene->deps[i].hash, 16);
+            return 0;
+        }
+    char *buf; /* (a loader that read it otherwise: its bytes now) */
+    size_t len;
+    if (rt_read_file(path, RT_MAX_FILE, &buf, &len, err) != 0)
+        return -1;
+    rt_content_hash(buf, len, scene->file_hash);
+    free(buf);
+    return 0;
+}
+
 int rt_scene_load_threads(const char *path, int threads, RtScene *scene, RtWarnFn warn, void *warn_ctx,
                           RtError *err)
 {
     memset(scene, 0, sizeof *scene);
     if (rt_model_supported(path)) /* raytrace MODEL: Assimp reads it (through model.c's own file access) */
-        return rt_model_scene(path, scene, err);
+        return model_scene(path, scene, err);
     /* Read once, whole: the bytes parsed are the bytes hashed (the cache's
      * key, MPI's agreement), and a file truncated underneath is an error,
      * not a SIGBUS in a mapping. */
@@ -1200,8 +1220,6 @@ void rt_scene_free(RtScene *s)
         free(s->materials);
         free(s->lights);
     }
-    for (uint32_t i = 0; i < s->ndeps; i++)
-        free(s->deps[i].path);
-    free(s->deps);
+    rt_scene_free_deps(s);
     memset(s, 0, sizeof *s);
 }

@@ -16,6 +16,10 @@ rt=$1 mpirun=$2 scene=$(course_path "$3") res=$4 accels=$5
 [ -f "$scene" ] || { echo "skip: $scene not found (the course scenes: set RAYBENCH_COURSE_DIR)"; exit 77; }
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
+# Open MPI's session folder under a base of this test's own: two mpiruns of
+# concurrent tests sharing /tmp/ompi.HOST.UID race on its removal (one
+# removes it while the other creates its pid.N folder in it).
+mkdir "$tmp/ompi" && export TMPDIR="$tmp/ompi"
 # mpirun as root (containers, CI) needs both; waiting ranks yield the core
 # because the test oversubscribes 2 cores with 3 ranks.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_mpi_yield_when_idle=1
