@@ -137,9 +137,12 @@ int rt_accel_build_threads(const RtScene *scene, RtAccelKind kind, int threads, 
 void rt_accel_huge_pages(int mode);
 int rt_accel_build(const RtScene *scene, RtAccelKind kind, RtAccel *accel, RtError *err);
 void rt_accel_free(RtAccel *accel);
-/* Checks the BVH invariants: every record slot in exactly one leaf, every
- * primitive in at least one slot, leaves of 1..4 records, children inside
- * parents, depth-first layout. */
+/* Leaves of the binary tree hold at most this many records. */
+#define RT_BVH_LEAF_MAX 4
+/* Checks the BVH invariants (accel/check.c), in parallel over subtrees:
+ * every record slot in exactly one leaf, every primitive in at least one
+ * slot, leaves of 1..4 records, children inside parents, depth-first
+ * layout, depth within the traversal stacks; the same of the 4-wide copy. */
 int rt_bvh_check(const RtAccel *accel, RtError *err);
 const char *rt_accel_name(RtAccelKind kind);
 int rt_accel_parse(const char *s, RtAccelKind *kind);

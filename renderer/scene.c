@@ -2,6 +2,7 @@
 #define _GNU_SOURCE
 #include <errno.h>
 #include <fcntl.h>
+#include <limits.h>
 #include <math.h>
 #include <sched.h>
 #include <stdarg.h>
@@ -262,8 +263,41 @@ int rt_thread_count(int asked)
 #endif
 }
 
-/* Whether the primitive records name the scene's primitives: the id's
- * sphere bit set exactly for the spheres, every id in range. */
+/* The first i in 0..n for which bad(ctx, i), or -1: in parallel (a
+ * scene cache entry of millions of triangles is checked on every load). */
+static long first_bad(long n, int (*bad)(const void *, const void *, long), const void *s, const void *a)
+{
+    long first = LONG_MAX;
+#pragma omp parallel for reduction(min : first) schedule(static)
+    for (long i = 0; i < n; i++)
+        if (i < first && bad(s, a, i))
+            first = i;
+    return first == LONG_MAX ? -1 : first;
+}
+
+static int bad_triangle(const void *sp, const void *ap, long i)
+{
+    const RtScene *s = sp;
+    (void)ap;
+    const RtTriangle *t = &s->triangles[i];
+    const int smooth = t->n[0] >= 0;
+    for (int k = 0; k < 3; k++)
+        if (t->v[k] >= s->nvertices || (smooth && (t->n[k] < 0 || (uint32_t)t->n[k] >= s->nnormals)))
+            return 1;
+    return t->material >= s->nmaterials;
+}
+
+/* A primitive record whose id is out of range or whose sphere bit is not
+ * set exactly for the spheres (the shading follows it into either array). */
+static int bad_prim(const void *sp, const void *ap, long i)
+{
+    const RtScene *s = sp;
+    const RtAccel *a = ap;
+    const uint32_t id = a->prims[i].id, gid = id & ~RT_PRIM_SPHERE_BIT;
+    return gid >= (uint64_t)s->nspheres + s->ntriangles || !(id & RT_PRIM_SPHERE_BIT) != (gid >= s->nspheres);
+}
+
+/* Whether the primitive records name the scene's primitives. */
 static int check_prims(const RtScene *s, const RtAccel *a, RtError *err)
 {
     const uint64_t nscene = (uint64_t)s->nspheres + s->ntriangles;
@@ -274,12 +308,10 @@ static int check_prims(const RtScene *s, const RtAccel *a, RtError *err)
         return rt_fail(err, "a brute-force accelerator with a tree");
     if (a->kind == RT_ACCEL_BVH && a->nprims && (!a->nodes || !a->nnodes))
         return rt_fail(err, "a BVH without nodes");
-    for (uint32_t i = 0; i < a->nprims; i++) {
-        const uint32_t id = a->prims[i].id, gid = id & ~RT_PRIM_SPHERE_BIT;
-        if (gid >= nscene || !(id & RT_PRIM_SPHERE_BIT) != (gid >= s->nspheres))
-            return rt_fail(err, "primitive record %u names primitive %u (sphere bit %u)", i, gid,
-                           !!(id & RT_PRIM_SPHERE_BIT));
-    }
+    const long i = first_bad(a->nprims, bad_prim, s, a);
+    if (i >= 0)
+        return rt_fail(err, "primitive record %ld names primitive %u (sphere bit %u)", i,
+                       a->prims[i].id & ~RT_PRIM_SPHERE_BIT, !!(a->prims[i].id & RT_PRIM_SPHERE_BIT));
     return 0;
 }
 
@@ -287,15 +319,9 @@ int rt_scene_check(const RtScene *s, const RtAccel *a, RtError *err)
 {
     if (s->max_depth < 0 || s->max_depth > RT_MAX_DEPTH)
         return rt_fail(err, "max_depth %d outside 0..%d", s->max_depth, RT_MAX_DEPTH);
-    for (uint32_t i = 0; i < s->ntriangles; i++) {
-        const RtTriangle *t = &s->triangles[i];
-        const int smooth = t->n[0] >= 0;
-        for (int k = 0; k < 3; k++)
-            if (t->v[k] >= s->nvertices || (smooth && (t->n[k] < 0 || (uint32_t)t->n[k] >= s->nnormals)))
-                return rt_fail(err, "triangle %u: vertex or normal index out of range", i);
-        if (t->material >= s->nmaterials)
-            return rt_fail(err, "triangle %u: material %u of %u", i, t->material, s->nmaterials);
-    }
+    const long t = first_bad(s->ntriangles, bad_triangle, s, NULL);
+    if (t >= 0)
+        return rt_fail(err, "triangle %ld: vertex, normal or material index out of range", t);
     for (uint32_t i = 0; i < s->nspheres; i++)
         if (s->spheres[i].material >= s->nmaterials || !(s->spheres[i].r > 0.0f))
             return rt_fail(err, "sphere %u: material %u of %u, radius %g", i, s->spheres[i].material, s->nmaterials,

@@ -208,6 +208,9 @@ static int read_entry(int fd_dir, const char *name, void **out, size_t *len)
         close(fd);
         return -1;
     }
+#ifdef MADV_HUGEPAGE
+    madvise(m, n, MADV_HUGEPAGE); /* (a 0.5 GB entry: 240 faults instead of 120,000) */
+#endif
     const long pieces = (long)((n + RT_HASH_CHUNK - 1) / RT_HASH_CHUNK);
     int bad = 0;
 #pragma omp parallel for schedule(dynamic, 1) reduction(| : bad) if (pieces > 2)
