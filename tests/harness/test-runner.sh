@@ -10,6 +10,7 @@ trap 'rm -rf "$T"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
 . "$(dirname "$0")/common.sh" # need_pgrep, pids_matching
 need_pgrep
+export FAKE_HANG_S="31.$$" # (this test's own hang duration: common.sh, test_setup)
 for s in ok crash hang fail wrong silent; do echo "# dummy" > "$T/$s.txt"; done
 cat > "$T/study.conf" <<CONF
 study: fake

@@ -42,7 +42,7 @@ mkdir plots
 [ -s plots/evil-speedup.png ] && [ -s plots/evil-scenes.png ] || fail "no plots"
 "$H" plot evil.csv -o "$(printf 'plots/x\nsystem("touch PWNED3")\n#')" > /dev/null 2>&1 &&
     fail "plot took a prefix with a newline"
-grep -q "touch" plots/evil-speedup.gp || fail "the scene names are not in the speedup plot's titles
+grep -q "touch" plots/evil-speedup.gp || fail "the scene names are not in the speedup plot's titles"
 found=$(ls PWNED* plots/PWNED* 2> /dev/null)
 [ -z "$found" ] || fail "a scene name ran a command through gnuplot: $found"
 
