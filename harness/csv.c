@@ -26,6 +26,8 @@ const char *const hx_columns[] = {
     /* outcome */
     "status", "status_detail", "exit_code", "wall_ms", "cores_planned",
     "cores_actual", "pin_held",
+    /* measured by the harness for every run (wait4): CPU time, peak memory */
+    "user_ms", "sys_ms", "maxrss_kib",
     /* the record line, known keys */
     "rec_scene", "width", "height", "rec_backend", "rec_accel", "rec_threads",
     "rec_ranks", "parse_ms", "build_ms", "render_ms", "write_ms", "total_ms",

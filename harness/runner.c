@@ -97,8 +97,28 @@ typedef struct {
     int exited;        /* WIFEXITED */
     int code;          /* exit code or signal number */
     double wall_ms;
+    /* wait4's rusage of the child and the descendants it waited for: CPU
+     * time, and the largest resident set among them (Linux's ru_maxrss, the
+     * peak of the biggest process, not a sum) */
+    int have_usage;
+    double user_ms, sys_ms;
+    long maxrss_kib;
     HxBuf out, err;
 } ChildResult;
+
+/* Reaps child (wait4, so its resource use comes with it): 1 when it was
+ * reaped now. */
+static int reap(pid_t child, int *status, int flags, ChildResult *res)
+{
+    struct rusage ru;
+    if (wait4(child, status, flags, &ru) != child)
+        return 0;
+    res->have_usage = 1;
+    res->user_ms = (double)ru.ru_utime.tv_sec * 1e3 + (double)ru.ru_utime.tv_usec / 1e3;
+    res->sys_ms = (double)ru.ru_stime.tv_sec * 1e3 + (double)ru.ru_stime.tv_usec / 1e3;
+    res->maxrss_kib = ru.ru_maxrss;
+    return 1;
+}
 
 static const char *signal_name(int sig)
 {
@@ -128,19 +148,19 @@ static void keep_tail(HxBuf *b)
     }
 }
 
-static void kill_group(pid_t pgid, double grace_ms, pid_t child, int *reaped, int *status)
+static void kill_group(pid_t pgid, double grace_ms, pid_t child, int *reaped, int *status, ChildResult *res)
 {
     kill(-pgid, SIGTERM);
     double until = hx_now_ms() + grace_ms;
     while (!*reaped && hx_now_ms() < until) {
-        if (waitpid(child, status, WNOHANG) == child)
+        if (reap(child, status, WNOHANG, res))
             *reaped = 1;
         else
             usleep(10000);
     }
     /* SIGKILL the group even if the leader is gone: its children may not be */
     kill(-pgid, SIGKILL);
-    if (!*reaped && waitpid(child, status, 0) == child)
+    if (!*reaped && reap(child, status, 0, res))
         *reaped = 1;
 }
 
@@ -203,15 +223,15 @@ static int run_child(char *const *argv, char *const *env_add, const HxTopo *topo
     while (open_fds > 0) {
         double now = hx_now_ms();
         if (g_stop) {
-            kill_group(pid, 500, pid, &reaped, &status);
+            kill_group(pid, 500, pid, &reaped, &status, res);
             break;
         }
         if (now >= deadline) {
             res->timed_out = 1;
-            kill_group(pid, 500, pid, &reaped, &status);
+            kill_group(pid, 500, pid, &reaped, &status, res);
             break;
         }
-        if (!reaped && waitpid(pid, &status, WNOHANG) == pid) {
+        if (!reaped && reap(pid, &status, WNOHANG, res)) {
             reaped = 1;
             reaped_at = now;
             res->wall_ms = now - t0;
@@ -255,18 +275,17 @@ static int run_child(char *const *argv, char *const *env_add, const HxTopo *topo
         /* pipes closed; the leader should be exiting: wait up to the deadline */
         while (!reaped) {
             if (g_stop) {
-                kill_group(pid, 500, pid, &reaped, &status);
+                kill_group(pid, 500, pid, &reaped, &status, res);
                 break;
             }
-            pid_t w = waitpid(pid, &status, WNOHANG);
-            if (w == pid) {
+            if (reap(pid, &status, WNOHANG, res)) {
                 reaped = 1;
                 res->wall_ms = hx_now_ms() - t0;
                 break;
             }
             if (hx_now_ms() >= deadline) {
                 res->timed_out = 1;
-                kill_group(pid, 500, pid, &reaped, &status);
+                kill_group(pid, 500, pid, &reaped, &status, res);
                 break;
             }
             usleep(200);
@@ -1029,6 +1048,11 @@ static const char *run_one(Study *st, const HxRun *r, char **vals, char **detail
         st->executed++;
         st->child_ms += res.wall_ms;
         setf(vals, "wall_ms", "%.3f", res.wall_ms);
+        if (res.have_usage) {
+            setf(vals, "user_ms", "%.3f", res.user_ms);
+            setf(vals, "sys_ms", "%.3f", res.sys_ms);
+            setf(vals, "maxrss_kib", "%ld", res.maxrss_kib);
+        }
         status = outcome(st, r, &res, vals, detail);
     }
     hx_buf_free(&res.out);

@@ -47,7 +47,12 @@ n() { grep -c -- "$1" "$T/out.csv"; }
 [ "$(n ',error,exit 0 but no record line')" -eq 4 ] || fail "no-record rows"
 [ "$(n ',wrong-image,image_fnv1a 00000000000000bb != reference')" -eq 2 ] || fail "wrong-image rows"
 grep -q 'newkey=1' "$T/out.csv" || fail "unknown record key not kept in extra"
-grep -q ',yes,ok,' "$T/out.csv" || fail "pin_held=yes missing (cores_actual vs planned)"
+# a column's values by its name in the header (the fields tested here hold no commas)
+column() { awk -F, -v want="$1" 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == want) c = i; next } c { print $c }' "$T/out.csv"; }
+column pin_held | grep -q '^yes$' || fail "pin_held=yes missing (cores_actual vs planned)"
+# every run that ran has the harness's own measurements: CPU time and peak memory
+[ "$(column maxrss_kib | grep -c '^[1-9][0-9]*$')" -ge 12 ] || fail "maxrss_kib missing: $(column maxrss_kib | tr '\n' ' ')"
+[ "$(column user_ms | grep -c '^[0-9][0-9.]*$')" -ge 12 ] || fail "user_ms missing: $(column user_ms | tr '\n' ' ')"
 pids_matching "^sleep $FAKE_HANG_S\$"
 [ -z "$PIDS" ] || fail "a grandchild of a timed-out run survived"
 [ $((end - start)) -lt 15 ] || fail "study took $((end - start)) s: timeouts not enforced"
