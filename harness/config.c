@@ -321,161 +321,151 @@ static int parse_timeout(const char *v, double *out)
     return 0;
 }
 
-int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
-                           char *err, size_t errlen)
+/* A swept key's values (dimension dim) from line lineno. 0, or -1 with err
+ * set. */
+static int parse_dim(const char *path, int lineno, int dim, const char *key, const HxStrList *vals,
+                     HxConfig *cfg, char *err, size_t errlen)
 {
-    config_defaults(cfg, path);
-    int seen_scalar[16] = {0};
-    int lineno = 0, rc = 0;
-    const char *p = text;
-    if (strncmp(p, "\xEF\xBB\xBF", 3) == 0) /* a UTF-8 byte-order mark, as editors on Windows write */
-        p += 3;
-    while (*p && rc == 0) {
-        const char *nl = strchr(p, '\n');
-        size_t n = nl ? (size_t)(nl - p) : strlen(p);
-        char *line = hx_strndup(p, n);
-        p += n + (nl ? 1 : 0);
-        lineno++;
-        if (n && line[n - 1] == '\r') /* CRLF line ends */
-            line[n - 1] = '\0';
-        for (const unsigned char *c = (const unsigned char *)line; *c; c++)
-            if (hx_is_ctrl(*c) && *c != '\t') {
-                /* names from here reach CSV cells, tables and Slurm scripts */
-                rc = set_err(err, errlen, path, lineno, "control character 0x%02x in the line", *c);
-                break;
-            }
-        if (rc) {
-            free(line);
-            break;
-        }
-        char *hash = strchr(line, '#');
-        if (hash)
-            *hash = '\0';
-        char *s = hx_trim(line);
-        if (*s == '\0') {
-            free(line);
-            continue;
-        }
-        char *colon = strchr(s, ':');
-        if (!colon) {
-            rc = set_err(err, errlen, path, lineno, "expected 'key: values', got '%s'", s);
-            free(line);
-            break;
-        }
-        *colon = '\0';
-        char *key = hx_trim(s);
-        char *val = hx_trim(colon + 1);
-        HxStrList vals = {0};
-        split_values(val, &vals);
-        if (vals.n == 0) {
-            rc = set_err(err, errlen, path, lineno, "key '%s' has no value", key);
-            goto next;
-        }
-        int dim = dim_of_key(key);
-        if (dim >= 0) {
-            if (cfg->dim_line[dim]) {
-                rc = set_err(err, errlen, path, lineno, "key '%s' already set on line %d",
-                             key, cfg->dim_line[dim]);
-                goto next;
-            }
-            cfg->dim_line[dim] = lineno;
-            for (size_t i = 0; i < vals.n; i++) {
-                char why[256];
-                if (check_dim_value(dim, vals.v[i], why, sizeof why)) {
-                    rc = set_err(err, errlen, path, lineno, "%s: %s", key, why);
-                    goto next;
-                }
-                if (hx_strlist_find(&cfg->dim[dim], vals.v[i]) >= 0) {
-                    rc = set_err(err, errlen, path, lineno, "%s: value '%s' listed twice",
-                                 key, vals.v[i]);
-                    goto next;
-                }
-                hx_strlist_push(&cfg->dim[dim], vals.v[i]);
-            }
-            goto next;
-        }
-        if (strcmp(key, "extra_args") == 0) {
-            for (size_t i = 0; i < vals.n; i++)
-                hx_strlist_push(&cfg->extra_args, vals.v[i]);
-            goto next;
-        }
-        int sk = -1;
-        for (int i = 0; scalar_keys[i]; i++)
-            if (strcmp(key, scalar_keys[i]) == 0)
-                sk = i;
-        if (sk < 0) {
-            rc = set_err(err, errlen, path, lineno, "unknown key '%s'", key);
-            goto next;
-        }
-        if (seen_scalar[sk]) {
-            rc = set_err(err, errlen, path, lineno, "key '%s' already set on line %d",
-                         key, seen_scalar[sk]);
-            goto next;
-        }
-        seen_scalar[sk] = lineno;
-        if (vals.n != 1) {
-            rc = set_err(err, errlen, path, lineno, "key '%s' takes one value, got %zu",
-                         key, vals.n);
-            goto next;
-        }
-        const char *v = vals.v[0];
-        long iv;
-        if (strcmp(key, "study") == 0) {
-            cfg->study = hx_strdup(v);
-        } else if (strcmp(key, "scene_dir") == 0) {
-            cfg->scene_dir = hx_strdup(v);
-        } else if (strcmp(key, "repeats") == 0) {
-            if (hx_parse_int(v, 1, 100000, &iv))
-                rc = set_err(err, errlen, path, lineno, "repeats: expected an integer >= 1, got '%s'", v);
-            else
-                cfg->repeats = (int)iv;
-        } else if (strcmp(key, "warmup") == 0) {
-            if (hx_parse_int(v, 0, 1000, &iv))
-                rc = set_err(err, errlen, path, lineno, "warmup: expected an integer >= 0, got '%s'", v);
-            else
-                cfg->warmup = (int)iv;
-        } else if (strcmp(key, "timeout") == 0) {
-            if (parse_timeout(v, &cfg->timeout_s))
-                rc = set_err(err, errlen, path, lineno,
-                             "timeout: expected seconds > 0 (e.g. 30, 30s, 5m, 2h), got '%s'", v);
-        } else if (strcmp(key, "oversubscribe") == 0) {
-            if (strcmp(v, "allow") == 0)
-                cfg->oversubscribe_allow = 1;
-            else if (strcmp(v, "refuse") == 0)
-                cfg->oversubscribe_allow = 0;
-            else
-                rc = set_err(err, errlen, path, lineno,
-                             "oversubscribe: expected refuse|allow, got '%s'", v);
-        } else if (strcmp(key, "baseline") == 0) {
-            const char *eq = strchr(v, '=');
-            if (!eq || eq == v || eq[1] == '\0')
-                rc = set_err(err, errlen, path, lineno,
-                             "baseline: expected KEY=VALUE (e.g. backend=serial), got '%s'", v);
-            else
-                cfg->baseline = hx_strdup(v);
-        } else if (strcmp(key, "raytrace") == 0) {
-            cfg->raytrace = hx_strdup(v);
-        } else if (strcmp(key, "mpirun") == 0) {
-            cfg->mpirun = hx_strdup(v);
-        } else if (strcmp(key, "scene_cache") == 0) {
-            cfg->scene_cache = hx_strdup(v);
-        } else if (strcmp(key, "instructions") == 0) {
-            if (strcmp(v, "on") == 0 || strcmp(v, "off") == 0)
-                cfg->instructions = strcmp(v, "on") == 0;
-            else
-                rc = set_err(err, errlen, path, lineno, "instructions: expected on|off, got '%s'", v);
-            cfg->instructions_line = lineno;
-        } else if (strcmp(key, "launcher") == 0) {
-            if (hx_launcher_parse(v, &cfg->launcher))
-                rc = set_err(err, errlen, path, lineno,
-                             "launcher: expected mpirun|srun, got '%s'", v);
-        }
-    next:
-        hx_strlist_free(&vals);
-        free(line);
+    if (cfg->dim_line[dim])
+        return set_err(err, errlen, path, lineno, "key '%s' already set on line %d",
+                       key, cfg->dim_line[dim]);
+    cfg->dim_line[dim] = lineno;
+    for (size_t i = 0; i < vals->n; i++) {
+        char why[256];
+        if (check_dim_value(dim, vals->v[i], why, sizeof why))
+            return set_err(err, errlen, path, lineno, "%s: %s", key, why);
+        if (hx_strlist_find(&cfg->dim[dim], vals->v[i]) >= 0)
+            return set_err(err, errlen, path, lineno, "%s: value '%s' listed twice",
+                           key, vals->v[i]);
+        hx_strlist_push(&cfg->dim[dim], vals->v[i]);
     }
-    if (rc)
-        return rc;
+    return 0;
+}
+
+/* A scalar key's one value v. 0, or -1 with err set. */
+static int parse_scalar(const char *path, int lineno, const char *key, const char *v, HxConfig *cfg,
+                        char *err, size_t errlen)
+{
+    int rc = 0;
+    long iv;
+    if (strcmp(key, "study") == 0) {
+        cfg->study = hx_strdup(v);
+    } else if (strcmp(key, "scene_dir") == 0) {
+        cfg->scene_dir = hx_strdup(v);
+    } else if (strcmp(key, "repeats") == 0) {
+        if (hx_parse_int(v, 1, 100000, &iv))
+            rc = set_err(err, errlen, path, lineno, "repeats: expected an integer >= 1, got '%s'", v);
+        else
+            cfg->repeats = (int)iv;
+    } else if (strcmp(key, "warmup") == 0) {
+        if (hx_parse_int(v, 0, 1000, &iv))
+            rc = set_err(err, errlen, path, lineno, "warmup: expected an integer >= 0, got '%s'", v);
+        else
+            cfg->warmup = (int)iv;
+    } else if (strcmp(key, "timeout") == 0) {
+        if (parse_timeout(v, &cfg->timeout_s))
+            rc = set_err(err, errlen, path, lineno,
+                         "timeout: expected seconds > 0 (e.g. 30, 30s, 5m, 2h), got '%s'", v);
+    } else if (strcmp(key, "oversubscribe") == 0) {
+        if (strcmp(v, "allow") == 0)
+            cfg->oversubscribe_allow = 1;
+        else if (strcmp(v, "refuse") == 0)
+            cfg->oversubscribe_allow = 0;
+        else
+            rc = set_err(err, errlen, path, lineno,
+                         "oversubscribe: expected refuse|allow, got '%s'", v);
+    } else if (strcmp(key, "baseline") == 0) {
+        const char *eq = strchr(v, '=');
+        if (!eq || eq == v || eq[1] == '\0')
+            rc = set_err(err, errlen, path, lineno,
+                         "baseline: expected KEY=VALUE (e.g. backend=serial), got '%s'", v);
+        else
+            cfg->baseline = hx_strdup(v);
+    } else if (strcmp(key, "raytrace") == 0) {
+        cfg->raytrace = hx_strdup(v);
+    } else if (strcmp(key, "mpirun") == 0) {
+        cfg->mpirun = hx_strdup(v);
+    } else if (strcmp(key, "scene_cache") == 0) {
+        cfg->scene_cache = hx_strdup(v);
+    } else if (strcmp(key, "instructions") == 0) {
+        if (strcmp(v, "on") == 0 || strcmp(v, "off") == 0)
+            cfg->instructions = strcmp(v, "on") == 0;
+        else
+            rc = set_err(err, errlen, path, lineno, "instructions: expected on|off, got '%s'", v);
+        cfg->instructions_line = lineno;
+    } else if (strcmp(key, "launcher") == 0) {
+        if (hx_launcher_parse(v, &cfg->launcher))
+            rc = set_err(err, errlen, path, lineno,
+                         "launcher: expected mpirun|srun, got '%s'", v);
+    }
+    return rc;
+}
+
+/* One `key: values` pair; seen_scalar[k]: the line scalar_keys[k] was set
+ * on. 0, or -1 with err set. */
+static int parse_key(const char *path, int lineno, const char *key, const HxStrList *vals,
+                     HxConfig *cfg, int *seen_scalar, char *err, size_t errlen)
+{
+    if (vals->n == 0)
+        return set_err(err, errlen, path, lineno, "key '%s' has no value", key);
+    int dim = dim_of_key(key);
+    if (dim >= 0)
+        return parse_dim(path, lineno, dim, key, vals, cfg, err, errlen);
+    if (strcmp(key, "extra_args") == 0) {
+        for (size_t i = 0; i < vals->n; i++)
+            hx_strlist_push(&cfg->extra_args, vals->v[i]);
+        return 0;
+    }
+    int sk = -1;
+    for (int i = 0; scalar_keys[i]; i++)
+        if (strcmp(key, scalar_keys[i]) == 0)
+            sk = i;
+    if (sk < 0)
+        return set_err(err, errlen, path, lineno, "unknown key '%s'", key);
+    if (seen_scalar[sk])
+        return set_err(err, errlen, path, lineno, "key '%s' already set on line %d",
+                       key, seen_scalar[sk]);
+    seen_scalar[sk] = lineno;
+    if (vals->n != 1)
+        return set_err(err, errlen, path, lineno, "key '%s' takes one value, got %zu",
+                       key, vals->n);
+    return parse_scalar(path, lineno, key, vals->v[0], cfg, err, errlen);
+}
+
+/* One line of the config (line is modified). 0, or -1 with err set. */
+static int parse_line(const char *path, int lineno, char *line, HxConfig *cfg, int *seen_scalar,
+                      char *err, size_t errlen)
+{
+    for (const unsigned char *c = (const unsigned char *)line; *c; c++)
+        if (hx_is_ctrl(*c) && *c != '\t')
+            /* names from here reach CSV cells, tables and Slurm scripts */
+            return set_err(err, errlen, path, lineno, "control character 0x%02x in the line", *c);
+    char *hash = strchr(line, '#');
+    if (hash)
+        *hash = '\0';
+    char *s = hx_trim(line);
+    if (*s == '\0')
+        return 0;
+    char *colon = strchr(s, ':');
+    if (!colon)
+        return set_err(err, errlen, path, lineno, "expected 'key: values', got '%s'", s);
+    *colon = '\0';
+    char *key = hx_trim(s);
+    char *val = hx_trim(colon + 1);
+    HxStrList vals = {0};
+    split_values(val, &vals);
+    int rc = parse_key(path, lineno, key, &vals, cfg, seen_scalar, err, errlen);
+    hx_strlist_free(&vals);
+    return rc;
+}
+
+/* After the last line (lineno): the default study name, the checks across
+ * keys, the defaults, and the scenes resolved to files. 0, or -1 with err
+ * set. */
+static int config_finish(const char *path, int lineno, const int *seen_scalar, HxConfig *cfg,
+                         char *err, size_t errlen)
+{
+    int rc = 0;
     if (!cfg->dim_line[HX_DIM_SCENE])
         return set_err(err, errlen, path, lineno > 0 ? lineno : 1,
                        "missing required key 'scenes'");
@@ -521,6 +511,31 @@ int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
     }
     free(dir);
     return rc;
+}
+
+int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
+                           char *err, size_t errlen)
+{
+    config_defaults(cfg, path);
+    int seen_scalar[16] = {0};
+    int lineno = 0, rc = 0;
+    const char *p = text;
+    if (strncmp(p, "\xEF\xBB\xBF", 3) == 0) /* a UTF-8 byte-order mark, as editors on Windows write */
+        p += 3;
+    while (*p && rc == 0) {
+        const char *nl = strchr(p, '\n');
+        size_t n = nl ? (size_t)(nl - p) : strlen(p);
+        char *line = hx_strndup(p, n);
+        p += n + (nl ? 1 : 0);
+        lineno++;
+        if (n && line[n - 1] == '\r') /* CRLF line ends */
+            line[n - 1] = '\0';
+        rc = parse_line(path, lineno, line, cfg, seen_scalar, err, errlen);
+        free(line);
+    }
+    if (rc)
+        return rc;
+    return config_finish(path, lineno, seen_scalar, cfg, err, errlen);
 }
 
 /* The number of runs the config expands to (hx_expand), counted without

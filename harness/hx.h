@@ -1,8 +1,9 @@
 /* hx.h: shared types and entry points of the raybench harness.
  *
  * Data flows one way: config file -> run matrix (config.c) -> pinned child
- * runs (runner.c, topo.c) -> CSV rows (csv.c) -> statistics (stats.c) ->
- * tables (table.c), plots (plot.c) and the regression check (compare.c).
+ * runs (runner.c, launch.c, proc.c, topo.c) -> CSV rows (csv.c) ->
+ * statistics (stats.c) -> the study model (study.c) -> tables (table.c),
+ * plots (plot.c) and the regression check (compare.c).
  * The harness never links the renderer: it runs `raytrace` as a child and
  * parses its `record:` line, so it keeps working across renderer changes. */
 #ifndef HX_H
@@ -209,6 +210,10 @@ int hx_bind_child(const HxTopo *t, const HxRun *r);
 void hx_topo_print(const HxTopo *t, FILE *out);
 /* OMP_PLACES value for the run's cores, malloc'd ("{0},{1}"). */
 char *hx_omp_places(const HxTopo *t, const HxRun *r);
+/* Whether a run's pinning held: its planned cores against the cores its
+ * threads reported (cores_actual): "yes", "partial", "no", "unknown" or
+ * "n/a" (nothing planned). */
+const char *hx_pin_held(const char *planned, const char *actual);
 
 /* ---- machine fingerprint (fingerprint.c) ---- */
 typedef struct {
@@ -325,10 +330,10 @@ int hx_cmd_compare(int argc, char **argv);
 int hx_cmd_topo(int argc, char **argv);
 int hx_cmd_slurm(int argc, char **argv);
 int hx_cmd_history(int argc, char **argv);
-/* Stores study CSVs in the history database (history.c); 0, or 1 on failure. */
+/* Stores study CSVs in the history database (history_db.c); 0, or 1 on failure. */
 int hx_history_add(const char *db, char **csvs, int n, int allow_dirty);
 
-/* ---- shared analysis helpers (table.c) ---- */
+/* ---- the study model (study.c), shared by table, plot and compare ---- */
 /* One configuration of one scene, with its ok samples. */
 typedef struct {
     char *scene;

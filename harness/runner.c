@@ -1,608 +1,25 @@
 /* runner.c: `harness run`: execute the run matrix, one CSV row per run.
  *
- * Each run is a child in its own process group (so a timeout can kill
- * everything it started, mpirun's ranks included), bound to its planned cores
- * before exec, with stdout/stderr read through pipes and a wall-clock deadline.
- * A row is formatted whole, written with one write() and fsync()ed before the
- * next run starts: a study killed half-way leaves only whole rows, and
- * --resume continues it. */
-#include "hx.h"
+ * Each run is a child in its own process group with a wall-clock deadline
+ * (proc.c), started by the command line launch.c builds. A row is formatted
+ * whole, written with one write() and fsync()ed before the next run starts:
+ * a study killed half-way leaves only whole rows, and --resume continues it.
+ * The correctness gate compares each run's image hash with the first ok
+ * serial run of the same image. */
+#include "run.h"
 
 #include "config.h"
 
 #include <errno.h>
-#include <fcntl.h>
 #include <getopt.h>
-#include <poll.h>
-#include <pwd.h>
 #include <stdarg.h>
-#include <stdint.h>
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
 #include <dirent.h>
-#include <sys/resource.h>
-#ifdef __linux__
-#include <sys/prctl.h>
-#endif
 #include <sys/stat.h>
 #include <sys/types.h>
-#include <sys/wait.h>
 #include <unistd.h>
-
-/* SIGINT or SIGTERM received (the signal number): the current run is ended,
- * no row is written for it, and the study stops (exit 128 + signal). */
-static volatile sig_atomic_t g_stop;
-
-static void on_stop_signal(int sig)
-{
-    g_stop = sig;
-}
-
-/* No SA_RESTART: poll() and waitpid() return EINTR, and the loop sees g_stop. */
-static void install_stop_handlers(void)
-{
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_stop_signal;
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
-#ifdef __linux__
-    /* Processes a run leaves behind (mpirun's ranks in other process groups,
-     * a daemon in its own session) are re-parented to the harness, which
-     * reaps them before the next run starts (reap_strays). */
-    prctl(PR_SET_CHILD_SUBREAPER, 1);
-#endif
-}
-
-/* Kills and reaps every process of the last run that is still alive: as the
- * subreaper, they are all children of the harness now. The next run starts
- * on idle cores. */
-static void reap_strays(void)
-{
-    for (int round = 0; round < 500; round++) {
-        int st;
-        pid_t w;
-        while ((w = waitpid(-1, &st, WNOHANG)) > 0)
-            ;
-        if (w < 0 && errno == ECHILD)
-            return;
-        DIR *d = opendir("/proc");
-        struct dirent *e;
-        while (d && (e = readdir(d)) != NULL) {
-            char path[300], buf[512];
-            if (e->d_name[0] < '1' || e->d_name[0] > '9')
-                continue;
-            snprintf(path, sizeof path, "/proc/%s/stat", e->d_name);
-            FILE *f = fopen(path, "r");
-            if (!f)
-                continue;
-            size_t n = fread(buf, 1, sizeof buf - 1, f);
-            fclose(f);
-            buf[n] = '\0';
-            const char *rp = strrchr(buf, ')'); /* the name may hold spaces */
-            int ppid = 0;
-            if (rp && sscanf(rp + 1, " %*c %d", &ppid) == 1 && ppid == (int)getpid())
-                kill((pid_t)atoi(e->d_name), SIGKILL);
-        }
-        if (d)
-            closedir(d);
-        usleep(10000);
-    }
-}
-
-typedef struct {
-    int timed_out;
-    int exited;        /* WIFEXITED */
-    int code;          /* exit code or signal number */
-    double wall_ms;
-    /* wait4's rusage of the child and the descendants it waited for: CPU
-     * time, and the largest resident set among them (Linux's ru_maxrss, the
-     * peak of the biggest process, not a sum) */
-    int have_usage;
-    double user_ms, sys_ms;
-    long maxrss_kib;
-    HxBuf out, err;
-} ChildResult;
-
-/* Reaps child (wait4, so its resource use comes with it): 1 when it was
- * reaped now. */
-static int reap(pid_t child, int *status, int flags, ChildResult *res)
-{
-    struct rusage ru;
-    if (wait4(child, status, flags, &ru) != child)
-        return 0;
-    res->have_usage = 1;
-    res->user_ms = (double)ru.ru_utime.tv_sec * 1e3 + (double)ru.ru_utime.tv_usec / 1e3;
-    res->sys_ms = (double)ru.ru_stime.tv_sec * 1e3 + (double)ru.ru_stime.tv_usec / 1e3;
-    res->maxrss_kib = ru.ru_maxrss;
-    return 1;
-}
-
-static const char *signal_name(int sig)
-{
-    switch (sig) {
-    case SIGSEGV: return "SIGSEGV";
-    case SIGABRT: return "SIGABRT";
-    case SIGBUS: return "SIGBUS";
-    case SIGFPE: return "SIGFPE";
-    case SIGILL: return "SIGILL";
-    case SIGKILL: return "SIGKILL";
-    case SIGTERM: return "SIGTERM";
-    case SIGINT: return "SIGINT";
-    case SIGPIPE: return "SIGPIPE";
-    case SIGTRAP: return "SIGTRAP";
-    default: return NULL;
-    }
-}
-
-/* Keep the tail of a large stdout: the record line is the last line. */
-static void keep_tail(HxBuf *b)
-{
-    const size_t limit = 4u << 20, keep = 64u << 10;
-    if (b->len > limit) {
-        memmove(b->s, b->s + b->len - keep, keep);
-        b->len = keep;
-        b->s[b->len] = '\0';
-    }
-}
-
-static void kill_group(pid_t pgid, double grace_ms, pid_t child, int *reaped, int *status, ChildResult *res)
-{
-    kill(-pgid, SIGTERM);
-    double until = hx_now_ms() + grace_ms;
-    while (!*reaped && hx_now_ms() < until) {
-        if (reap(child, status, WNOHANG, res))
-            *reaped = 1;
-        else
-            usleep(10000);
-    }
-    /* SIGKILL the group even if the leader is gone: its children may not be */
-    kill(-pgid, SIGKILL);
-    if (!*reaped && reap(child, status, 0, res))
-        *reaped = 1;
-}
-
-static int run_child(char *const *argv, char *const *env_add, const HxTopo *topo,
-                     const HxRun *run, int bind, double timeout_s, ChildResult *res)
-{
-    memset(res, 0, sizeof *res);
-    int po[2], pe[2] = {-1, -1};
-    if (pipe(po) != 0)
-        return -1;
-    if (pipe(pe) != 0) {
-        close(po[0]);
-        close(po[1]);
-        return -1;
-    }
-    double t0 = hx_now_ms();
-    pid_t pid = fork();
-    if (pid < 0) {
-        close(po[0]);
-        close(po[1]);
-        close(pe[0]);
-        close(pe[1]);
-        return -1;
-    }
-    if (pid == 0) {
-        /* child: own process group, default signals, pipes, binding,
-         * environment, exec */
-        setpgid(0, 0);
-        signal(SIGINT, SIG_DFL);
-        signal(SIGTERM, SIG_DFL);
-        int devnull = open("/dev/null", O_RDONLY);
-        if (devnull >= 0) {
-            dup2(devnull, 0);
-            if (devnull > 0)
-                close(devnull);
-        }
-        dup2(po[1], 1);
-        dup2(pe[1], 2);
-        close(po[0]);
-        close(po[1]);
-        close(pe[0]);
-        close(pe[1]);
-        if (bind && hx_bind_child(topo, run) != 0)
-            fprintf(stderr, "harness: warning: binding to cores %s failed: %s\n",
-                    run->cores_planned, strerror(errno));
-        for (int i = 0; env_add && env_add[i]; i += 2)
-            setenv(env_add[i], env_add[i + 1], 1);
-        execvp(argv[0], argv);
-        fprintf(stderr, "cannot execute %s: %s\n", argv[0], strerror(errno));
-        _exit(127);
-    }
-    setpgid(pid, pid); /* both sides: no race with an early kill */
-    close(po[1]);
-    close(pe[1]);
-    struct pollfd fds[2] = {{po[0], POLLIN, 0}, {pe[0], POLLIN, 0}};
-    int open_fds = 2, reaped = 0, status = 0;
-    double deadline = t0 + timeout_s * 1e3;
-    double reaped_at = 0;
-    char chunk[65536];
-    while (open_fds > 0) {
-        double now = hx_now_ms();
-        if (g_stop) {
-            kill_group(pid, 500, pid, &reaped, &status, res);
-            break;
-        }
-        if (now >= deadline) {
-            res->timed_out = 1;
-            kill_group(pid, 500, pid, &reaped, &status, res);
-            break;
-        }
-        if (!reaped && reap(pid, &status, WNOHANG, res)) {
-            reaped = 1;
-            reaped_at = now;
-            res->wall_ms = now - t0;
-        }
-        if (reaped && now - reaped_at > 500) {
-            /* leader gone but something it started still holds the pipes */
-            kill(-pid, SIGKILL);
-            break;
-        }
-        double wait = deadline - now;
-        /* wake up now and then to notice an exited leader (see above) */
-        int ms = wait > 100 ? 100 : (int)wait + 1;
-        int pr = poll(fds, 2, ms);
-        if (pr < 0) {
-            if (errno == EINTR)
-                continue;
-            break;
-        }
-        for (int i = 0; i < 2; i++) {
-            if (fds[i].fd < 0 || !(fds[i].revents & (POLLIN | POLLHUP | POLLERR)))
-                continue;
-            ssize_t n = read(fds[i].fd, chunk, sizeof chunk);
-            if (n > 0) {
-                if (i == 0) {
-                    hx_buf_putn(&res->out, chunk, (size_t)n);
-                    keep_tail(&res->out);
-                } else if (res->err.len < (64u << 10)) {
-                    hx_buf_putn(&res->err, chunk, (size_t)n);
-                }
-            } else if (n == 0 || errno != EINTR) {
-                close(fds[i].fd);
-                fds[i].fd = -1;
-                open_fds--;
-            }
-        }
-    }
-    for (int i = 0; i < 2; i++)
-        if (fds[i].fd >= 0)
-            close(fds[i].fd);
-    if (!reaped && !res->timed_out) {
-        /* pipes closed; the leader should be exiting: wait up to the deadline */
-        while (!reaped) {
-            if (g_stop) {
-                kill_group(pid, 500, pid, &reaped, &status, res);
-                break;
-            }
-            if (reap(pid, &status, WNOHANG, res)) {
-                reaped = 1;
-                res->wall_ms = hx_now_ms() - t0;
-                break;
-            }
-            if (hx_now_ms() >= deadline) {
-                res->timed_out = 1;
-                kill_group(pid, 500, pid, &reaped, &status, res);
-                break;
-            }
-            usleep(200);
-        }
-    }
-    if (res->timed_out)
-        res->wall_ms = hx_now_ms() - t0;
-    if (WIFEXITED(status)) {
-        res->exited = 1;
-        res->code = WEXITSTATUS(status);
-    } else if (WIFSIGNALED(status)) {
-        res->exited = 0;
-        res->code = WTERMSIG(status);
-    }
-    return 0;
-}
-
-/* ---- per-run command line ---- */
-
-typedef struct {
-    HxStrList argv;
-    HxStrList env;   /* name, value pairs */
-    int bind;        /* bind the child with hwloc before exec */
-} Command;
-
-/* dir as a private folder (0700), made with its parent if missing (an
- * existing one is kept as it is: raytrace refuses one that others can
- * write). 0 when dir is a folder now. */
-static int private_dir(const char *parent, const char *dir)
-{
-    if (mkdir(parent, 0700) != 0 && errno != EEXIST)
-        return -1;
-    return mkdir(dir, 0700) == 0 || hx_is_dir(dir) ? 0 : -1;
-}
-
-/* Resolves cfg->scene_cache once per study (docs/harness.md, "Scene
- * cache"): kept as the config gives it (a directory, or "off"), else the
- * first of $XDG_CACHE_HOME/raybench, $HOME/.cache/raybench and
- * ~/.cache/raybench with ~ the user's home in the password database that
- * can be made; else (no home: a service user) a new private folder
- * raybench-cache-XXXXXX beside the study's CSV. Never a fixed name in /tmp,
- * which another user could create first and fill. build_command only reads
- * the result. */
-static void resolve_scene_cache(HxConfig *cfg, const char *out_path)
-{
-    if (cfg->scene_cache)
-        return;
-    const char *x = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
-    struct passwd *pw = getpwuid(getuid());
-    const char *base[3] = {x, home, pw ? pw->pw_dir : NULL};
-    HxBuf parent = {0}, dir = {0};
-    for (int i = 0; i < 3 && !cfg->scene_cache; i++) {
-        if (!base[i] || base[i][0] != '/' || (i > 0 && !hx_is_dir(base[i])))
-            continue;
-        parent.len = dir.len = 0;
-        hx_buf_printf(&parent, i == 0 ? "%s" : "%s/.cache", base[i]);
-        hx_buf_printf(&dir, "%s/raybench", parent.s);
-        if (private_dir(parent.s, dir.s) == 0)
-            cfg->scene_cache = hx_strdup(dir.s);
-    }
-    if (!cfg->scene_cache) {
-        /* the CSV's folder: -o's, else the default's (results/ or here) */
-        char *folder = out_path ? hx_dirname(out_path) : hx_strdup(hx_is_dir("results") ? "results" : ".");
-        dir.len = 0;
-        hx_buf_printf(&dir, "%s/raybench-cache-XXXXXX", folder);
-        free(folder);
-        char *abs = mkdtemp(dir.s) ? realpath(dir.s, NULL) : NULL; /* runs may start elsewhere */
-        if (abs) {
-            cfg->scene_cache = abs;
-        } else {
-            fprintf(stderr, "harness run: no cache folder (no home, and %s: %s): runs without the scene cache\n",
-                    dir.s, strerror(errno));
-            cfg->scene_cache = hx_strdup("off");
-        }
-    }
-    hx_buf_free(&parent);
-    hx_buf_free(&dir);
-}
-
-/* The run's rankfile beside its image; argv gets --rankfile FILE. 0, or -1
- * (the caller maps ranks itself). Takes rf. */
-static int write_rankfile(const char *image, char *rf, Command *c)
-{
-    HxBuf path = {0};
-    hx_buf_printf(&path, "%s.rankfile", image);
-    FILE *f = fopen(path.s, "w");
-    int bad = !f || fputs(rf, f) == EOF;
-    if (f)
-        bad |= fclose(f) != 0;
-    free(rf);
-    if (!bad) {
-        hx_strlist_push(&c->argv, "--rankfile");
-        hx_strlist_push(&c->argv, path.s);
-    }
-    hx_buf_free(&path);
-    return bad ? -1 : 0;
-}
-
-static void build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r,
-                          const char *raytrace, const char *image, Command *c)
-{
-    memset(c, 0, sizeof *c);
-    const char *cache_dir = strcmp(cfg->scene_cache, "off") == 0 ? NULL : cfg->scene_cache;
-    const char *be = r->v[HX_DIM_BACKEND];
-    int is_mpi = hx_backend_mpi(be);
-    int pinned = strcmp(r->v[HX_DIM_PIN], "none") != 0;
-    if (is_mpi && cfg->launcher == HX_LAUNCHER_SRUN) {
-        /* Inside a Slurm allocation srun places and binds the ranks: each
-         * task gets T consecutive cores (--cpus-per-task, block:block keeps
-         * a rank's cores and consecutive ranks together, like mpirun's
-         * slot:PE=T), and OpenMP pins its threads one per core inside them.
-         * Slurm >= 22.05 no longer hands the job's --cpus-per-task to srun,
-         * so it is given on the command line and in SRUN_CPUS_PER_TASK
-         * (which a nested srun would read). */
-        const char *t = strcmp(r->v[HX_DIM_THREADS], "-") != 0 ? r->v[HX_DIM_THREADS] : "1";
-        HxBuf a = {0};
-        hx_strlist_push(&c->argv, "srun");
-        hx_buf_printf(&a, "--ntasks=%s", r->v[HX_DIM_RANKS][0] == '-' ? "1" : r->v[HX_DIM_RANKS]);
-        hx_strlist_push(&c->argv, a.s);
-        a.len = 0;
-        hx_buf_printf(&a, "--cpus-per-task=%s", t);
-        hx_strlist_push(&c->argv, a.s);
-        hx_buf_free(&a);
-        hx_strlist_push(&c->argv, pinned ? "--cpu-bind=cores" : "--cpu-bind=none");
-        hx_strlist_push(&c->argv, "--distribution=block:block");
-        if (hx_backend_gpu(be)) { /* a GPU per rank, the one nearest its cores */
-            hx_strlist_push(&c->argv, "--gpus-per-task=1");
-            hx_strlist_push(&c->argv, "--gpu-bind=closest");
-        }
-        /* without it srun refuses (or waits for) more CPUs than allocated */
-        if (r->oversubscribed)
-            hx_strlist_push(&c->argv, "--overcommit");
-        hx_strlist_push(&c->env, "OMP_NUM_THREADS");
-        hx_strlist_push(&c->env, t);
-        if (pinned) {
-            /* pin none leaves placement to the OS, for threads as well */
-            hx_strlist_push(&c->env, "OMP_PLACES");
-            hx_strlist_push(&c->env, "cores");
-            hx_strlist_push(&c->env, "OMP_PROC_BIND");
-            hx_strlist_push(&c->env, "close");
-        }
-        hx_strlist_push(&c->env, "SRUN_CPUS_PER_TASK");
-        hx_strlist_push(&c->env, t);
-    } else if (is_mpi) {
-        /* mpirun binds its ranks itself; binding mpirun would only shrink
-         * the set it maps into. close = --map-by core, spread = --map-by
-         * socket: the orders topo.c plans with. */
-        hx_strlist_push(&c->argv, cfg->mpirun);
-        if (r->oversubscribed)
-            hx_strlist_push(&c->argv, "--oversubscribe");
-        hx_strlist_push(&c->argv, "--bind-to");
-        hx_strlist_push(&c->argv, !pinned ? "none"
-                                          : r->oversubscribed ? "core:overload-allowed" : "core");
-        /* GPU runs: each rank on the core planned next to its GPU (topo.c) */
-        char *rf = pinned && hx_backend_gpu(be) && topo->ngpus > 0 ? hx_rankfile(topo, r) : NULL;
-        const int ranked = rf && write_rankfile(image, rf, c) == 0;
-        if (pinned && !ranked) {
-            /* hybrid runs: PE=T gives each rank T consecutive cores */
-            HxBuf m = {0};
-            int spread = strcmp(r->v[HX_DIM_PIN], "spread") == 0;
-            if (strcmp(r->v[HX_DIM_THREADS], "-") != 0 && strcmp(r->v[HX_DIM_THREADS], "1") != 0)
-                hx_buf_printf(&m, "%s:PE=%s", spread ? "socket" : "slot", r->v[HX_DIM_THREADS]);
-            else
-                hx_buf_put(&m, spread ? "socket" : "core");
-            hx_strlist_push(&c->argv, "--map-by");
-            hx_strlist_push(&c->argv, m.s);
-            hx_buf_free(&m);
-        }
-        hx_strlist_push(&c->argv, "-np");
-        hx_strlist_push(&c->argv, r->v[HX_DIM_RANKS][0] == '-' ? "1" : r->v[HX_DIM_RANKS]);
-        if (geteuid() == 0) {
-            hx_strlist_push(&c->env, "OMPI_ALLOW_RUN_AS_ROOT");
-            hx_strlist_push(&c->env, "1");
-            hx_strlist_push(&c->env, "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM");
-            hx_strlist_push(&c->env, "1");
-        }
-    } else {
-        c->bind = pinned;
-    }
-    if (hx_backend_gpu(be)) {
-        /* CUDA numbers the GPUs as hwloc walks the bus (topo.c's plan) */
-        hx_strlist_push(&c->env, "CUDA_DEVICE_ORDER");
-        hx_strlist_push(&c->env, "PCI_BUS_ID");
-    }
-    if (cfg->instructions) {
-        /* cachegrind without its cache model: the exact instruction count
-         * (docs/harness.md, "CI and the baseline") */
-        HxBuf f = {0};
-        hx_buf_printf(&f, "--cachegrind-out-file=%s.cg", image);
-        hx_strlist_push(&c->argv, "valgrind");
-        hx_strlist_push(&c->argv, "--tool=cachegrind");
-        hx_strlist_push(&c->argv, "--cache-sim=no");
-        hx_strlist_push(&c->argv, f.s);
-        hx_buf_free(&f);
-    }
-    hx_strlist_push(&c->argv, raytrace);
-    hx_strlist_push(&c->argv, "--backend");
-    hx_strlist_push(&c->argv, be);
-    static const struct { int dim; const char *opt; } opts[] = {
-        {HX_DIM_ACCEL, "--accel"}, {HX_DIM_RESOLUTION, "--resolution"},
-        {HX_DIM_MAX_DEPTH, "--max-depth"}, {HX_DIM_TILE, "--tile"},
-        {HX_DIM_SCHEDULE, "--schedule"}, {HX_DIM_THREADS, "--threads"},
-        {HX_DIM_MPI_SCHEDULE, "--mpi-schedule"}, {HX_DIM_BLOCK, "--block"},
-    };
-    for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++) {
-        const char *v = r->v[opts[i].dim];
-        if (strcmp(v, "-") == 0)
-            continue;
-        hx_strlist_push(&c->argv, opts[i].opt);
-        hx_strlist_push(&c->argv, v);
-    }
-    hx_strlist_push(&c->argv, "-o");
-    hx_strlist_push(&c->argv, image);
-    for (size_t i = 0; i < cfg->extra_args.n; i++)
-        hx_strlist_push(&c->argv, cfg->extra_args.v[i]);
-    if (cache_dir) {
-        hx_strlist_push(&c->argv, "--cache");
-        hx_strlist_push(&c->argv, cache_dir);
-    }
-    hx_strlist_push(&c->argv, r->scene_path);
-    if (strcmp(be, "openmp") == 0) {
-        char n[16];
-        snprintf(n, sizeof n, "%d", r->workers);
-        /* OMP_PLACES lists exactly the planned cores inside the bound set */
-        hx_strlist_push(&c->env, "OMP_NUM_THREADS");
-        hx_strlist_push(&c->env, n);
-        if (pinned && r->ncores > 0) {
-            char *places = hx_omp_places(topo, r);
-            hx_strlist_push(&c->env, "OMP_PLACES");
-            hx_strlist_push(&c->env, places);
-            free(places);
-            hx_strlist_push(&c->env, "OMP_PROC_BIND");
-            hx_strlist_push(&c->env, strcmp(r->v[HX_DIM_PIN], "spread") == 0 ? "spread" : "close");
-        }
-    }
-    hx_strlist_push(&c->argv, ""); /* placeholder for the NULL terminator */
-    free(c->argv.v[c->argv.n - 1]);
-    c->argv.v[c->argv.n - 1] = NULL;
-    c->argv.n--;
-    hx_strlist_push(&c->env, "");
-    free(c->env.v[c->env.n - 1]);
-    c->env.v[c->env.n - 1] = NULL;
-    c->env.n--;
-}
-
-static void command_free(Command *c)
-{
-    c->argv.n++; /* include the NULL slot, free() of NULL is fine */
-    c->env.n++;
-    hx_strlist_free(&c->argv);
-    hx_strlist_free(&c->env);
-}
-
-static void print_command(FILE *out, const Command *c)
-{
-    for (size_t i = 0; i + 1 < c->env.n + 1 && c->env.v[i]; i += 2)
-        fprintf(out, "%s=%s ", c->env.v[i], c->env.v[i + 1]);
-    for (size_t i = 0; i < c->argv.n; i++)
-        fprintf(out, "%s%s", i ? " " : "", c->argv.v[i]);
-    fputc('\n', out);
-}
-
-/* ---- pinning check ---- */
-
-static int parse_int_set(const char *s, int *out, int max)
-{
-    int n = 0;
-    const char *p = s;
-    while (*p && n < max) {
-        char *end;
-        long v = strtol(p, &end, 10);
-        if (end == p)
-            return -1;
-        out[n++] = (int)v;
-        p = end;
-        if (*p == ',')
-            p++;
-        else if (*p)
-            return -1;
-    }
-    return n;
-}
-
-static int count_distinct(const int *v, int n)
-{
-    int d = 0;
-    for (int i = 0; i < n; i++) {
-        int seen = 0;
-        for (int k = 0; k < i; k++)
-            seen |= v[k] == v[i];
-        d += !seen;
-    }
-    return d;
-}
-
-/* yes: every reported core is planned and as many distinct cores were used
- * as planned; partial: planned cores only, but fewer of them (threads shared
- * a core); no: a thread ran outside the plan. */
-static const char *pin_held(const char *planned, const char *actual)
-{
-    if (!planned || strcmp(planned, "-") == 0)
-        return "n/a";
-    if (!actual || !*actual)
-        return "unknown";
-    int p[4096], a[4096];
-    int np = parse_int_set(planned, p, 4096), na = parse_int_set(actual, a, 4096);
-    if (np <= 0 || na <= 0)
-        return "unknown";
-    for (int i = 0; i < na; i++) {
-        int in = 0;
-        for (int k = 0; k < np; k++)
-            in |= a[i] == p[k];
-        if (!in)
-            return "no";
-    }
-    return count_distinct(a, na) == count_distinct(p, np) ? "yes" : "partial";
-}
 
 /* ---- correctness gate ---- */
 
@@ -702,29 +119,6 @@ static void setf(char **vals, const char *col, const char *fmt, ...)
     vsnprintf(buf, sizeof buf, fmt, ap);
     va_end(ap);
     set(vals, col, buf);
-}
-
-static char *find_raytrace(const HxConfig *cfg, const char *opt)
-{
-    if (opt)
-        return hx_strdup(opt);
-    if (cfg->raytrace)
-        return hx_strdup(cfg->raytrace);
-    const char *env = getenv("RAYTRACE");
-    if (env && *env)
-        return hx_strdup(env);
-    /* default: the build tree layout, build/harness/harness next to
-     * build/renderer/raytrace */
-    char self[4096];
-    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
-    if (n > 0) {
-        self[n] = '\0';
-        char *d = hx_dirname(self);
-        char *p = hx_path_join(d, "../renderer/raytrace");
-        free(d);
-        return p;
-    }
-    return hx_strdup("raytrace");
 }
 
 static void usage_run(FILE *f)
@@ -927,7 +321,7 @@ static void row_free(char **vals)
 }
 
 /* The first line of the child's stderr, or what stands in for it. */
-static char *error_detail(const ChildResult *res)
+static char *error_detail(const HxChildResult *res)
 {
     const char *e = res->err.s ? res->err.s : "";
     while (*e == '\n' || *e == ' ')
@@ -965,7 +359,7 @@ static int add_instructions(const char *image, const char *rec, char **vals)
 }
 
 /* The status of a run whose child has ended (vals gets the record). */
-static const char *outcome(Study *st, const HxRun *r, ChildResult *res, char **vals, char **detail)
+static const char *outcome(Study *st, const HxRun *r, HxChildResult *res, char **vals, char **detail)
 {
     HxBuf b = {0};
     if (res->timed_out) {
@@ -975,7 +369,7 @@ static const char *outcome(Study *st, const HxRun *r, ChildResult *res, char **v
         return "timeout";
     }
     if (!res->exited) {
-        const char *sn = signal_name(res->code);
+        const char *sn = hx_signal_name(res->code);
         if (sn)
             hx_buf_put(&b, sn);
         else
@@ -1032,14 +426,14 @@ static const char *run_one(Study *st, const HxRun *r, char **vals, char **detail
         *detail = b.s;
         return "refused";
     }
-    Command cmd;
-    build_command(&st->cfg, &st->topo, r, st->raytrace, st->image, &cmd);
-    ChildResult res;
-    int spawned = run_child(cmd.argv.v, cmd.env.v, &st->topo, r, cmd.bind, st->cfg.timeout_s, &res);
-    reap_strays();
-    command_free(&cmd);
+    HxCommand cmd;
+    hx_build_command(&st->cfg, &st->topo, r, st->raytrace, st->image, &cmd);
+    HxChildResult res;
+    int spawned = hx_run_child(cmd.argv.v, cmd.env.v, &st->topo, r, cmd.bind, st->cfg.timeout_s, &res);
+    hx_reap_strays();
+    hx_command_free(&cmd);
     const char *status = NULL;
-    if (g_stop) {
+    if (hx_stop_signal()) {
         status = NULL;
     } else if (spawned != 0) {
         *detail = hx_strdup("fork/pipe failed");
@@ -1077,7 +471,7 @@ static int warmup_needed(const Study *st, size_t i)
  * not be written (the study stops there). */
 static int run_plan(Study *st)
 {
-    for (size_t i = 0; i < st->plan.n && !g_stop; i++) {
+    for (size_t i = 0; i < st->plan.n && !hx_stop_signal(); i++) {
         const HxRun *r = &st->plan.runs[i];
         if (hx_strlist_find(&st->done_ids, r->run_id) >= 0) {
             st->skipped++;
@@ -1093,7 +487,7 @@ static int run_plan(Study *st)
             row_free(vals);
             return 0;
         }
-        set(vals, "pin_held", pin_held(r->cores_planned, vals[hx_column_index("cores_actual")]));
+        set(vals, "pin_held", hx_pin_held(r->cores_planned, vals[hx_column_index("cores_actual")]));
         set(vals, "status", status);
         set(vals, "status_detail", detail ? detail : "");
         int rc = 0;
@@ -1152,10 +546,10 @@ static int load_done(Study *st, char *err, size_t errlen)
 /* The end of a study: counts, overhead, failures. Returns the exit status. */
 static int summary(const Study *st, int rc)
 {
-    if (g_stop) {
+    if (hx_stop_signal()) {
         fprintf(stderr, "harness run: stopped by %s: the run in progress was ended and not recorded; continue "
-                        "with --resume\n", g_stop == SIGINT ? "SIGINT" : "SIGTERM");
-        rc = 128 + g_stop;
+                        "with --resume\n", hx_stop_signal() == SIGINT ? "SIGINT" : "SIGTERM");
+        rc = 128 + hx_stop_signal();
     }
     const size_t *n = st->nstat;
     double total = hx_now_ms() - st->t0;
@@ -1186,12 +580,12 @@ static void print_dry_run(const Study *st)
            st->plan.n, st->cfg.warmup, st->cfg.repeats, st->topo.ncores);
     for (size_t i = 0; i < st->plan.n; i++) {
         const HxRun *r = &st->plan.runs[i];
-        Command cmd;
-        build_command(&st->cfg, &st->topo, r, st->raytrace, "IMAGE.ppm", &cmd);
+        HxCommand cmd;
+        hx_build_command(&st->cfg, &st->topo, r, st->raytrace, "IMAGE.ppm", &cmd);
         printf("[%zu] %s%s  cores=%s%s%s\n    ", i + 1, r->warmup ? "(warm-up) " : "", r->run_id,
                r->cores_planned, r->oversubscribed ? " oversubscribed" : "", r->refused ? " REFUSED" : "");
-        print_command(stdout, &cmd);
-        command_free(&cmd);
+        hx_print_command(stdout, &cmd);
+        hx_command_free(&cmd);
     }
 }
 
@@ -1240,7 +634,7 @@ static int study_open(Study *st, int resume, int overwrite)
     }
     st->tmpdir = t.s;
     st->image = hx_path_join(st->tmpdir, "image.ppm");
-    install_stop_handlers();
+    hx_install_stop_handlers();
     int want_gpu = hx_config_has(&st->cfg, hx_backend_gpu);
     st->want_mpi = hx_config_has(&st->cfg, hx_backend_mpi);
     /* the MPI library is mpirun's, whichever launcher starts the ranks */
@@ -1325,7 +719,7 @@ int hx_cmd_run(int argc, char **argv)
     st.quiet = quiet;
     if (hx_config_open(argv[optind], &st.cfg))
         return 1;
-    resolve_scene_cache(&st.cfg, out_path);
+    hx_resolve_scene_cache(&st.cfg, out_path);
     /* the command line wins: the same config runs on a workstation with
      * mpirun and in a Slurm job (harness slurm) with srun */
     if (launcher_set)
@@ -1333,7 +727,7 @@ int hx_cmd_run(int argc, char **argv)
     hx_expand(&st.cfg, &st.plan);
     hx_topo_load(&st.topo);
     hx_plan_cores(&st.topo, &st.cfg, &st.plan);
-    st.raytrace = find_raytrace(&st.cfg, rt_opt);
+    st.raytrace = hx_find_raytrace(&st.cfg, rt_opt);
     warn_plan(&st);
     int rc = 0;
     HxBuf defout = {0};

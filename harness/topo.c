@@ -10,7 +10,9 @@
  * `--map-by socket`), so two threads on a two-socket machine land on two
  * sockets; on one package it equals `close`. `none` leaves placement to the
  * OS. One worker per physical core: SMT siblings share execution units, so
- * putting two threads on one core would measure the core, not the scaling. */
+ * putting two threads on one core would measure the core, not the scaling.
+ * After a run, hx_pin_held checks the plan against the cores the renderer
+ * reports. */
 #define _GNU_SOURCE 1 /* sched_getaffinity, CPU_SET */
 #include "hx.h"
 
@@ -398,4 +400,60 @@ int hx_cmd_topo(int argc, char **argv)
     }
     hx_topo_free(&t);
     return rc;
+}
+
+/* ---- pinning check (harness run) ---- */
+
+static int parse_int_set(const char *s, int *out, int max)
+{
+    int n = 0;
+    const char *p = s;
+    while (*p && n < max) {
+        char *end;
+        long v = strtol(p, &end, 10);
+        if (end == p)
+            return -1;
+        out[n++] = (int)v;
+        p = end;
+        if (*p == ',')
+            p++;
+        else if (*p)
+            return -1;
+    }
+    return n;
+}
+
+static int count_distinct(const int *v, int n)
+{
+    int d = 0;
+    for (int i = 0; i < n; i++) {
+        int seen = 0;
+        for (int k = 0; k < i; k++)
+            seen |= v[k] == v[i];
+        d += !seen;
+    }
+    return d;
+}
+
+/* yes: every reported core is planned and as many distinct cores were used
+ * as planned; partial: planned cores only, but fewer of them (threads shared
+ * a core); no: a thread ran outside the plan. */
+const char *hx_pin_held(const char *planned, const char *actual)
+{
+    if (!planned || strcmp(planned, "-") == 0)
+        return "n/a";
+    if (!actual || !*actual)
+        return "unknown";
+    int p[4096], a[4096];
+    int np = parse_int_set(planned, p, 4096), na = parse_int_set(actual, a, 4096);
+    if (np <= 0 || na <= 0)
+        return "unknown";
+    for (int i = 0; i < na; i++) {
+        int in = 0;
+        for (int k = 0; k < np; k++)
+            in |= a[i] == p[k];
+        if (!in)
+            return "no";
+    }
+    return count_distinct(a, na) == count_distinct(p, np) ? "yes" : "partial";
 }

@@ -1,0 +1,67 @@
+/* run.h: the parts of `harness run` that runner.c drives, internal to the
+ * harness (hx.h has the public API).
+ *
+ *   proc.c    process control: the stop signals, one child run in its own
+ *             process group with a deadline, reaping what a run leaves
+ *   launch.c  the per-run command line: the MPI launcher (mpirun or srun),
+ *             the renderer's arguments, the environment, the scene cache */
+#ifndef HX_RUN_H
+#define HX_RUN_H
+
+#include "hx.h"
+
+/* ---- process control (proc.c) ---- */
+
+typedef struct {
+    int timed_out;
+    int exited;        /* WIFEXITED */
+    int code;          /* exit code or signal number */
+    double wall_ms;
+    /* wait4's rusage of the child and the descendants it waited for: CPU
+     * time, and the largest resident set among them (Linux's ru_maxrss, the
+     * peak of the biggest process, not a sum) */
+    int have_usage;
+    double user_ms, sys_ms;
+    long maxrss_kib;
+    HxBuf out, err;
+} HxChildResult;
+
+/* SIGINT or SIGTERM received (the signal number), else 0: the current run is
+ * ended, no row is written for it, and the study stops (exit 128 + signal). */
+int hx_stop_signal(void);
+/* Installs the SIGINT/SIGTERM handlers (without SA_RESTART) and makes the
+ * harness the subreaper of what its runs leave behind. */
+void hx_install_stop_handlers(void);
+/* Kills and reaps every process of the last run that is still alive. */
+void hx_reap_strays(void);
+/* Runs argv (PATH search) with env_add's name, value pairs set, in its own
+ * process group, bound to run's planned cores when bind, stdout and stderr
+ * read into res (stdout's tail past 4 MiB, stderr's start: reading stops
+ * past 64 KiB); killed (the whole group) at timeout_s or on a stop signal.
+ * 0, or -1 when pipe or fork failed. */
+int hx_run_child(char *const *argv, char *const *env_add, const HxTopo *topo,
+                 const HxRun *run, int bind, double timeout_s, HxChildResult *res);
+/* "SIGSEGV" and the like, NULL for a signal without a name here. */
+const char *hx_signal_name(int sig);
+
+/* ---- per-run command line (launch.c) ---- */
+
+typedef struct {
+    HxStrList argv;  /* NULL-terminated (the NULL not counted in n) */
+    HxStrList env;   /* name, value pairs, NULL-terminated likewise */
+    int bind;        /* bind the child with hwloc before exec */
+} HxCommand;
+
+/* Sets cfg->scene_cache once per study (kept when the config gives it). */
+void hx_resolve_scene_cache(HxConfig *cfg, const char *out_path);
+/* The command line and environment of run r, writing its image to image. */
+void hx_build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r,
+                      const char *raytrace, const char *image, HxCommand *c);
+void hx_command_free(HxCommand *c);
+/* "NAME=value ... argv..." on one line (--dry-run). */
+void hx_print_command(FILE *out, const HxCommand *c);
+/* The renderer: --raytrace (opt), the config's, $RAYTRACE, or the build
+ * tree's ../renderer/raytrace next to the harness. malloc'd. */
+char *hx_find_raytrace(const HxConfig *cfg, const char *opt);
+
+#endif

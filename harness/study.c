@@ -1,0 +1,431 @@
+/* study.c: the study model every analysis reads (table, plot, compare).
+ *
+ * A study CSV becomes groups, one per configuration of one scene, with the
+ * ok samples of the chosen metric, their statistics, the series a scaling
+ * study draws and the speedup baselines.
+ *
+ * The correctness gate is re-applied here from the CSV alone (two passes, so
+ * the reference is the first ok serial run of each image even if it was
+ * written after a parallel run): a fast wrong image never enters a table. */
+#include "hx.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* The row's configuration; with skip >= 0, that dimension replaced by "*"
+ * (the series the row belongs to); skip == -2: both worker dimensions. */
+static char *row_config_id(const HxCsv *csv, size_t r, int skip)
+{
+    const char *v[HX_NDIM];
+    for (int d = 0; d < HX_NDIM; d++) {
+        v[d] = hx_csv_get(csv, r, hx_dim_col[d]);
+        if (d == skip || (skip == -2 && (d == HX_DIM_THREADS || d == HX_DIM_RANKS)))
+            v[d] = "*";
+    }
+    return hx_make_config_id(v);
+}
+
+static int dim_int(const HxCsv *csv, size_t r, int d)
+{
+    long v;
+    return hx_parse_int(hx_csv_get(csv, r, hx_dim_col[d]), 1, 1 << 20, &v) == 0 ? (int)v : 1;
+}
+
+/* A series is one fixed value of every dimension but the one swept: threads
+ * for OpenMP, ranks for MPI (at fixed threads per rank); in a hybrid study
+ * (threads and ranks both swept) also threads at fixed ranks (series2). */
+static void group_series(HxGroup *g, const HxCsv *csv, size_t r, const int *varies)
+{
+    int swept = strcmp(g->backend, "openmp") == 0 ? HX_DIM_THREADS
+              : hx_backend_mpi(g->backend)        ? HX_DIM_RANKS
+                                                  : -2;
+    g->series_id = row_config_id(csv, r, swept);
+    g->axis = swept >= 0 ? dim_int(csv, r, swept) : 1;
+    if (swept == HX_DIM_RANKS && varies[HX_DIM_THREADS] && varies[HX_DIM_RANKS]) {
+        g->series2_id = row_config_id(csv, r, HX_DIM_THREADS);
+        g->axis2 = dim_int(csv, r, HX_DIM_THREADS);
+    }
+}
+
+/* Oversubscribed runs and runs whose pinning did not hold measure the
+ * machine's contention, not the code's scaling. */
+static void note_suspect(HxGroup *g, const HxCsv *csv, size_t r)
+{
+    if (strcmp(hx_csv_get(csv, r, "oversubscribed"), "1") == 0) {
+        g->suspect = 1;
+        g->suspect_why = "oversubscribed";
+    } else if (strcmp(hx_csv_get(csv, r, "status"), "ok") == 0 && strcmp(hx_csv_get(csv, r, "pin_held"), "no") == 0) {
+        g->suspect = 1;
+        g->suspect_why = "pinning did not hold";
+    }
+}
+
+/* Does a dimension take more than one value in the study? Only those go into
+ * labels, so a label reads "openmp/bvh T=2", not twelve key=value pairs. */
+static int dim_varies(const HxCsv *csv, const char *col)
+{
+    const char *first = NULL;
+    for (size_t r = 0; r < csv->nrows; r++) {
+        const char *v = hx_csv_get(csv, r, col);
+        if (strcmp(v, "-") == 0)
+            continue;
+        if (!first)
+            first = v;
+        else if (strcmp(first, v) != 0)
+            return 1;
+    }
+    return 0;
+}
+
+static char *row_label(const HxCsv *csv, size_t r, int with_workers, const int *varies)
+{
+    HxBuf b = {0};
+    hx_buf_put(&b, hx_csv_get(csv, r, "backend"));
+    const char *acc = hx_csv_get(csv, r, "accel");
+    if (strcmp(acc, "-") != 0)
+        hx_buf_printf(&b, "/%s", acc);
+    static const struct { int dim; const char *pfx; } shown[] = {
+        {HX_DIM_THREADS, "T="}, {HX_DIM_RANKS, "P="}, {HX_DIM_BLOCK, "B="}};
+    for (size_t i = 0; i < 3; i++) {
+        if (!with_workers && i < 2)
+            continue;
+        const char *v = hx_csv_get(csv, r, hx_dim_col[shown[i].dim]);
+        if (strcmp(v, "-") != 0 && *v)
+            hx_buf_printf(&b, " %s%s", shown[i].pfx, v);
+    }
+    for (int d = HX_DIM_RESOLUTION; d < HX_NDIM; d++) {
+        if (d == HX_DIM_THREADS || d == HX_DIM_RANKS || d == HX_DIM_BLOCK || !varies[d])
+            continue;
+        const char *v = hx_csv_get(csv, r, hx_dim_col[d]);
+        if (strcmp(v, "-") != 0 && *v)
+            hx_buf_printf(&b, " %s=%s", hx_dim_col[d], v);
+    }
+    return b.s;
+}
+
+/* The value of KEY in the row's `extra` (k1=v1;k2=v2), or NULL; the
+ * number is copied into num. */
+static const char *extra_value(const HxCsv *csv, size_t r, const char *key, char *num, size_t n)
+{
+    const char *extra = hx_csv_get(csv, r, "extra");
+    size_t kl = strlen(key);
+    for (const char *k = extra; (k = strstr(k, key)) != NULL; k += kl) {
+        if ((k != extra && k[-1] != ';') || k[kl] != '=')
+            continue;
+        size_t m = 0;
+        for (k += kl + 1; *k && *k != ';' && m + 1 < n; k++)
+            num[m++] = *k;
+        num[m] = '\0';
+        return num;
+    }
+    return NULL;
+}
+
+/* The metric of row r: a numeric column, a record key kept in `extra`, or
+ * "COLUMN/calib": the column divided by the row's calib_ms (raytrace
+ * --calibrate), a time in units of the machine's speed at that moment. */
+static int row_metric(const HxCsv *csv, size_t r, const char *metric, double *out)
+{
+    const char *slash = strchr(metric, '/');
+    char num[32];
+    if (!slash && hx_csv_col(csv, metric) < 0) /* a record key kept in `extra` */
+        return extra_value(csv, r, metric, num, sizeof num) ? hx_parse_double(num, out) : -1;
+    if (!slash)
+        return hx_parse_double(hx_csv_get(csv, r, metric), out);
+    char col[64];
+    size_t n = (size_t)(slash - metric);
+    if (n >= sizeof col)
+        return -1;
+    memcpy(col, metric, n);
+    col[n] = '\0';
+    double v, c;
+    if (hx_parse_double(hx_csv_get(csv, r, col), &v) != 0 || !extra_value(csv, r, "calib_ms", num, sizeof num))
+        return -1;
+    if (hx_parse_double(num, &c) != 0 || !(c > 0.0))
+        return -1;
+    *out = v / c;
+    return 0;
+}
+
+int hx_study_open(const char *who, const char *path, const char *metric, HxStudy *s)
+{
+    char err[512];
+    if (hx_study_load(path, metric, s, err, sizeof err) == 0)
+        return 0;
+    fprintf(stderr, "%s: %s\n", who, err);
+    return -1;
+}
+
+static void mark_wrong_rows(HxStudy *s);
+static void group_rows(HxStudy *s, const char *metric);
+static void group_stats(HxStudy *s);
+
+int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, size_t errlen)
+{
+    memset(s, 0, sizeof *s);
+    if (hx_csv_read(path, &s->csv, err, errlen))
+        return -1;
+    return hx_study_build(path, metric, s, err, errlen);
+}
+
+int hx_study_build(const char *path, const char *metric, HxStudy *s, char *err, size_t errlen)
+{
+    const HxCsv *csv = &s->csv;
+    static const char *const need[] = {"status", "scene", "backend", "run_id", NULL};
+    for (int i = 0; need[i]; i++)
+        if (hx_csv_col(csv, need[i]) < 0) {
+            snprintf(err, errlen, "%s: no '%s' column (not a harness CSV?)", path, need[i]);
+            hx_csv_free(&s->csv);
+            return -1;
+        }
+    const char *slash = strchr(metric, '/');
+    int found = slash ? strcmp(slash, "/calib") == 0 && hx_csv_col(csv, "extra") >= 0 : hx_csv_col(csv, metric) >= 0;
+    char num[32];
+    for (size_t r = 0; !found && !slash && hx_csv_col(csv, "extra") >= 0 && r < csv->nrows; r++)
+        found = extra_value(csv, r, metric, num, sizeof num) != NULL;
+    if (!found) {
+        snprintf(err, errlen, "%s: no column or record key '%s' for --metric (a column, a key of extra, or COLUMN/calib)",
+                 path, metric);
+        hx_csv_free(&s->csv);
+        return -1;
+    }
+    mark_wrong_rows(s);
+    group_rows(s, metric);
+    group_stats(s);
+    return 0;
+}
+
+/* The correctness gate again, from the CSV alone: pass 1 finds the reference
+ * hash per image (scene, resolution, depth), pass 2 marks the rows that
+ * differ. */
+static void mark_wrong_rows(HxStudy *s)
+{
+    const HxCsv *csv = &s->csv;
+    size_t n = csv->nrows;
+    s->row_status_wrong = calloc(n ? n : 1, sizeof(int));
+    char **refkey = calloc(n ? n : 1, sizeof(char *));
+    const char **refhash = calloc(n ? n : 1, sizeof(char *));
+    int *refserial = calloc(n ? n : 1, sizeof(int));
+    size_t nref = 0;
+    for (size_t r = 0; r < n; r++) {
+        if (strcmp(hx_csv_get(csv, r, "status"), "ok") != 0)
+            continue;
+        const char *be = hx_csv_get(csv, r, "backend");
+        const char *hash = hx_csv_get(csv, r, "image_fnv1a");
+        if (!*hash || hx_backend_gpu(be))
+            continue;
+        HxBuf k = {0};
+        hx_buf_printf(&k, "%s|%s|%s", hx_csv_get(csv, r, "scene_path"),
+                      hx_csv_get(csv, r, "resolution"), hx_csv_get(csv, r, "max_depth"));
+        size_t i;
+        for (i = 0; i < nref; i++)
+            if (strcmp(refkey[i], k.s) == 0)
+                break;
+        int serial = strcmp(be, "serial") == 0;
+        if (i == nref) {
+            refkey[nref] = k.s;
+            refhash[nref] = hash;
+            refserial[nref++] = serial;
+            continue;
+        }
+        if (!refserial[i] && serial) {
+            refhash[i] = hash;
+            refserial[i] = 1;
+        }
+        hx_buf_free(&k);
+    }
+    /* pass 2: mark rows */
+    for (size_t r = 0; r < n; r++) {
+        const char *st = hx_csv_get(csv, r, "status");
+        if (strcmp(st, "wrong-image") == 0) {
+            s->row_status_wrong[r] = 1;
+        } else if (strcmp(st, "ok") == 0 && !hx_backend_gpu(hx_csv_get(csv, r, "backend"))) {
+            HxBuf k = {0};
+            hx_buf_printf(&k, "%s|%s|%s", hx_csv_get(csv, r, "scene_path"),
+                          hx_csv_get(csv, r, "resolution"), hx_csv_get(csv, r, "max_depth"));
+            for (size_t i = 0; i < nref; i++)
+                if (strcmp(refkey[i], k.s) == 0 &&
+                    strcmp(refhash[i], hx_csv_get(csv, r, "image_fnv1a")) != 0)
+                    s->row_status_wrong[r] = 1;
+            hx_buf_free(&k);
+        }
+        s->nwrong_rows += (size_t)s->row_status_wrong[r];
+    }
+    for (size_t i = 0; i < nref; i++)
+        free(refkey[i]);
+    free(refkey);
+    free(refhash);
+    free(refserial);
+}
+
+/* One group per configuration, with its ok samples of the metric. */
+static void group_rows(HxStudy *s, const char *metric)
+{
+    const HxCsv *csv = &s->csv;
+    size_t n = csv->nrows;
+    int varies[HX_NDIM];
+    for (int d = 0; d < HX_NDIM; d++)
+        varies[d] = dim_varies(csv, hx_dim_col[d]);
+    size_t gcap = 0;
+    for (size_t r = 0; r < n; r++) {
+        char *id = row_config_id(csv, r, -1);
+        size_t gi;
+        for (gi = 0; gi < s->ng; gi++)
+            if (strcmp(s->g[gi].config_id, id) == 0)
+                break;
+        if (gi == s->ng) {
+            if (s->ng == gcap) {
+                gcap = gcap ? 2 * gcap : 32;
+                s->g = hx_xrealloc(s->g, gcap * sizeof *s->g);
+            }
+            HxGroup *g = &s->g[s->ng++];
+            memset(g, 0, sizeof *g);
+            g->config_id = id;
+            id = NULL;
+            g->scene = hx_strdup(hx_csv_get(csv, r, "scene"));
+            g->label = row_label(csv, r, 1, varies);
+            g->backend = hx_strdup(hx_csv_get(csv, r, "backend"));
+            group_series(g, csv, r, varies);
+            g->block = hx_strdup(hx_csv_get(csv, r, "block"));
+            long w = 1;
+            if (hx_parse_int(hx_csv_get(csv, r, "workers"), 1, 1 << 20, &w))
+                w = 1;
+            g->workers = (int)w;
+            g->first_row = r;
+            g->ok_row = (size_t)-1;
+            g->t = hx_xmalloc(n * sizeof(double));
+            g->raw = hx_xmalloc(n * sizeof(double));
+            if (hx_strlist_find(&s->scenes, g->scene) < 0)
+                hx_strlist_push(&s->scenes, g->scene);
+            if (hx_strlist_find(&s->labels, g->label) < 0)
+                hx_strlist_push(&s->labels, g->label);
+        }
+        free(id);
+        HxGroup *g = &s->g[gi];
+        g->nrows++;
+        note_suspect(g, csv, r);
+        const char *st = hx_csv_get(csv, r, "status");
+        double t;
+        if (strcmp(st, "ok") == 0 && hx_parse_double(hx_csv_get(csv, r, "render_ms"), &t) == 0)
+            g->raw[g->nraw++] = t;
+        if (s->row_status_wrong[r]) {
+            g->nwrong++;
+        } else if (strcmp(st, "ok") == 0 && row_metric(csv, r, metric, &t) == 0) {
+            g->t[g->nt++] = t;
+            g->nok++;
+            if (g->ok_row == (size_t)-1)
+                g->ok_row = r;
+        } else if (strcmp(st, "timeout") == 0) {
+            g->ntimeout++;
+        } else {
+            g->nerror++;
+            if (!g->first_status)
+                g->first_status = strcmp(st, "ok") == 0 ? "no-time" : st;
+        }
+    }
+}
+
+/* Median, quartiles, interval and outliers of every group. */
+static void group_stats(HxStudy *s)
+{
+    for (size_t gi = 0; gi < s->ng; gi++) {
+        HxGroup *g = &s->g[gi];
+        g->ci_lo = g->ci_hi = NAN;
+        g->raw_median = g->nraw ? hx_median(g->raw, g->nraw) : NAN;
+        if (g->ok_row == (size_t)-1)
+            g->ok_row = g->first_row;
+        if (!g->nt) {
+            g->median = g->min = g->q1 = g->q3 = NAN;
+            continue;
+        }
+        hx_bootstrap_ci(g->t, g->nt, NULL, 0, &g->ci_lo, &g->ci_hi);
+        double *sorted = hx_xmalloc(g->nt * sizeof *sorted);
+        memcpy(sorted, g->t, g->nt * sizeof *sorted);
+        qsort(sorted, g->nt, sizeof *sorted, hx_cmp_double);
+        g->median = hx_quantile_sorted(sorted, g->nt, 0.5);
+        g->q1 = hx_quantile_sorted(sorted, g->nt, 0.25);
+        g->q3 = hx_quantile_sorted(sorted, g->nt, 0.75);
+        g->min = sorted[0];
+        free(sorted);
+        g->noutliers = hx_outliers(g->t, g->nt, 10.0, NULL);
+    }
+}
+
+void hx_study_free(HxStudy *s)
+{
+    for (size_t i = 0; i < s->ng; i++) {
+        free(s->g[i].scene);
+        free(s->g[i].config_id);
+        free(s->g[i].series_id);
+        free(s->g[i].series2_id);
+        free(s->g[i].label);
+        free(s->g[i].backend);
+        free(s->g[i].block);
+        free(s->g[i].t);
+        free(s->g[i].raw);
+    }
+    free(s->g);
+    free(s->row_status_wrong);
+    hx_strlist_free(&s->scenes);
+    hx_strlist_free(&s->labels);
+    hx_csv_free(&s->csv);
+    memset(s, 0, sizeof *s);
+}
+
+const HxGroup *hx_baseline_one_worker(const HxStudy *s, const HxGroup *g)
+{
+    for (size_t i = 0; i < s->ng; i++) {
+        const HxGroup *b = &s->g[i];
+        if (b->nt && b->axis == 1 && strcmp(b->series_id, g->series_id) == 0)
+            return b;
+    }
+    return NULL;
+}
+
+const HxGroup *hx_baseline_one_thread(const HxStudy *s, const HxGroup *g)
+{
+    for (size_t i = 0; g->series2_id && i < s->ng; i++) {
+        const HxGroup *b = &s->g[i];
+        if (b->nt && b->axis2 == 1 && b->series2_id && strcmp(b->series2_id, g->series2_id) == 0)
+            return b;
+    }
+    return NULL;
+}
+
+const HxGroup *hx_baseline_fastest(const HxStudy *s, const HxGroup *g, const char *kv)
+{
+    const char *eq = strchr(kv, '=');
+    if (!eq)
+        return NULL;
+    char key[128];
+    size_t kn = (size_t)(eq - kv);
+    if (kn >= sizeof key)
+        return NULL;
+    memcpy(key, kv, kn);
+    key[kn] = '\0';
+    const HxGroup *best = NULL;
+    for (size_t i = 0; i < s->ng; i++) {
+        const HxGroup *b = &s->g[i];
+        if (!b->nt || strcmp(b->scene, g->scene) != 0)
+            continue;
+        if (strcmp(hx_csv_get(&s->csv, b->first_row, key), eq + 1) != 0)
+            continue;
+        if (!best || b->median < best->median)
+            best = b;
+    }
+    return best;
+}
+
+/* The series' name: the label without the swept dimension's value. */
+char *hx_series_label(const HxGroup *g, int second)
+{
+    char *lab = hx_strdup(g->label);
+    const char *tok = second || strcmp(g->backend, "openmp") == 0 ? " T=" : " P=";
+    char *at = strstr(lab, tok);
+    if (at) {
+        char *end = strchr(at + 1, ' ');
+        memmove(at, end ? end : at + strlen(at), strlen(end ? end : at + strlen(at)) + 1);
+    }
+    return lab;
+}
