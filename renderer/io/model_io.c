@@ -409,8 +409,14 @@ static int check_ply(const char *file, const char *data, size_t len, RtError *er
                     return rt_fail(err, "%s: PLY header declares element '%.*s' twice", file, (int)wl[1], w[1]);
             const unsigned long long c = strtoull(w[2], NULL, 10);
             el[n++] = (PlyElement){w[1], wl[1], w[2][0] == '-' || c == ULLONG_MAX ? UINT64_MAX : c, 0, 0, 0};
-        } else if (WORD_IS(0, "property") && nw >= 3 && n > 0) {
-            const int list = WORD_IS(1, "list");
+        } else if (WORD_IS(0, "property")) {
+            const int list = nw >= 2 && WORD_IS(1, "list");
+            /* a type Assimp 5.2.5 does not know makes it read item sizes it
+             * never set (an allocation of 33 GB, found by fuzz-model) */
+            if (n == 0 || nw < (list ? 4 : 3) || !ply_type_size(w[list ? 2 : 1], wl[list ? 2 : 1]) ||
+                (list && !ply_type_size(w[3], wl[3])))
+                return rt_fail(err, "%s: PLY property line of an unknown type or shape: '%.*s'", file,
+                               (int)(nl - w[0] < 60 ? nl - w[0] : 60), w[0]);
             const unsigned size = list ? ply_type_size(w[2], wl[2]) : ply_type_size(w[1], wl[1]);
             PlyElement *e = &el[n - 1];
             if (e->nprops == PLY_MAX_PROPS)
