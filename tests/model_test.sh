@@ -247,7 +247,16 @@ end_header
 EOF
 printf 'ply\nformat ascii 1.0\nelement face 1\nproperty list uchar uint vertex_indices\nend_header\n2147483647 0 0 0 0 1\n' > "$TMP/m/longlist.ply"
 bad_t "PLY list of 2^31 indices (Assimp reads on for minutes)" "m/longlist.ply: PLY list of too many items" "mesh: m/longlist.ply"
-bad_t "PLY faces without indices" "m/shifted.ply: a face without vertices" "mesh: m/shifted.ply"
+# found by fuzz-model: Assimp allocated 32 GB on an element name that is
+# not a word, and on data that does not match the header
+printf 'ply\nformat ascii 1.0\nelement ve}tex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n4294967295 0 0\n1 0 0\n0 1 0\n3 0 1 2\n' > "$TMP/m/name.ply"
+bad_t "PLY element name that is not a word" "m/name.ply: PLY element name 've}tex' is not a word" "mesh: m/name.ply"
+printf 'ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 nan 0\n1 0 0\n0 1 0\n3 0 1 2\n' > "$TMP/m/nan.ply"
+bad_t "PLY data that is not a number" "m/nan.ply: PLY data of element 'vertex' 0 does not match its header" "mesh: m/nan.ply"
+# found by fuzz-model: an accessor index past the file's made Assimp allocate tens of GB
+printf '{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],"meshes":[{"primitives":[{"attributes":{"POSITION":18446744073709551615}}]}]}' > "$TMP/m/acc.gltf"
+bad_t "glTF accessor index past the file's" "m/acc.gltf: a mesh primitive names an accessor the file does not have" "mesh: m/acc.gltf"
+bad_t "PLY faces without indices (a short vertex line shifts the data)" "m/shifted.ply: PLY element 'vertex' 5 has more values than its header says" "mesh: m/shifted.ply"
 # a property of a type Assimp does not know: it allocated 33 GB (found by fuzz-model)
 printf 'ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nproperty f,oty float ny\nelement face 1\nproperty list uchar uint vertex_indices\nend_header\n0 0 0 1\n1 0 0 1\n0 1 0 1\n3 0 1 2\n' > "$TMP/m/badtype.ply"
 bad_t "PLY property of an unknown type" "m/badtype.ply: PLY property line of an unknown type or shape: 'property f,oty float ny'" "mesh: m/badtype.ply"

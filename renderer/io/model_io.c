@@ -350,33 +350,85 @@ static const char *ply_token(const char **p, const char *end)
     return t;
 }
 
-/* Ascii data walked as the header lays it out: every list's length must
- * fit in the bytes left (Assimp 5.2.5 reads a list of 2^31 items as long
- * as it takes), and the data must not end early. O(bytes): the counts have
- * been checked against the size. */
-static int ply_ascii_lists(const char *file, const PlyElement *el, int n, const char *p, const char *end,
-                           RtError *err)
+/* Whether [t, e) is a number as PLY writes one: an optional sign, digits,
+ * and for a real type a fraction and an exponent (no nan, inf or hex). */
+static int ply_number(const char *t, const char *e, int integer)
+{
+    const char *c = t + (t < e && (*t == '-' || *t == '+'));
+    int digits = 0;
+    while (c < e && *c >= '0' && *c <= '9')
+        c++, digits++;
+    if (!integer && c < e && *c == '.')
+        for (c++; c < e && *c >= '0' && *c <= '9'; c++)
+            digits++;
+    if (!integer && digits && c < e && (*c == 'e' || *c == 'E')) {
+        c += 1 + (c + 1 < e && (c[1] == '-' || c[1] == '+'));
+        if (!(c < e && *c >= '0' && *c <= '9'))
+            return 0;
+        while (c < e && *c >= '0' && *c <= '9')
+            c++;
+    }
+    return digits > 0 && c == e;
+}
+
+/* One item's list property: its length, checked against the bytes left
+ * (Assimp 5.2.5 reads a list of 2^31 items as long as it takes), then its
+ * items. */
+static int ply_list(const char *file, const PlyElement *el, uint64_t item, const char *t, const char **p,
+                    const char *end, RtError *err)
+{
+    const unsigned long long c = strtoull(t, NULL, 10);
+    if (t[0] == '-' || c > (unsigned long long)(end - *p) / 2)
+        return rt_fail(err, "%s: PLY list of %s items in element '%.*s' %llu, with %llu bytes left", file,
+                       t[0] == '-' ? "negative" : "too many", (int)el->name_len, el->name, (unsigned long long)item,
+                       (unsigned long long)(end - *p));
+    for (unsigned long long m = 0; m < c; m++) {
+        const char *v = ply_token(p, end);
+        if (!v || !ply_number(v, *p, 0))
+            return rt_fail(err, "%s: PLY data of element '%.*s' %llu does not match its header", file,
+                           (int)el->name_len, el->name, (unsigned long long)item);
+    }
+    return 0;
+}
+
+/* Ascii data walked as the header lays it out, in O(bytes) (the counts
+ * have been checked against the size): every value a number, every list's
+ * length an integer that fits, one item a line, no early end. Data that
+ * does not match its header made Assimp 5.2.5 allocate 32 GB (fuzz-model). */
+static int ply_ascii_data(const char *file, const PlyElement *el, int n, const char *p, const char *end,
+                          RtError *err)
 {
     for (int i = 0; i < n; i++)
-        for (uint64_t item = 0; item < el[i].count; item++)
+        for (uint64_t item = 0; item < el[i].count; item++) {
             for (unsigned k = 0; k < el[i].nprops; k++) {
                 const char *t = ply_token(&p, end);
+                const int list = el[i].lists >> k & 1;
                 if (!t)
                     return rt_fail(err, "%s: PLY data ends inside element '%.*s' %llu", file, (int)el[i].name_len,
                                    el[i].name, (unsigned long long)item);
-                if (!(el[i].lists >> k & 1))
-                    continue;
-                const unsigned long long c = strtoull(t, NULL, 10);
-                if (t[0] == '-' || c > (unsigned long long)(end - p) / 2)
-                    return rt_fail(err, "%s: PLY list of %s items in element '%.*s' %llu, with %llu bytes left", file,
-                                   t[0] == '-' ? "negative" : "too many", (int)el[i].name_len, el[i].name,
-                                   (unsigned long long)item, (unsigned long long)(end - p));
-                for (unsigned long long m = 0; m < c; m++)
-                    if (!ply_token(&p, end))
-                        return rt_fail(err, "%s: PLY data ends inside element '%.*s' %llu", file,
-                                       (int)el[i].name_len, el[i].name, (unsigned long long)item);
+                if (!ply_number(t, p, list))
+                    return rt_fail(err, "%s: PLY data of element '%.*s' %llu does not match its header", file,
+                                   (int)el[i].name_len, el[i].name, (unsigned long long)item);
+                if (list && ply_list(file, &el[i], item, t, &p, end, err) != 0)
+                    return -1;
             }
+            while (p < end && (*p == ' ' || *p == '\t' || *p == '\r'))
+                p++;
+            if (p < end && *p != '\n')
+                return rt_fail(err, "%s: PLY element '%.*s' %llu has more values than its header says", file,
+                               (int)el[i].name_len, el[i].name, (unsigned long long)item);
+        }
     return 0;
+}
+
+/* A header word that names something: letters, digits and underscores. */
+static int ply_word(const char *w, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        if (!((w[i] >= 'a' && w[i] <= 'z') || (w[i] >= 'A' && w[i] <= 'Z') || (w[i] >= '0' && w[i] <= '9') ||
+              w[i] == '_' || w[i] == '-' || w[i] == '.'))
+            return 0;
+    return n > 0;
 }
 
 static int check_ply(const char *file, const char *data, size_t len, RtError *err)
@@ -397,9 +449,11 @@ static int check_ply(const char *file, const char *data, size_t len, RtError *er
             continue;
         if (WORD_IS(0, "end_header"))
             return ply_fits(file, el, n, (uint64_t)(len - (size_t)(p - data)), err) != 0 ? -1
-                   : ascii ? ply_ascii_lists(file, el, n, p, data + len, err) : 0;
+                   : ascii ? ply_ascii_data(file, el, n, p, data + len, err) : 0;
         if (WORD_IS(0, "format") && nw >= 2) {
             ascii = WORD_IS(1, "ascii");
+        } else if (WORD_IS(0, "element") && nw >= 3 && !ply_word(w[1], wl[1])) {
+            return rt_fail(err, "%s: PLY element name '%.*s' is not a word", file, (int)(wl[1] < 60 ? wl[1] : 60), w[1]);
         } else if (WORD_IS(0, "element") && nw >= 3) {
             if (n == PLY_MAX_ELEMENTS)
                 return rt_fail(err, "%s: PLY header with more than %d elements", file, PLY_MAX_ELEMENTS);
@@ -423,7 +477,9 @@ static int check_ply(const char *file, const char *data, size_t len, RtError *er
                 return rt_fail(err, "%s: PLY element with more than %d properties", file, PLY_MAX_PROPS);
             e->lists |= (uint64_t)list << e->nprops++;
             e->item = sat_add(e->item, ascii ? 2 : size ? size : 1);
-        }
+        } else if (WORD_IS(0, "element")) {
+            return rt_fail(err, "%s: PLY element line without a name and a count", file);
+        } /* (other lines are comments to Assimp too: Blender writes one without the keyword) */
     }
     return rt_fail(err, "%s: PLY header without end_header in its first %d bytes", file, PLY_MAX_HEADER);
 }
@@ -610,12 +666,27 @@ typedef struct Graph {
 
 /* Triangles mesh m's primitives make: the index (else position) accessor's
  * count, by mode (4 triangles, 5 strip, 6 fan; points and lines none). */
-static uint64_t mesh_triangles(const Json *j, uint32_t m, const uint32_t *acc, uint32_t nacc)
+/* Whether a primitive names an accessor that does not exist (its indices
+ * or an attribute): Assimp 5.2.5 then allocates by an unchecked index
+ * (POSITION 18446744073709551615: tens of GB, found by fuzz-model). */
+static int bad_accessor_ref(const Json *j, uint32_t prim, uint32_t nacc)
+{
+    const uint32_t ix = jget(j, prim, "indices"), at = jget(j, prim, "attributes");
+    if (ix && jnum(j, ix, UINT64_MAX) >= nacc)
+        return 1;
+    for (uint32_t c = at && j->v[at].type == J_OBJ ? j->v[at].child : 0; c; c = j->v[c].next)
+        if (jnum(j, c, UINT64_MAX) >= nacc)
+            return 1;
+    return 0;
+}
+
+static uint64_t mesh_triangles(const Json *j, uint32_t m, const uint32_t *acc, uint32_t nacc, int *bad)
 {
     uint32_t np;
     uint32_t *prims = jitems(j, jget(j, m, "primitives"), &np);
     uint64_t t = 0;
     for (uint32_t i = 0; prims && i < np; i++) {
+        *bad |= bad_accessor_ref(j, prims[i], nacc);
         const uint64_t mode = jnum(j, jget(j, prims[i], "mode"), 4);
         uint64_t a = jnum(j, jget(j, prims[i], "indices"), UINT64_MAX);
         if (a == UINT64_MAX)
@@ -705,14 +776,16 @@ static int check_graph(const char *file, const Json *j, uint64_t max_tris, RtErr
     g.inst = calloc(g.nnodes + 1, sizeof *g.inst);
     g.tris = calloc(g.nnodes + 1, sizeof *g.tris);
     g.state = calloc(g.nnodes + 1, 1);
-    int rc;
+    int rc, bad = 0;
     uint64_t inst = 0, tris = 0;
     if (!acc || !meshes || !g.nodes || !g.mesh_tris || !g.inst || !g.tris || !g.state) {
         rc = rt_fail(err, "%s: out of memory", file);
     } else {
         for (uint32_t m = 0; m < nmeshes; m++)
-            g.mesh_tris[m] = mesh_triangles(j, meshes[m], acc, nacc);
-        if (count_scenes(&g, 1, &inst, &tris) != 0)
+            g.mesh_tris[m] = mesh_triangles(j, meshes[m], acc, nacc, &bad);
+        if (bad)
+            rc = rt_fail(err, "%s: a mesh primitive names an accessor the file does not have (of %u)", file, nacc);
+        else if (count_scenes(&g, 1, &inst, &tris) != 0)
             rc = rt_fail(err, "%s: the node graph has a cycle or is nested deeper than %d", file, GRAPH_MAX_DEPTH);
         else if (tris > max_tris)
             rc = rt_model_fail_expands(err, file, max_tris, "triangles", 1);
