@@ -38,24 +38,28 @@ static void first_line_of(char *const argv[], char *out, size_t n)
     copy_trim(out, n, line);
 }
 
-/* The line of prog's output that starts with key, without the key. */
-static void line_after(char *const argv[], const char *key, char *out, size_t n)
+/* The line of text that starts with key, without the key; "" if none. */
+static void line_after(const char *text, const char *key, char *out, size_t n)
 {
-    char text[2048];
     out[0] = '\0';
-    if (hx_run_argv(argv, NULL, text, sizeof text, 1) != 0)
-        return;
-    for (char *l = text; l && *l; l = strchr(l, '\n') ? strchr(l, '\n') + 1 : NULL)
+    for (const char *l = text; l && *l; l = strchr(l, '\n') ? strchr(l, '\n') + 1 : NULL)
         if (strncmp(l, key, strlen(key)) == 0) {
             l += strlen(key);
-            l[strcspn(l, "\n")] = '\0';
-            copy_trim(out, n, l);
+            char line[512];
+            size_t len = strcspn(l, "\n");
+            if (len >= sizeof line)
+                len = sizeof line - 1;
+            memcpy(line, l, len);
+            line[len] = '\0';
+            copy_trim(out, n, line);
             return;
         }
 }
 
 /* The commit of the renderer's checkout, "-dirty" when a tracked file other
- * than exclude (the study's own CSV, which the study itself changes) differs. */
+ * than exclude (the study's own CSV, which the study itself changes) differs:
+ * only for a renderer that does not name its commit (`raytrace -V` before
+ * "commit:"), as it finds no checkout around an out-of-tree build. */
 static void git_commit_of(const char *repo_dir, const char *exclude, char *out, size_t n)
 {
     char *dir = (char *)(repo_dir ? repo_dir : ".");
@@ -164,9 +168,22 @@ void hx_fingerprint_get(HxFingerprint *fp, const HxTopo *t, int want_gpu, const 
             copy_trim(fp->gpu_driver, sizeof fp->gpu_driver, sp + 1);
         }
     }
-    char *repo_dir = hx_dirname(raytrace);
-    git_commit_of(repo_dir, exclude, fp->git_commit, sizeof fp->git_commit);
-    free(repo_dir);
+    /* the renderer's build flags and commit, as it was built (-V) */
+    char version[2048];
+    char *rv[] = {(char *)raytrace, "--version", NULL};
+    if (hx_run_argv(rv, NULL, version, sizeof version, 1) != 0)
+        version[0] = '\0';
+    line_after(version, "build:", fp->build_flags, sizeof fp->build_flags);
+    if (!fp->build_flags[0])
+        strcpy(fp->build_flags, "unknown");
+    line_after(version, "commit:", fp->git_commit, sizeof fp->git_commit);
+    if (strchr(fp->git_commit, ' ')) /* a commit is one word */
+        fp->git_commit[0] = '\0';
+    if (!fp->git_commit[0]) { /* an older renderer: its folder's checkout */
+        char *repo_dir = hx_dirname(raytrace);
+        git_commit_of(repo_dir, exclude, fp->git_commit, sizeof fp->git_commit);
+        free(repo_dir);
+    }
     struct utsname u;
     if (uname(&u) == 0)
         snprintf(fp->kernel, sizeof fp->kernel, "%s %s", u.sysname, u.release);
@@ -179,9 +196,5 @@ void hx_fingerprint_get(HxFingerprint *fp, const HxTopo *t, int want_gpu, const 
         if (!fp->mpi_version[0])
             strcpy(fp->mpi_version, "unknown");
     }
-    char *rv[] = {(char *)raytrace, "--version", NULL};
-    line_after(rv, "build:", fp->build_flags, sizeof fp->build_flags);
-    if (!fp->build_flags[0])
-        strcpy(fp->build_flags, "unknown");
     hx_fingerprint_hash(fp);
 }

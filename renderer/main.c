@@ -17,6 +17,7 @@
 
 #include "config.h"
 #include "rt.h"
+#include "rt_commit.h" /* RT_COMMIT: renderer/meson.build */
 
 typedef struct Options {
     const char *scene;
@@ -128,7 +129,7 @@ static void print_version(void)
     const RtBackend *const *b = rt_backend_list();
     for (int i = 0; b[i]; i++)
         printf(" %s%s", b[i]->name, b[i]->unavailable ? "(not built)" : "");
-    printf("\nbuild: %s\n", RT_BUILD_FLAGS);
+    printf("\nbuild: %s\ncommit: %s\n", RT_BUILD_FLAGS, RT_COMMIT);
 }
 
 /* --cache, --max-model-triangles, --build-threads, --huge-pages, --runs and --warmup. */
@@ -690,7 +691,7 @@ static void print_record(const Run *r)
            "build_ms=%.3f render_ms=%.3f write_ms=%.3f total_ms=%.3f rays=%llu primary_rays=%llu "
            "shadow_rays=%llu secondary_rays=%llu node_visits=%llu prim_tests=%llu mrays_per_s=%.3f "
            "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u runs=%d warmups=%d render_ms_best=%.3f build_threads=%d huge_pages=%s "
-           "sah_cost=%.4f cache=%s%s%s%s%s\n",
+           "sah_cost=%.4f cache=%s commit=%s%s%s%s%s\n",
            r->scene.name, r->cam.width, r->cam.height, r->be->name, rt_accel_name(o->accel), out->threads_used,
            out->ranks_used, r->parse_ms, r->build_ms, out->render_ms, r->write_ms, total_ms,
            (unsigned long long)rays, (unsigned long long)out->counters.primary_rays,
@@ -699,7 +700,7 @@ static void print_record(const Run *r)
            out->render_ms > 0.0 ? (double)rays / (out->render_ms * 1000.0) : 0.0, (unsigned long long)r->hash, tw,
            th, out->cores[0] ? out->cores : "unknown", r->accel.nprims - r->accel.nsplit, r->accel.nnodes, out->runs,
            out->warmups, out->render_ms_best, r->accel.build_threads, r->accel.huge_pages ? "on" : "off", r->accel.sah_cost,
-           r->cache, min_key, isa_key,
+           r->cache, RT_COMMIT, min_key, isa_key,
            out->extra, calib_key);
     fflush(stdout);
 }

@@ -227,3 +227,11 @@ cmp -s "$tmp/demo.png" "$tmp/keep.png" || fail "a failed run damaged an existing
 
 echo "cli_test: $fails failures"
 [ $fails -eq 0 ]
+
+# --- the commit raytrace was built from (renderer/meson.build, vcs_tag): a
+# short hash with -dirty, or unknown outside a checkout; -V and the record agree
+commit=$("$rt" -V | sed -n 's/^commit: //p')
+echo "$commit" | grep -Eq '^([0-9a-f]{4,40}(-dirty)?|unknown)$' || fail "-V: commit '$commit'"
+[ "$(key "$one" commit)" = "$commit" ] || fail "record: commit=$(key "$one" commit), -V says '$commit'"
+echo "cli_test (with commit): $fails failures"
+[ $fails -eq 0 ]
