@@ -69,9 +69,11 @@ int hx_dim_applies(int dim, const char *backend)
     }
 }
 
-static int set_err(char *err, size_t errlen, const char *path, int line,
+/* "FILE:LINE: message"; a line below 0 is override -line-1 (harness run
+ * --set), named as the option instead. */
+static int set_err(char *err, size_t errlen, const HxConfig *cfg, int line,
                    const char *fmt, ...) __attribute__((format(printf, 5, 6)));
-static int set_err(char *err, size_t errlen, const char *path, int line,
+static int set_err(char *err, size_t errlen, const HxConfig *cfg, int line,
                    const char *fmt, ...)
 {
     char msg[512];
@@ -79,7 +81,10 @@ static int set_err(char *err, size_t errlen, const char *path, int line,
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
-    snprintf(err, errlen, "%s:%d: %s", path, line, msg);
+    if (line < 0)
+        snprintf(err, errlen, "harness: option --set '%s': %s", cfg->set.v[-line - 1], msg);
+    else
+        snprintf(err, errlen, "%s:%d: %s", cfg->path, line, msg);
     return -1;
 }
 
@@ -218,11 +223,14 @@ static char *find_scene(const char *dir, const char *name, int *ambiguous)
 
 /* Relative paths in a config are tried against the current directory first
  * (users run `harness run configs/x.conf` from the repository root) and then
- * against the config file's own folder. */
-static char *resolve_dir(const char *cfg_path, const char *dir)
+ * against the config file's own folder; one from `harness run --set`
+ * (cwd_only) against the current directory only, as the shell would. */
+static char *resolve_dir(const char *cfg_path, const char *dir, int cwd_only)
 {
     if (dir[0] == '/' || hx_is_dir(dir))
         return hx_strdup(dir);
+    if (cwd_only)
+        return NULL;
     char *cd = hx_dirname(cfg_path);
     char *p = hx_path_join(cd, dir);
     free(cd);
@@ -236,8 +244,6 @@ static void config_defaults(HxConfig *cfg, const char *path)
 {
     memset(cfg, 0, sizeof *cfg);
     cfg->path = hx_strdup(path);
-    for (int i = 0; i < HX_NDIM; i++)
-        cfg->dim_line[i] = 0;
     cfg->repeats = 3;
     cfg->warmup = 0;
     cfg->timeout_s = 600;
@@ -323,19 +329,19 @@ static int parse_timeout(const char *v, double *out)
 
 /* A swept key's values (dimension dim) from line lineno. 0, or -1 with err
  * set. */
-static int parse_dim(const char *path, int lineno, int dim, const char *key, const HxStrList *vals,
+static int parse_dim(int lineno, int dim, const char *key, const HxStrList *vals,
                      HxConfig *cfg, char *err, size_t errlen)
 {
     if (cfg->dim_line[dim])
-        return set_err(err, errlen, path, lineno, "key '%s' already set on line %d",
+        return set_err(err, errlen, cfg, lineno, "key '%s' already set on line %d",
                        key, cfg->dim_line[dim]);
     cfg->dim_line[dim] = lineno;
     for (size_t i = 0; i < vals->n; i++) {
         char why[256];
         if (check_dim_value(dim, vals->v[i], why, sizeof why))
-            return set_err(err, errlen, path, lineno, "%s: %s", key, why);
+            return set_err(err, errlen, cfg, lineno, "%s: %s", key, why);
         if (hx_strlist_find(&cfg->dim[dim], vals->v[i]) >= 0)
-            return set_err(err, errlen, path, lineno, "%s: value '%s' listed twice",
+            return set_err(err, errlen, cfg, lineno, "%s: value '%s' listed twice",
                            key, vals->v[i]);
         hx_strlist_push(&cfg->dim[dim], vals->v[i]);
     }
@@ -343,7 +349,7 @@ static int parse_dim(const char *path, int lineno, int dim, const char *key, con
 }
 
 /* A scalar key's one value v. 0, or -1 with err set. */
-static int parse_scalar(const char *path, int lineno, const char *key, const char *v, HxConfig *cfg,
+static int parse_scalar(int lineno, const char *key, const char *v, HxConfig *cfg,
                         char *err, size_t errlen)
 {
     int rc = 0;
@@ -354,17 +360,17 @@ static int parse_scalar(const char *path, int lineno, const char *key, const cha
         cfg->scene_dir = hx_strdup(v);
     } else if (strcmp(key, "repeats") == 0) {
         if (hx_parse_int(v, 1, 100000, &iv))
-            rc = set_err(err, errlen, path, lineno, "repeats: expected an integer >= 1, got '%s'", v);
+            rc = set_err(err, errlen, cfg, lineno, "repeats: expected an integer >= 1, got '%s'", v);
         else
             cfg->repeats = (int)iv;
     } else if (strcmp(key, "warmup") == 0) {
         if (hx_parse_int(v, 0, 1000, &iv))
-            rc = set_err(err, errlen, path, lineno, "warmup: expected an integer >= 0, got '%s'", v);
+            rc = set_err(err, errlen, cfg, lineno, "warmup: expected an integer >= 0, got '%s'", v);
         else
             cfg->warmup = (int)iv;
     } else if (strcmp(key, "timeout") == 0) {
         if (parse_timeout(v, &cfg->timeout_s))
-            rc = set_err(err, errlen, path, lineno,
+            rc = set_err(err, errlen, cfg, lineno,
                          "timeout: expected seconds > 0 (e.g. 30, 30s, 5m, 2h), got '%s'", v);
     } else if (strcmp(key, "oversubscribe") == 0) {
         if (strcmp(v, "allow") == 0)
@@ -372,12 +378,12 @@ static int parse_scalar(const char *path, int lineno, const char *key, const cha
         else if (strcmp(v, "refuse") == 0)
             cfg->oversubscribe_allow = 0;
         else
-            rc = set_err(err, errlen, path, lineno,
+            rc = set_err(err, errlen, cfg, lineno,
                          "oversubscribe: expected refuse|allow, got '%s'", v);
     } else if (strcmp(key, "baseline") == 0) {
         const char *eq = strchr(v, '=');
         if (!eq || eq == v || eq[1] == '\0')
-            rc = set_err(err, errlen, path, lineno,
+            rc = set_err(err, errlen, cfg, lineno,
                          "baseline: expected KEY=VALUE (e.g. backend=serial), got '%s'", v);
         else
             cfg->baseline = hx_strdup(v);
@@ -391,11 +397,11 @@ static int parse_scalar(const char *path, int lineno, const char *key, const cha
         if (strcmp(v, "on") == 0 || strcmp(v, "off") == 0)
             cfg->instructions = strcmp(v, "on") == 0;
         else
-            rc = set_err(err, errlen, path, lineno, "instructions: expected on|off, got '%s'", v);
+            rc = set_err(err, errlen, cfg, lineno, "instructions: expected on|off, got '%s'", v);
         cfg->instructions_line = lineno;
     } else if (strcmp(key, "launcher") == 0) {
         if (hx_launcher_parse(v, &cfg->launcher))
-            rc = set_err(err, errlen, path, lineno,
+            rc = set_err(err, errlen, cfg, lineno,
                          "launcher: expected mpirun|srun, got '%s'", v);
     }
     return rc;
@@ -403,14 +409,14 @@ static int parse_scalar(const char *path, int lineno, const char *key, const cha
 
 /* One `key: values` pair; seen_scalar[k]: the line scalar_keys[k] was set
  * on. 0, or -1 with err set. */
-static int parse_key(const char *path, int lineno, const char *key, const HxStrList *vals,
+static int parse_key(int lineno, const char *key, const HxStrList *vals,
                      HxConfig *cfg, int *seen_scalar, char *err, size_t errlen)
 {
     if (vals->n == 0)
-        return set_err(err, errlen, path, lineno, "key '%s' has no value", key);
+        return set_err(err, errlen, cfg, lineno, "key '%s' has no value", key);
     int dim = dim_of_key(key);
     if (dim >= 0)
-        return parse_dim(path, lineno, dim, key, vals, cfg, err, errlen);
+        return parse_dim(lineno, dim, key, vals, cfg, err, errlen);
     if (strcmp(key, "extra_args") == 0) {
         for (size_t i = 0; i < vals->n; i++)
             hx_strlist_push(&cfg->extra_args, vals->v[i]);
@@ -421,25 +427,49 @@ static int parse_key(const char *path, int lineno, const char *key, const HxStrL
         if (strcmp(key, scalar_keys[i]) == 0)
             sk = i;
     if (sk < 0)
-        return set_err(err, errlen, path, lineno, "unknown key '%s'", key);
+        return set_err(err, errlen, cfg, lineno, "unknown key '%s'", key);
     if (seen_scalar[sk])
-        return set_err(err, errlen, path, lineno, "key '%s' already set on line %d",
+        return set_err(err, errlen, cfg, lineno, "key '%s' already set on line %d",
                        key, seen_scalar[sk]);
     seen_scalar[sk] = lineno;
     if (vals->n != 1)
-        return set_err(err, errlen, path, lineno, "key '%s' takes one value, got %zu",
+        return set_err(err, errlen, cfg, lineno, "key '%s' takes one value, got %zu",
                        key, vals->n);
-    return parse_scalar(path, lineno, key, vals->v[0], cfg, err, errlen);
+    return parse_scalar(lineno, key, vals->v[0], cfg, err, errlen);
+}
+
+/* The key as the parser knows it: "scene" is "scenes". */
+static const char *canonical_key(const char *key)
+{
+    int dim = dim_of_key(key);
+    return dim >= 0 ? hx_dim_key[dim] : key;
+}
+
+/* The key of an override "KEY=VALUE" (harness run --set), canonical. */
+static const char *override_key(const char *kv, char *buf, size_t n)
+{
+    snprintf(buf, n, "%.*s", (int)strcspn(kv, "="), kv);
+    return canonical_key(hx_trim(buf));
+}
+
+/* Whether an override (cfg->set) gives key. */
+static int overridden(const HxConfig *cfg, const char *key)
+{
+    char buf[128];
+    for (size_t i = 0; i < cfg->set.n; i++)
+        if (strcmp(override_key(cfg->set.v[i], buf, sizeof buf), canonical_key(key)) == 0)
+            return 1;
+    return 0;
 }
 
 /* One line of the config (line is modified). 0, or -1 with err set. */
-static int parse_line(const char *path, int lineno, char *line, HxConfig *cfg, int *seen_scalar,
+static int parse_line(int lineno, char *line, HxConfig *cfg, int *seen_scalar,
                       char *err, size_t errlen)
 {
     for (const unsigned char *c = (const unsigned char *)line; *c; c++)
         if (hx_is_ctrl(*c) && *c != '\t')
             /* names from here reach CSV cells, tables and Slurm scripts */
-            return set_err(err, errlen, path, lineno, "control character 0x%02x in the line", *c);
+            return set_err(err, errlen, cfg, lineno, "control character 0x%02x in the line", *c);
     char *hash = strchr(line, '#');
     if (hash)
         *hash = '\0';
@@ -448,13 +478,15 @@ static int parse_line(const char *path, int lineno, char *line, HxConfig *cfg, i
         return 0;
     char *colon = strchr(s, ':');
     if (!colon)
-        return set_err(err, errlen, path, lineno, "expected 'key: values', got '%s'", s);
+        return set_err(err, errlen, cfg, lineno, "expected 'key: values', got '%s'", s);
     *colon = '\0';
     char *key = hx_trim(s);
     char *val = hx_trim(colon + 1);
+    if (lineno > 0 && overridden(cfg, key))
+        return 0; /* harness run --set KEY=...: that line is replaced */
     HxStrList vals = {0};
     split_values(val, &vals);
-    int rc = parse_key(path, lineno, key, &vals, cfg, seen_scalar, err, errlen);
+    int rc = parse_key(lineno, key, &vals, cfg, seen_scalar, err, errlen);
     hx_strlist_free(&vals);
     return rc;
 }
@@ -467,7 +499,7 @@ static int config_finish(const char *path, int lineno, const int *seen_scalar, H
 {
     int rc = 0;
     if (!cfg->dim_line[HX_DIM_SCENE])
-        return set_err(err, errlen, path, lineno > 0 ? lineno : 1,
+        return set_err(err, errlen, cfg, lineno > 0 ? lineno : 1,
                        "missing required key 'scenes'");
     if (!cfg->study) {
         /* Default study name: the config's file name without .conf. */
@@ -481,7 +513,7 @@ static int config_finish(const char *path, int lineno, const int *seen_scalar, H
     /* threads waiting in a barrier spin: only one thread counts exactly */
     for (size_t i = 0; cfg->instructions && i < cfg->dim[HX_DIM_BACKEND].n; i++)
         if (strcmp(cfg->dim[HX_DIM_BACKEND].v[i], "serial") != 0)
-            return set_err(err, errlen, path, cfg->instructions_line,
+            return set_err(err, errlen, cfg, cfg->instructions_line,
                            "instructions: on counts serial runs only, but backends has '%s'",
                            cfg->dim[HX_DIM_BACKEND].v[i]);
     if (!cfg->baseline)
@@ -492,15 +524,15 @@ static int config_finish(const char *path, int lineno, const int *seen_scalar, H
 
     /* Resolve scenes now, so a missing file fails before any run starts. */
     int sline = cfg->dim_line[HX_DIM_SCENE];
-    char *dir = resolve_dir(path, cfg->scene_dir ? cfg->scene_dir : ".");
+    char *dir = resolve_dir(path, cfg->scene_dir ? cfg->scene_dir : ".", seen_scalar[1] < 0);
     if (!dir)
-        return set_err(err, errlen, path, seen_scalar[1] ? seen_scalar[1] : sline,
+        return set_err(err, errlen, cfg, seen_scalar[1] ? seen_scalar[1] : sline,
                        "scene_dir '%s' is not a directory", cfg->scene_dir);
     for (size_t i = 0; i < cfg->dim[HX_DIM_SCENE].n; i++) {
         int amb;
         char *sp = find_scene(dir, cfg->dim[HX_DIM_SCENE].v[i], &amb);
         if (!sp) {
-            rc = set_err(err, errlen, path, sline, "scene '%s' %s in '%s'",
+            rc = set_err(err, errlen, cfg, sline, "scene '%s' %s in '%s'",
                          cfg->dim[HX_DIM_SCENE].v[i],
                          amb ? "is ambiguous (several sub-folders have it)" : "not found",
                          dir);
@@ -513,12 +545,60 @@ static int config_finish(const char *path, int lineno, const int *seen_scalar, H
     return rc;
 }
 
+/* The overrides of `harness run --set` (cfg->set, "KEY=VALUE"), checked
+ * before the file is read: the form, a known key, each key once. */
+static int check_overrides(const HxConfig *cfg, char *err, size_t errlen)
+{
+    for (size_t i = 0; i < cfg->set.n; i++) {
+        const char *kv = cfg->set.v[i], *eq = strchr(kv, '=');
+        int line = -(int)i - 1;
+        if (!eq)
+            return set_err(err, errlen, cfg, line, "expected KEY=VALUE (e.g. threads='1 2 4')");
+        char key[128], other[128];
+        const char *k = override_key(kv, key, sizeof key);
+        int known = dim_of_key(k) >= 0 || strcmp(k, "extra_args") == 0;
+        for (int j = 0; scalar_keys[j]; j++)
+            known |= strcmp(k, scalar_keys[j]) == 0;
+        if (!*k)
+            return set_err(err, errlen, cfg, line, "expected KEY=VALUE, the key is empty");
+        if (!known)
+            return set_err(err, errlen, cfg, line, "unknown key '%s'", k);
+        for (size_t j = 0; j < i; j++)
+            if (strcmp(override_key(cfg->set.v[j], other, sizeof other), k) == 0)
+                return set_err(err, errlen, cfg, line, "key '%s' is given by --set twice", k);
+    }
+    return 0;
+}
+
+/* Each override as the line "KEY: VALUE", numbered -1, -2, ... */
+static int parse_overrides(HxConfig *cfg, int *seen_scalar, char *err, size_t errlen)
+{
+    int rc = 0;
+    for (size_t i = 0; i < cfg->set.n && rc == 0; i++) {
+        const char *kv = cfg->set.v[i], *eq = strchr(kv, '=');
+        HxBuf line = {0};
+        hx_buf_putn(&line, kv, (size_t)(eq - kv));
+        hx_buf_printf(&line, ": %s", eq + 1);
+        rc = parse_line(-(int)i - 1, line.s, cfg, seen_scalar, err, errlen);
+        hx_buf_free(&line);
+    }
+    return rc;
+}
+
 int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
                            char *err, size_t errlen)
 {
+    return hx_config_parse_set(path, text, NULL, cfg, err, errlen);
+}
+
+int hx_config_parse_set(const char *path, const char *text, const HxStrList *set, HxConfig *cfg,
+                        char *err, size_t errlen)
+{
     config_defaults(cfg, path);
+    for (size_t i = 0; set && i < set->n; i++)
+        hx_strlist_push(&cfg->set, set->v[i]);
     int seen_scalar[16] = {0};
-    int lineno = 0, rc = 0;
+    int lineno = 0, rc = check_overrides(cfg, err, errlen);
     const char *p = text;
     if (strncmp(p, "\xEF\xBB\xBF", 3) == 0) /* a UTF-8 byte-order mark, as editors on Windows write */
         p += 3;
@@ -530,9 +610,11 @@ int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
         lineno++;
         if (n && line[n - 1] == '\r') /* CRLF line ends */
             line[n - 1] = '\0';
-        rc = parse_line(path, lineno, line, cfg, seen_scalar, err, errlen);
+        rc = parse_line(lineno, line, cfg, seen_scalar, err, errlen);
         free(line);
     }
+    if (rc == 0)
+        rc = parse_overrides(cfg, seen_scalar, err, errlen);
     if (rc)
         return rc;
     return config_finish(path, lineno, seen_scalar, cfg, err, errlen);
@@ -556,6 +638,11 @@ static double plan_size(const HxConfig *cfg)
 
 int hx_config_load(const char *path, HxConfig *cfg, char *err, size_t errlen)
 {
+    return hx_config_load_set(path, NULL, cfg, err, errlen);
+}
+
+int hx_config_load_set(const char *path, const HxStrList *set, HxConfig *cfg, char *err, size_t errlen)
+{
     memset(cfg, 0, sizeof *cfg);
     HxBuf b = {0};
     if (hx_read_file(path, &b) != 0) {
@@ -563,7 +650,7 @@ int hx_config_load(const char *path, HxConfig *cfg, char *err, size_t errlen)
         hx_buf_free(&b);
         return -1;
     }
-    int rc = hx_config_parse_string(path, b.s ? b.s : "", cfg, err, errlen);
+    int rc = hx_config_parse_set(path, b.s ? b.s : "", set, cfg, err, errlen);
     hx_buf_free(&b);
     double runs = rc == 0 ? plan_size(cfg) : 0;
     if (runs > HX_MAX_RUNS) {
@@ -576,8 +663,13 @@ int hx_config_load(const char *path, HxConfig *cfg, char *err, size_t errlen)
 
 int hx_config_open(const char *path, HxConfig *cfg)
 {
+    return hx_config_open_set(path, NULL, cfg);
+}
+
+int hx_config_open_set(const char *path, const HxStrList *set, HxConfig *cfg)
+{
     char err[1024];
-    if (hx_config_load(path, cfg, err, sizeof err) == 0)
+    if (hx_config_load_set(path, set, cfg, err, sizeof err) == 0)
         return 0;
     fprintf(stderr, "%s\n", err);
     hx_config_free(cfg);
@@ -592,6 +684,7 @@ void hx_config_free(HxConfig *cfg)
         hx_strlist_free(&cfg->dim[i]);
     hx_strlist_free(&cfg->scene_path);
     hx_strlist_free(&cfg->extra_args);
+    hx_strlist_free(&cfg->set);
     free(cfg->scene_dir);
     free(cfg->baseline);
     free(cfg->raytrace);

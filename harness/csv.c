@@ -36,7 +36,8 @@ const char *const hx_columns[] = {
     "rec_mpi_schedule", "render_ms_min", "rec_block", "upload_ms",
     "download_ms", "rec_wall_ms", "rec_gpu",
     /* provenance: the kernel, the MPI library, the renderer's build, and a
-     * hash of the study's expanded configuration (checked by --resume) */
+     * hash of the settings that change what a run measures (checked by
+     * --resume, which may add runs: harness/resume.c) */
     "kernel", "mpi_version", "build_flags", "config_hash",
     /* every other record key, k=v;k=v */
     "extra",

@@ -132,6 +132,7 @@ typedef struct {
     char *scene_cache;          /* raytrace --cache DIR; "off": none; NULL: the user's cache directory */
     int instructions;           /* each run under cachegrind: record key instructions */
     int instructions_line;
+    HxStrList set;              /* harness run --set KEY=VALUE, as given */
 } HxConfig;
 
 typedef struct {
@@ -159,6 +160,14 @@ typedef struct {
 int hx_config_load(const char *path, HxConfig *cfg, char *err, size_t errlen);
 int hx_config_parse_string(const char *path, const char *text, HxConfig *cfg,
                            char *err, size_t errlen);
+/* The same with overrides (harness run --set): each "KEY=VALUE" of set
+ * replaces the config's line for KEY (or adds one); its errors name the
+ * option instead of FILE:LINE, and a relative scene_dir it gives is taken
+ * from the current folder only. set may be NULL. */
+int hx_config_parse_set(const char *path, const char *text, const HxStrList *set, HxConfig *cfg,
+                        char *err, size_t errlen);
+int hx_config_load_set(const char *path, const HxStrList *set, HxConfig *cfg, char *err, size_t errlen);
+int hx_config_open_set(const char *path, const HxStrList *set, HxConfig *cfg);
 void hx_config_free(HxConfig *cfg);
 /* hx_config_load for a subcommand: the error goes to stderr as one line and
  * the config is freed. Returns 0 or -1. */

@@ -64,4 +64,15 @@ void hx_print_command(FILE *out, const HxCommand *c);
  * tree's ../renderer/raytrace next to the harness. malloc'd. */
 char *hx_find_raytrace(const HxConfig *cfg, const char *opt);
 
+/* ---- what --resume accepts (resume.c) ---- */
+
+/* The config_hash of a study's rows: what a run means beyond its run_id,
+ * scene_path, study and baseline columns (warm-ups, timeout, instructions,
+ * extra_args). Not the plan: a study may grow. */
+void hx_settings_hash(const HxConfig *cfg, char out[20]);
+/* 0 when every row of old is a run of plan made under cfg's settings (hash:
+ * hx_settings_hash); else -1 with err saying what changed. */
+int hx_resume_check(const HxCsv *old, const HxConfig *cfg, const HxPlan *plan, const char *hash, char *err,
+                    size_t errlen);
+
 #endif

@@ -124,13 +124,18 @@ static void setf(char **vals, const char *col, const char *fmt, ...)
 static void usage_run(FILE *f)
 {
     fputs("usage: harness run CONFIG [-o FILE.csv] [--resume | --overwrite] [--dry-run]\n"
-          "                  [--raytrace PATH] [--launcher mpirun|srun] [--history DB] [--quiet]\n"
+          "                  [--set KEY=VALUE]... [--raytrace PATH] [--launcher mpirun|srun]\n"
+          "                  [--history DB] [--quiet]\n"
           "Expands CONFIG into runs and executes them, appending one CSV row per run.\n"
           "  -o, --output FILE   CSV to append to (default: results/STUDY.csv if results/\n"
           "                      exists, else STUDY.csv)\n"
-          "      --resume        skip runs whose run_id is already in FILE\n"
+          "      --resume        skip runs whose run_id is already in FILE; the study may\n"
+          "                      grow (repeats, new swept values), not change its runs\n"
           "      --overwrite     start FILE afresh (without it, a non-empty FILE is refused)\n"
           "      --dry-run       list the runs, their command lines and planned cores\n"
+          "      --set KEY=VALUE as if CONFIG's line for KEY said VALUE (repeatable):\n"
+          "                      --set threads='1 2 4', --set scene_dir=DIR (relative\n"
+          "                      to the current folder), --set repeats=5\n"
           "      --raytrace PATH renderer binary (else config 'raytrace:', $RAYTRACE,\n"
           "                      or ../renderer/raytrace next to the harness)\n"
           "      --launcher NAME how MPI runs start: mpirun, or srun inside a Slurm\n"
@@ -168,56 +173,6 @@ static void progress_line(const HxPlan *plan, size_t i, const HxRun *r, const ch
             b.s, r->repeat, status, render_ms && *render_ms ? " render_ms=" : "", render_ms ? render_ms : "",
             detail ? ": " : "", detail ? detail : "", eta);
     hx_buf_free(&b);
-}
-
-/* A hash of what the study is: its name, every planned run, warm-ups,
- * timeout and the renderer's extra arguments. --resume refuses a CSV whose
- * rows carry another one: their runs would mix with this study's. */
-static void config_hash(const HxConfig *cfg, const HxPlan *plan, char out[20])
-{
-    HxBuf b = {0};
-    hx_buf_printf(&b, "%s|%d|%d|%.17g", cfg->study, cfg->repeats, cfg->warmup, cfg->timeout_s);
-    if (cfg->instructions) /* (studies without it keep their hash) */
-        hx_buf_put(&b, "|instructions");
-    for (size_t i = 0; i < cfg->extra_args.n; i++)
-        hx_buf_printf(&b, "|%s", cfg->extra_args.v[i]);
-    for (size_t i = 0; i < plan->n; i++)
-        hx_buf_printf(&b, "|%s", plan->runs[i].run_id);
-    hx_fnv1a_hex(b.s, out);
-    hx_buf_free(&b);
-}
-
-/* For --resume: 0 when every row of old comes from this configuration;
- * else says what differs (in err) and returns -1. */
-static int resume_check(const HxCsv *old, const char *hash, const HxPlan *plan, char *err, size_t errlen)
-{
-    size_t foreign = 0, other_hash = 0;
-    const char *example = NULL, *old_hash = NULL;
-    for (size_t i = 0; i < old->nrows; i++) {
-        const char *h = hx_csv_get(old, i, "config_hash");
-        if (strcmp(h, hash) != 0) {
-            other_hash++;
-            old_hash = h;
-        }
-        const char *id = hx_csv_get(old, i, "run_id");
-        int planned = 0;
-        for (size_t k = 0; k < plan->n && !planned; k++)
-            planned = strcmp(plan->runs[k].run_id, id) == 0;
-        if (!planned) {
-            foreign++;
-            if (!example)
-                example = id;
-        }
-    }
-    if (!other_hash)
-        return 0;
-    if (foreign)
-        snprintf(err, errlen, "%zu row(s) are runs this config does not plan (e.g. '%s'): another study wrote them",
-                 foreign, example);
-    else
-        snprintf(err, errlen, "%zu row(s) come from a configuration with other settings (study name, repeats, "
-                 "warm-ups, timeout or extra_args; config_hash %s, this config %s)", other_hash, old_hash, hash);
-    return -1;
 }
 
 /* Notes a failed run's configuration (once) for the end-of-study summary. */
@@ -521,7 +476,7 @@ static int load_done(Study *st, char *err, size_t errlen)
         fprintf(stderr, "harness run: --resume: %s\n", err);
         return -1;
     }
-    if (resume_check(&old, st->chash, &st->plan, err, errlen) != 0) {
+    if (hx_resume_check(&old, &st->cfg, &st->plan, st->chash, err, errlen) != 0) {
         fprintf(stderr, "harness run: --resume: %s: %s; write to another file or use --overwrite\n",
                 st->out_path, err);
         hx_csv_free(&old);
@@ -578,6 +533,8 @@ static void print_dry_run(const Study *st)
 {
     printf("study %s: %zu runs (%d warm-up + %d repeats per configuration), %d cores\n", st->cfg.study,
            st->plan.n, st->cfg.warmup, st->cfg.repeats, st->topo.ncores);
+    for (size_t i = 0; i < st->cfg.set.n; i++) /* the config as run, not as the file says */
+        printf("override: --set '%s'\n", st->cfg.set.v[i]);
     for (size_t i = 0; i < st->plan.n; i++) {
         const HxRun *r = &st->plan.runs[i];
         HxCommand cmd;
@@ -620,7 +577,7 @@ static int study_open(Study *st, int resume, int overwrite)
         fprintf(stderr, "harness run: %s\n", err);
         return -1;
     }
-    config_hash(&st->cfg, &st->plan, st->chash);
+    hx_settings_hash(&st->cfg, st->chash);
     if (resume && load_done(st, err, sizeof err) != 0)
         return -1;
     const char *tmp_root = getenv("TMPDIR");
@@ -674,33 +631,42 @@ static void study_close(Study *st)
     hx_config_free(&st->cfg);
 }
 
-int hx_cmd_run(int argc, char **argv)
+/* harness run's options. */
+typedef struct {
+    const char *out_path, *rt_opt, *history;
+    HxLauncher launcher;
+    int launcher_set, resume, overwrite, dry, quiet;
+    HxStrList set; /* --set KEY=VALUE, in order */
+} RunOpts;
+
+/* Parses the options into o. -1: go on; else the exit status (--help 0,
+ * a bad option 1). */
+static int run_opts(int argc, char **argv, RunOpts *o)
 {
     static const struct option lo[] = {
         {"output", required_argument, NULL, 'o'}, {"resume", no_argument, NULL, 'r'},
         {"overwrite", no_argument, NULL, 'w'}, {"dry-run", no_argument, NULL, 'n'},
         {"raytrace", required_argument, NULL, 't'}, {"quiet", no_argument, NULL, 'q'},
         {"launcher", required_argument, NULL, 'l'}, {"history", required_argument, NULL, 'H'},
-        {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
-    const char *out_path = NULL, *rt_opt = NULL, *history = NULL;
-    HxLauncher launcher = HX_LAUNCHER_MPIRUN;
-    int launcher_set = 0, resume = 0, overwrite = 0, dry = 0, quiet = 0, c;
+        {"set", required_argument, NULL, 's'}, {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
+    int c;
     while ((c = getopt_long(argc, argv, "o:qh", lo, NULL)) != -1) {
         switch (c) {
-        case 'o': out_path = optarg; break;
-        case 'r': resume = 1; break;
-        case 'w': overwrite = 1; break;
-        case 'n': dry = 1; break;
-        case 't': rt_opt = optarg; break;
+        case 'o': o->out_path = optarg; break;
+        case 'r': o->resume = 1; break;
+        case 'w': o->overwrite = 1; break;
+        case 'n': o->dry = 1; break;
+        case 't': o->rt_opt = optarg; break;
         case 'l':
-            if (hx_launcher_parse(optarg, &launcher)) {
+            if (hx_launcher_parse(optarg, &o->launcher)) {
                 fprintf(stderr, "harness run: --launcher: expected mpirun|srun, got '%s'\n", optarg);
                 return 1;
             }
-            launcher_set = 1;
+            o->launcher_set = 1;
             break;
-        case 'q': quiet = 1; break;
-        case 'H': history = optarg; break;
+        case 'q': o->quiet = 1; break;
+        case 'H': o->history = optarg; break;
+        case 's': hx_strlist_push(&o->set, optarg); break; /* checked with the config */
         case 'h': usage_run(stdout); return 0;
         default: usage_run(stderr); return 1;
         }
@@ -709,39 +675,50 @@ int hx_cmd_run(int argc, char **argv)
         fprintf(stderr, "harness run: expected one CONFIG argument (see --help)\n");
         return 1;
     }
-    if (resume && overwrite) {
+    if (o->resume && o->overwrite) {
         fprintf(stderr, "harness run: --resume and --overwrite exclude each other\n");
         return 1;
     }
+    return -1;
+}
+
+int hx_cmd_run(int argc, char **argv)
+{
+    RunOpts o;
+    memset(&o, 0, sizeof o);
+    int orc = run_opts(argc, argv, &o);
     Study st;
     memset(&st, 0, sizeof st);
     st.fd = -1;
-    st.quiet = quiet;
-    if (hx_config_open(argv[optind], &st.cfg))
-        return 1;
-    hx_resolve_scene_cache(&st.cfg, out_path);
+    st.quiet = o.quiet;
+    if (orc < 0 && hx_config_open_set(argv[optind], &o.set, &st.cfg) != 0)
+        orc = 1;
+    hx_strlist_free(&o.set);
+    if (orc >= 0)
+        return orc;
+    hx_resolve_scene_cache(&st.cfg, o.out_path);
     /* the command line wins: the same config runs on a workstation with
      * mpirun and in a Slurm job (harness slurm) with srun */
-    if (launcher_set)
-        st.cfg.launcher = launcher;
+    if (o.launcher_set)
+        st.cfg.launcher = o.launcher;
     hx_expand(&st.cfg, &st.plan);
     hx_topo_load(&st.topo);
     hx_plan_cores(&st.topo, &st.cfg, &st.plan);
-    st.raytrace = hx_find_raytrace(&st.cfg, rt_opt);
+    st.raytrace = hx_find_raytrace(&st.cfg, o.rt_opt);
     warn_plan(&st);
     int rc = 0;
     HxBuf defout = {0};
-    if (dry) {
+    if (o.dry) {
         print_dry_run(&st);
     } else if (access(st.raytrace, X_OK) != 0) {
         fprintf(stderr, "harness run: raytrace not executable at '%s' (set --raytrace, 'raytrace:' in the config "
                         "or $RAYTRACE)\n", st.raytrace);
         rc = 1;
     } else {
-        if (!out_path)
+        if (!o.out_path)
             hx_buf_printf(&defout, "%s%s.csv", hx_is_dir("results") ? "results/" : "", st.cfg.study);
-        st.out_path = out_path ? out_path : defout.s;
-        if (study_open(&st, resume, overwrite) != 0) {
+        st.out_path = o.out_path ? o.out_path : defout.s;
+        if (study_open(&st, o.resume, o.overwrite) != 0) {
             rc = 1;
         } else {
             st.t0 = hx_now_ms();
@@ -750,7 +727,7 @@ int hx_cmd_run(int argc, char **argv)
     }
     study_close(&st);
     /* the finished CSV into the history (docs/harness.md, "History") */
-    if (history && st.t0 > 0.0 && hx_history_add(history, (char **)&st.out_path, 1, 0) != 0)
+    if (o.history && st.t0 > 0.0 && hx_history_add(o.history, (char **)&st.out_path, 1, 0) != 0)
         rc = 1;
     hx_buf_free(&defout);
     return rc;
