@@ -114,8 +114,6 @@ typedef struct Totals {
     uint64_t v, n, t;
 } Totals;
 
-static uint64_t sat_add(uint64_t a, uint64_t b) { return a + b < a ? UINT64_MAX : a + b; }
-
 /* Assimp recursed as deep to build the tree; a bound keeps this walk's
  * stack small whatever the format. */
 #define MAX_NODE_DEPTH 4096

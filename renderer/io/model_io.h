@@ -39,6 +39,12 @@ int rt_model_check_bytes(const char *file, const char *data, size_t len, uint64_
 /* The expansion limit's message, shared by the graph check and model.c
  * (instanced: the count is of node instances, not of the meshes alone). */
 int rt_model_fail_expands(RtError *err, const char *file, uint64_t limit, const char *what, int instanced);
+/* A glTF's JSON (of a .gltf, or a .glb's first chunk) checked as
+ * rt_model_check_bytes says (model_gltf.c). */
+int rt_model_check_gltf(const char *file, const char *json, size_t len, uint64_t max_tris, RtError *err);
+/* Counts that saturate instead of wrapping. */
+static inline uint64_t sat_add(uint64_t a, uint64_t b) { return a + b < a ? UINT64_MAX : a + b; }
+static inline uint64_t sat_mul(uint64_t a, uint64_t b) { return b && a > UINT64_MAX / b ? UINT64_MAX : a * b; }
 
 /* The limit on the triangles one model may expand to (default
  * RT_MODEL_MAX_TRIANGLES): raytrace --max-model-triangles N. 0, or -1 when
