@@ -71,9 +71,11 @@ while listening $port || listening $((port + 1)); do port=$((port + 2)); done
 node=$(slurmd -C | head -1 | sed 's/^NodeName=[^ ]*/NodeName=localhost/')
 case $node in NodeName=localhost\ CPUs=*) ;; *) fail "unexpected slurmd -C output: $node" ;; esac
 cpus=$(echo "$node" | sed 's/.* CPUs=\([0-9]*\).*/\1/')
+# addresses given, not looked up: a machine without /etc/hosts (a bare
+# debootstrap chroot) cannot resolve even "localhost"
 cat > "$SLURM_CONF" <<CONF
 ClusterName=raybench-test
-SlurmctldHost=localhost
+SlurmctldHost=localhost(127.0.0.1)
 SlurmctldPort=$port
 SlurmdPort=$((port + 1))
 SlurmUser=root
@@ -106,7 +108,7 @@ FirstJobId=$((port * 10))
 TmpFS=$T/tmp
 KillWait=5
 MinJobAge=300
-$node State=UNKNOWN
+$node NodeAddr=127.0.0.1 NodeHostname=localhost State=UNKNOWN
 PartitionName=test Nodes=localhost Default=YES MaxTime=INFINITE State=UP
 CONF
 # Slurm 22.05's slurmd loads a cgroup plugin whatever the other plugins
