@@ -15,9 +15,12 @@ set -u
 test_setup cachedir "$1" "$2"
 chmod 755 "$T"
 echo "# dummy" > oka.txt
-# the wrapper appends its --cache argument to cache.log
-printf '#!/bin/sh\nprev=\nfor a; do [ "$prev" = --cache ] && echo "$a" >> %s/cache.log; prev=$a; done\nexec %s "$@"\n' \
-    "$T" "$FAKE" > rec.sh
+# the wrapper appends its --cache argument to cache.log; it runs a copy of
+# the fake renderer that nobody can execute too (the checkout may lie under
+# a home of mode 0700)
+cp "$FAKE" fake.sh && chmod 755 fake.sh
+printf '#!/bin/sh\nprev=\nfor a; do [ "$prev" = --cache ] && echo "$a" >> %s/cache.log; prev=$a; done\nexec %s/fake.sh "$@"\n' \
+    "$T" "$T" > rec.sh
 chmod 755 rec.sh
 printf 'study: cd\nscene_dir: %s\nscenes: oka\nrepeats: 1\npin: none\nraytrace: %s/rec.sh\n' "$T" "$T" > cd.conf
 # runs the study under env ARGS; sets GOT to the --cache DIR of its run
