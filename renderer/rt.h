@@ -374,6 +374,9 @@ void rt_say(const char *msg);
  * meanwhile is refused ("changed while it was read") instead of mixed.
  * 0, or -1 with "path: ..." in err. */
 int rt_read_file(const char *path, size_t max, char **data, size_t *len, RtError *err);
+/* Reads bytes 0..n of fd into buf, in pieces on every core (pread): 0 when
+ * all n came. rt_read_file and the scene cache's entries read through it. */
+int rt_read_fd(int fd, char *buf, size_t n);
 /* As rt_read_file, with the file's state the bytes were read in. */
 int rt_read_file_stat(const char *path, size_t max, char **data, size_t *len, struct stat *st, RtError *err);
 /* The median of v[0..n), n >= 1 (v is sorted in place: v[0] is the least). */

@@ -40,6 +40,18 @@ static int read_at(int fd, char *buf, size_t n, off_t off)
     return 0;
 }
 
+int rt_read_fd(int fd, char *buf, size_t n)
+{
+    const long pieces = (long)((n + RT_READ_PIECE - 1) / RT_READ_PIECE);
+    int bad = 0;
+#pragma omp parallel for schedule(dynamic, 1) reduction(| : bad) if (pieces > 2)
+    for (long i = 0; i < pieces; i++) {
+        const size_t a = (size_t)i * RT_READ_PIECE, b = a + RT_READ_PIECE < n ? a + RT_READ_PIECE : n;
+        bad |= read_at(fd, buf + a, b - a, (off_t)a) != 0;
+    }
+    return bad ? -1 : 0;
+}
+
 int rt_read_file(const char *path, size_t max, char **data, size_t *len, RtError *err)
 {
     struct stat st;
@@ -63,13 +75,7 @@ int rt_read_file_stat(const char *path, size_t max, char **data, size_t *len, st
         close(fd);
         return rt_fail(err, "%s: out of memory for %zu bytes", path, n);
     }
-    const long pieces = (long)((n + RT_READ_PIECE - 1) / RT_READ_PIECE);
-    int bad = 0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(| : bad) if (pieces > 2)
-    for (long i = 0; i < pieces; i++) {
-        const size_t a = (size_t)i * RT_READ_PIECE, b = a + RT_READ_PIECE < n ? a + RT_READ_PIECE : n;
-        bad |= read_at(fd, buf + a, b - a, (off_t)a) != 0;
-    }
+    const int bad = rt_read_fd(fd, buf, n) != 0;
     /* one byte more must not exist: a file that grew is a file that changed */
     char extra;
     const int grew = !bad && pread(fd, &extra, 1, (off_t)n) > 0;

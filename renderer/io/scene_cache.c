@@ -211,20 +211,7 @@ static int read_entry(int fd_dir, const char *name, void **out, size_t *len)
 #ifdef MADV_HUGEPAGE
     madvise(m, n, MADV_HUGEPAGE); /* (a 0.5 GB entry: 240 faults instead of 120,000) */
 #endif
-    const long pieces = (long)((n + RT_HASH_CHUNK - 1) / RT_HASH_CHUNK);
-    int bad = 0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(| : bad) if (pieces > 2)
-    for (long i = 0; i < pieces; i++) {
-        size_t a = (size_t)i * RT_HASH_CHUNK, b = a + RT_HASH_CHUNK < n ? a + RT_HASH_CHUNK : n;
-        while (a < b && !bad) {
-            const ssize_t r = pread(fd, m + a, b - a, (off_t)a);
-            if (r < 0 && errno == EINTR)
-                continue;
-            bad |= r <= 0;
-            a += r > 0 ? (size_t)r : 0;
-        }
-    }
-    bad |= fstat(fd, &after) != 0 || after.st_size != st.st_size;
+    const int bad = rt_read_fd(fd, m, n) != 0 || fstat(fd, &after) != 0 || after.st_size != st.st_size;
     close(fd);
     if (bad) {
         munmap(m, n);
