@@ -18,6 +18,7 @@
 #include "config.h"
 #include "rt.h"
 #include "rt_commit.h" /* RT_COMMIT: renderer/meson.build */
+#include "raybench/record_schema.h"
 
 typedef struct Options {
     const char *scene;
@@ -671,37 +672,138 @@ static int write_image(Run *r, RtError *err)
     return 0;
 }
 
-/* The record line (docs/record.md). */
-static void print_record(const Run *r)
+/* The record line: its keys, their types and order are declared once in
+ * include/raybench/record_schema.h (docs/record.md). Each key gets an index
+ * and a setter whose argument has the key's declared type; only keys set are
+ * printed, so a key cannot be printed without being declared, and
+ * tests/record_schema_test.sh fails when a declared MAIN key is not set. */
+enum {
+#define REC_INDEX(key, type, unit, col_kind, column, who, doc) REC_##key,
+    RT_RECORD_KEYS(REC_INDEX)
+#undef REC_INDEX
+    REC_COUNT
+};
+
+typedef struct RecValue {
+    int set;
+    union {
+        long long i;
+        unsigned long long u;
+        double d;
+        const char *s;
+    } v;
+} RecValue;
+
+#define REC_CTYPE_INT long long
+#define REC_CTYPE_UINT unsigned long long
+#define REC_CTYPE_F3 double
+#define REC_CTYPE_F4 double
+#define REC_CTYPE_HEX64 unsigned long long
+#define REC_CTYPE_STR const char *
+#define REC_FIELD_INT i
+#define REC_FIELD_UINT u
+#define REC_FIELD_F3 d
+#define REC_FIELD_F4 d
+#define REC_FIELD_HEX64 u
+#define REC_FIELD_STR s
+#define REC_SETTER(key, type, unit, col_kind, column, who, doc)                                        \
+    static inline void rec_##key(RecValue *v, REC_CTYPE_##type x)                                   \
+    {                                                                                                \
+        v[REC_##key].set = 1;                                                                        \
+        v[REC_##key].v.REC_FIELD_##type = x;                                                         \
+    }
+RT_RECORD_KEYS(REC_SETTER)
+#undef REC_SETTER
+
+/* raytrace's own keys; tile is written into tile[32]. */
+static void record_values(const Run *r, RecValue *v, char *tile)
 {
     const Options *o = r->o;
     const RtRenderOut *out = &r->out;
-    double total_ms = rt_now_ms() - r->t_start;
-    uint64_t rays = rt_counters_rays(&out->counters);
-    int tw = o->tile_w ? o->tile_w : (strcmp(r->be->name, "serial") == 0 ? 32 : 16);
-    int th = o->tile_h ? o->tile_h : tw;
-    char calib_key[48] = "", min_key[48] = "", isa_key[32] = "";
-    if (!r->be->gpu) /* the CPU traversal's instruction set */
-        snprintf(isa_key, sizeof isa_key, " isa=%s", rt_cpu_isa_name());
+    const uint64_t rays = rt_counters_rays(&out->counters);
+    const int tw = o->tile_w ? o->tile_w : (strcmp(r->be->name, "serial") == 0 ? 32 : 16);
+    snprintf(tile, 32, "%dx%d", tw, o->tile_h ? o->tile_h : tw);
+    rec_scene(v, r->scene.name);
+    rec_width(v, r->cam.width);
+    rec_height(v, r->cam.height);
+    rec_backend(v, r->be->name);
+    rec_accel(v, rt_accel_name(o->accel));
+    rec_threads(v, out->threads_used);
+    rec_ranks(v, out->ranks_used);
+    rec_parse_ms(v, r->parse_ms);
+    rec_build_ms(v, r->build_ms);
+    rec_render_ms(v, out->render_ms);
+    rec_write_ms(v, r->write_ms);
+    rec_total_ms(v, rt_now_ms() - r->t_start);
+    rec_rays(v, rays);
+    rec_primary_rays(v, out->counters.primary_rays);
+    rec_shadow_rays(v, out->counters.shadow_rays);
+    rec_secondary_rays(v, out->counters.secondary_rays);
+    rec_node_visits(v, out->counters.node_visits);
+    rec_prim_tests(v, out->counters.prim_tests);
+    rec_mrays_per_s(v, out->render_ms > 0.0 ? (double)rays / (out->render_ms * 1000.0) : 0.0);
+    rec_image_fnv1a(v, r->hash);
+    rec_tile(v, tile);
+    rec_cores(v, out->cores[0] ? out->cores : "unknown");
+    rec_prims(v, r->accel.nprims - r->accel.nsplit);
+    rec_bvh_nodes(v, r->accel.nnodes);
+    rec_runs(v, out->runs);
+    rec_warmups(v, out->warmups);
+    rec_render_ms_best(v, out->render_ms_best);
+    rec_build_threads(v, r->accel.build_threads);
+    rec_huge_pages(v, r->accel.huge_pages ? "on" : "off");
+    rec_sah_cost(v, r->accel.sah_cost);
+    rec_cache(v, r->cache);
+    rec_commit(v, RT_COMMIT);
     if (r->col) /* several processes: the fastest rank's time shows the imbalance */
-        snprintf(min_key, sizeof min_key, " render_ms_min=%.3f", out->render_ms_min);
+        rec_render_ms_min(v, out->render_ms_min);
+    if (!r->be->gpu) /* the CPU traversal's instruction set */
+        rec_isa(v, rt_cpu_isa_name());
     if (o->calibrate)
-        snprintf(calib_key, sizeof calib_key, " calib_ms=%.3f", r->calib_ms);
-    printf("record: scene=%s width=%d height=%d backend=%s accel=%s threads=%d ranks=%d parse_ms=%.3f "
-           "build_ms=%.3f render_ms=%.3f write_ms=%.3f total_ms=%.3f rays=%llu primary_rays=%llu "
-           "shadow_rays=%llu secondary_rays=%llu node_visits=%llu prim_tests=%llu mrays_per_s=%.3f "
-           "image_fnv1a=%016llx tile=%dx%d cores=%s prims=%u bvh_nodes=%u runs=%d warmups=%d render_ms_best=%.3f build_threads=%d huge_pages=%s "
-           "sah_cost=%.4f cache=%s commit=%s%s%s%s%s\n",
-           r->scene.name, r->cam.width, r->cam.height, r->be->name, rt_accel_name(o->accel), out->threads_used,
-           out->ranks_used, r->parse_ms, r->build_ms, out->render_ms, r->write_ms, total_ms,
-           (unsigned long long)rays, (unsigned long long)out->counters.primary_rays,
-           (unsigned long long)out->counters.shadow_rays, (unsigned long long)out->counters.secondary_rays,
-           (unsigned long long)out->counters.node_visits, (unsigned long long)out->counters.prim_tests,
-           out->render_ms > 0.0 ? (double)rays / (out->render_ms * 1000.0) : 0.0, (unsigned long long)r->hash, tw,
-           th, out->cores[0] ? out->cores : "unknown", r->accel.nprims - r->accel.nsplit, r->accel.nnodes, out->runs,
-           out->warmups, out->render_ms_best, r->accel.build_threads, r->accel.huge_pages ? "on" : "off", r->accel.sah_cost,
-           r->cache, RT_COMMIT, min_key, isa_key,
-           out->extra, calib_key);
+        rec_calib_ms(v, r->calib_ms);
+}
+
+/* The keys set, in declaration order: the LAST ones (after the backend's
+ * keys) or all others. */
+static void print_record_keys(const RecValue *v, int last)
+{
+#define REC_NAME(key, type, unit, col_kind, column, who, doc) #key,
+#define REC_TYPE(key, type, unit, col_kind, column, who, doc) RT_REC_##type,
+#define REC_WHO(key, type, unit, col_kind, column, who, doc) RT_REC_##who,
+    static const char *const name[REC_COUNT] = {RT_RECORD_KEYS(REC_NAME)};
+    static const RtRecType type[REC_COUNT] = {RT_RECORD_KEYS(REC_TYPE)};
+    static const RtRecWho who[REC_COUNT] = {RT_RECORD_KEYS(REC_WHO)};
+#undef REC_NAME
+#undef REC_TYPE
+#undef REC_WHO
+    for (int k = 0; k < REC_COUNT; k++) {
+        if (!v[k].set || (who[k] == RT_REC_LAST) != last)
+            continue;
+        printf(" %s=", name[k]);
+        switch (type[k]) {
+        case RT_REC_INT: printf("%lld", v[k].v.i); break;
+        case RT_REC_UINT: printf("%llu", v[k].v.u); break;
+        case RT_REC_F3: printf("%.3f", v[k].v.d); break;
+        case RT_REC_F4: printf("%.4f", v[k].v.d); break;
+        case RT_REC_HEX64: printf("%016llx", v[k].v.u); break;
+        case RT_REC_STR: fputs(v[k].v.s, stdout); break;
+        }
+    }
+}
+
+/* The record line (docs/record.md): raytrace's keys, the backend's, then
+ * the LAST ones. */
+static void print_record(const Run *r)
+{
+    RecValue v[REC_COUNT];
+    char tile[32];
+    memset(v, 0, sizeof v);
+    record_values(r, v, tile);
+    fputs("record:", stdout);
+    print_record_keys(v, 0);
+    fputs(r->out.extra, stdout);
+    print_record_keys(v, 1);
+    putchar('\n');
     fflush(stdout);
 }
 
