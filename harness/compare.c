@@ -103,6 +103,8 @@ static char *effective_id(const HxStudy *s, const HxGroup *g)
                                          {"ranks", "rec_ranks"},       {NULL, NULL}};
     const size_t row = g->ok_row; /* a row with a record, where there is one */
     const char *backend = hx_csv_get(&s->csv, row, "backend");
+    if (strcmp(backend, "-") == 0) /* a command study: program, params, workers */
+        return hx_strdup(g->config_id);
     const char *v[HX_NDIM];
     char res[64];
     for (int d = 0; d < HX_NDIM; d++) {
@@ -117,7 +119,7 @@ static char *effective_id(const HxStudy *s, const HxGroup *g)
             v[d] = res;
         }
     }
-    return hx_make_config_id(v);
+    return hx_make_config_id(v, NULL);
 }
 
 /* The group of s that is g's configuration, NULL if none. */
@@ -135,10 +137,20 @@ static const HxGroup *match(const HxStudy *s, const HxStudy *gs, const HxGroup *
     return found;
 }
 
+/* Whether any row has a render_ms (raytrace's rows, not a command's). */
+static int has_render_ms(const HxCsv *csv)
+{
+    for (size_t r = 0; r < csv->nrows; r++)
+        if (*hx_csv_get(csv, r, "render_ms"))
+            return 1;
+    return 0;
+}
+
 typedef struct {
     double factor, alpha, min_ms;
     const char *unit;
     int fp_differs;
+    int higher;      /* the metric is a rate: higher is better */
 } Rule;
 
 /* One configuration's verdict: ok, REGRESSION, IMPROVEMENT or new. */
@@ -218,9 +230,23 @@ static int counters_changed(const HxStudy *nw, const HxStudy *base, const HxGrou
 }
 
 /* The noise-aware time rule for one configuration (docs/harness.md). */
+/* The best sample: the fastest time, or the highest rate. */
+static double best_sample(const HxGroup *g, int higher)
+{
+    double v = g->min;
+    for (size_t i = 0; higher && i < g->nt; i++)
+        v = i == 0 || g->t[i] > v ? g->t[i] : v;
+    return v;
+}
+
 static void judge_time(const HxGroup *n, const HxGroup *b, const Rule *rule, Verdicts *vs)
 {
-    double ratio = n->median / b->median, rmin = n->min / b->min;
+    /* ratio and rmin as costs, above 1 worse, whatever the direction */
+    double ratio = n->median / b->median, rmin = best_sample(n, rule->higher) / best_sample(b, rule->higher);
+    if (rule->higher) {
+        ratio = 1.0 / ratio;
+        rmin = 1.0 / rmin;
+    }
     HxBuf r = {0};
     if (b->raw_median < rule->min_ms) { /* render_ms, whatever the metric */
         hx_buf_printf(&r, "render_ms %.3f -> %.3f too short to judge (< %.3g ms)", b->raw_median, n->raw_median,
@@ -244,7 +270,8 @@ static void judge_time(const HxGroup *n, const HxGroup *b, const Rule *rule, Ver
         fast = ratio < 1.0 / rule->factor && rmin < 1.0 / rule->factor;
         snprintf(how, sizeof how, "min ratio %.2f, n=%zu/%zu (too few for a test)", rmin, n->nt, b->nt);
     }
-    hx_buf_printf(&r, "median %.3f -> %.3f%s%s, ratio %.3f (%s)%s", b->median, n->median, *rule->unit ? " " : "", rule->unit, ratio, how,
+    hx_buf_printf(&r, "median %.3f -> %.3f%s%s, %s %.3f (%s)%s", b->median, n->median, *rule->unit ? " " : "",
+                  rule->unit, rule->higher ? "cost ratio (base/new)" : "ratio", ratio, how,
                   (slow || fast) && rule->fp_differs ? " [different machines]" : "");
     Verdict *v = push_verdict(vs, b, slow ? "REGRESSION" : fast ? "IMPROVEMENT" : "ok", r.s, n);
     v->base_median = b->median;
@@ -391,7 +418,7 @@ int hx_cmd_compare(int argc, char **argv)
         hx_csv_free(&nw.csv);
         return 1;
     }
-    if (!metric) {
+    if (!metric && has_render_ms(&nw.csv) && has_render_ms(&base.csv)) {
         /* calibrated times where both studies have them (--calibrate) */
         int calibrated = has_calib(&nw.csv) && has_calib(&base.csv);
         metric = calibrated ? "render_ms/calib" : "render_ms";
@@ -422,9 +449,8 @@ int hx_cmd_compare(int argc, char **argv)
         for (size_t i = 0; i < fpn.n; i++)
             printf("  new:  %s\n", fpn.v[i]);
     }
-    size_t ml = strlen(metric);
-    const char *unit = strchr(metric, '/') ? "x calib" : (ml > 3 && !strcmp(metric + ml - 3, "_ms") ? "ms" : "");
-    Rule rule = {factor, alpha, min_ms, unit, fp_differs};
+    metric = nw.metric; /* a command study's default, its unit and direction */
+    Rule rule = {factor, alpha, min_ms, nw.unit, fp_differs, nw.higher};
     Verdicts v = {0};
     for (size_t i = 0; i < base.ng; i++)
         judge(&nw, &base, &base.g[i], &rule, &v);

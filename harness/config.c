@@ -6,6 +6,7 @@
  * the runs are the cartesian product. Every error names FILE:LINE so a typo
  * in a 40-line sweep is found at once, before hours of runs start. */
 #include "hx.h"
+#include "program.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -20,12 +21,6 @@ const char *const hx_dim_key[HX_NDIM] = {
 const char *const hx_dim_col[HX_NDIM] = {
     "scene", "backend", "accel", "resolution", "max_depth", "tile",
     "schedule", "threads", "ranks", "mpi_schedule", "block", "pin"};
-
-static const char *const backends[] = {"serial", "openmp", "mpi", "cuda", "mpi-cuda", NULL};
-static const char *const accels[] = {"none", "bvh", NULL};
-static const char *const schedules[] = {"tiles", "pixels", NULL};
-static const char *const mpi_schedules[] = {"dynamic", "rows", NULL};
-static const char *const pins[] = {"none", "close", "spread", NULL};
 
 /* Which option each backend understands. A dimension that does not apply
  * collapses to "-" for that backend, so `threads: 1 2` next to a serial
@@ -49,8 +44,15 @@ int hx_config_has(const HxConfig *cfg, int (*pred)(const char *))
     return 0;
 }
 
+int hx_run_is_mpi(const char *const v[HX_NDIM])
+{
+    return hx_backend_mpi(v[HX_DIM_BACKEND]) || (strcmp(v[HX_DIM_BACKEND], "-") == 0 && strcmp(v[HX_DIM_RANKS], "-") != 0);
+}
+
 int hx_dim_applies(int dim, const char *backend)
 {
+    if (strcmp(backend, "-") == 0) /* a command study: its cores and ranks */
+        return dim == HX_DIM_THREADS || dim == HX_DIM_RANKS || dim == HX_DIM_PIN;
     switch (dim) {
     case HX_DIM_TILE:
         return !hx_backend_gpu(backend);
@@ -86,85 +88,6 @@ static int set_err(char *err, size_t errlen, const HxConfig *cfg, int line,
     else
         snprintf(err, errlen, "%s:%d: %s", cfg->path, line, msg);
     return -1;
-}
-
-static int in_set(const char *v, const char *const *set)
-{
-    for (; *set; set++)
-        if (strcmp(v, *set) == 0)
-            return 1;
-    return 0;
-}
-
-static void set_join(char *out, size_t n, const char *const *set)
-{
-    out[0] = '\0';
-    for (const char *const *s = set; *s; s++) {
-        if (s != set)
-            strncat(out, "|", n - strlen(out) - 1);
-        strncat(out, *s, n - strlen(out) - 1);
-    }
-}
-
-/* Validates one value of a swept dimension. */
-static int check_dim_value(int dim, const char *v, char *why, size_t n)
-{
-    const char *const *set = NULL;
-    long a, b;
-    /* block: "-" is the renderer's default, which depends on the image
-     * (docs/gpu.md, large images), swept beside explicit shapes */
-    if (dim == HX_DIM_BLOCK && strcmp(v, "-") == 0)
-        return 0;
-    switch (dim) {
-    case HX_DIM_BACKEND: set = backends; break;
-    case HX_DIM_ACCEL: set = accels; break;
-    case HX_DIM_SCHEDULE: set = schedules; break;
-    case HX_DIM_MPI_SCHEDULE: set = mpi_schedules; break;
-    case HX_DIM_PIN: set = pins; break;
-    case HX_DIM_THREADS:
-    case HX_DIM_RANKS:
-        if (hx_parse_int(v, 1, 4096, &a)) {
-            snprintf(why, n, "expected an integer 1..4096, got '%s'", v);
-            return -1;
-        }
-        return 0;
-    case HX_DIM_MAX_DEPTH:
-        if (hx_parse_int(v, 0, 32, &a)) { /* raytrace's RT_MAX_DEPTH */
-            snprintf(why, n, "expected an integer 0..32, got '%s'", v);
-            return -1;
-        }
-        return 0;
-    case HX_DIM_TILE:
-    case HX_DIM_BLOCK:
-    case HX_DIM_RESOLUTION:
-        if (hx_parse_wxh(v, &a, &b)) {
-            snprintf(why, n, "expected WxH (e.g. 16x16), got '%s'", v);
-            return -1;
-        }
-        /* the renderer's own limits, so a study fails here, not run by run */
-        if (dim == HX_DIM_RESOLUTION && (a > 32768 || b > 32768 || a * b > (1L << 28))) {
-            snprintf(why, n, "resolution %s exceeds raytrace's limit (32768 per side, 2^28 pixels)", v);
-            return -1;
-        }
-        if (dim == HX_DIM_TILE && (a > 4096 || b > 4096)) {
-            snprintf(why, n, "tile %s exceeds raytrace's limit (4096 per side)", v);
-            return -1;
-        }
-        if (dim == HX_DIM_BLOCK && a * b > 1024) {
-            snprintf(why, n, "block %s has more than 1024 threads", v);
-            return -1;
-        }
-        return 0;
-    default:
-        return 0;
-    }
-    if (!in_set(v, set)) {
-        char opts[128];
-        set_join(opts, sizeof opts, set);
-        snprintf(why, n, "expected one of %s, got '%s'", opts, v);
-        return -1;
-    }
-    return 0;
 }
 
 /* Finds a scene: DIR/NAME, DIR/NAME.txt, or one level down
@@ -327,6 +250,9 @@ static int parse_timeout(const char *v, double *out)
     return 0;
 }
 
+static int dim_values(int lineno, int dim, const char *key, const HxStrList *vals, HxConfig *cfg, char *err,
+                      size_t errlen);
+
 /* A swept key's values (dimension dim) from line lineno. 0, or -1 with err
  * set. */
 static int parse_dim(int lineno, int dim, const char *key, const HxStrList *vals,
@@ -336,9 +262,32 @@ static int parse_dim(int lineno, int dim, const char *key, const HxStrList *vals
         return set_err(err, errlen, cfg, lineno, "key '%s' already set on line %d",
                        key, cfg->dim_line[dim]);
     cfg->dim_line[dim] = lineno;
+    char why[256];
+    HxStrList words = {0}, list = {0};
+    for (size_t i = 0; i < vals->n; i++)
+        hx_strlist_push(&words, vals->v[i]);
+    int rc = dim == HX_DIM_SCENE || dim == HX_DIM_BACKEND ? 0 : hx_split_when(&words, &cfg->dim_when[dim], why, sizeof why);
+    if (rc == 0 && (dim == HX_DIM_SCENE || dim == HX_DIM_BACKEND)) /* names, never ranges */
+        for (size_t i = 0; i < words.n; i++)
+            hx_strlist_push(&list, words.v[i]);
+    else if (rc == 0)
+        rc = hx_values_expand(&words, &list, why, sizeof why);
+    hx_strlist_free(&words);
+    if (rc == 0)
+        rc = dim_values(lineno, dim, key, &list, cfg, err, errlen);
+    else
+        set_err(err, errlen, cfg, lineno, "%s: %s", key, why);
+    hx_strlist_free(&list);
+    return rc;
+}
+
+/* The values of a swept key, after ranges and scope. */
+static int dim_values(int lineno, int dim, const char *key, const HxStrList *vals, HxConfig *cfg, char *err,
+                      size_t errlen)
+{
     for (size_t i = 0; i < vals->n; i++) {
         char why[256];
-        if (check_dim_value(dim, vals->v[i], why, sizeof why))
+        if (hx_dim_value_check(dim, vals->v[i], why, sizeof why))
             return set_err(err, errlen, cfg, lineno, "%s: %s", key, why);
         if (hx_strlist_find(&cfg->dim[dim], vals->v[i]) >= 0)
             return set_err(err, errlen, cfg, lineno, "%s: value '%s' listed twice",
@@ -438,6 +387,46 @@ static int parse_key(int lineno, const char *key, const HxStrList *vals,
     return parse_scalar(lineno, key, vals->v[0], cfg, err, errlen);
 }
 
+/* "param  n" as "param n": one blank between a key's words, in place. */
+static char *squeeze(char *k)
+{
+    char *o = k;
+    for (const char *i = k; *i; i++)
+        if (*i != ' ' && *i != '\t')
+            *o++ = *i;
+        else if (o > k && o[-1] != ' ')
+            *o++ = ' ';
+    *o = '\0';
+    return k;
+}
+
+/* Cuts the line at its comment: '#' starts one, except inside quotes in
+ * the value of a command study's key (a command's argument, a pattern). */
+static void cut_comment(char *line)
+{
+    char *colon = strchr(line, ':'), *hash = strchr(line, '#');
+    if (!hash)
+        return;
+    if (!colon || hash < colon) {
+        *hash = '\0';
+        return;
+    }
+    char key[128];
+    snprintf(key, sizeof key, "%.*s", (int)(colon - line), line);
+    if (!hx_program_key(squeeze(hx_trim(key)))) {
+        *hash = '\0';
+        return;
+    }
+    for (char *c = colon, q = 0; *c; c++) {
+        if (*c == '#' && !q) {
+            *c = '\0';
+            return;
+        }
+        if (*c == '\'' || *c == '"')
+            q = q == *c ? 0 : q ? q : *c;
+    }
+}
+
 /* The key as the parser knows it: "scene" is "scenes". */
 static const char *canonical_key(const char *key)
 {
@@ -452,13 +441,16 @@ static const char *override_key(const char *kv, char *buf, size_t n)
     return canonical_key(hx_trim(buf));
 }
 
-/* Whether an override (cfg->set) gives key. */
+/* Whether an override (cfg->set) gives key ("param n" is given by n=...). */
 static int overridden(const HxConfig *cfg, const char *key)
 {
     char buf[128];
-    for (size_t i = 0; i < cfg->set.n; i++)
-        if (strcmp(override_key(cfg->set.v[i], buf, sizeof buf), canonical_key(key)) == 0)
+    const char *param = strncmp(key, "param ", 6) == 0 ? key + 6 : NULL;
+    for (size_t i = 0; i < cfg->set.n; i++) {
+        const char *k = override_key(cfg->set.v[i], buf, sizeof buf);
+        if (strcmp(k, canonical_key(key)) == 0 || (param && strcmp(k, param) == 0))
             return 1;
+    }
     return 0;
 }
 
@@ -470,9 +462,7 @@ static int parse_line(int lineno, char *line, HxConfig *cfg, int *seen_scalar,
         if (hx_is_ctrl(*c) && *c != '\t')
             /* names from here reach CSV cells, tables and Slurm scripts */
             return set_err(err, errlen, cfg, lineno, "control character 0x%02x in the line", *c);
-    char *hash = strchr(line, '#');
-    if (hash)
-        *hash = '\0';
+    cut_comment(line);
     char *s = hx_trim(line);
     if (*s == '\0')
         return 0;
@@ -480,10 +470,17 @@ static int parse_line(int lineno, char *line, HxConfig *cfg, int *seen_scalar,
     if (!colon)
         return set_err(err, errlen, cfg, lineno, "expected 'key: values', got '%s'", s);
     *colon = '\0';
-    char *key = hx_trim(s);
+    char *key = squeeze(hx_trim(s));
     char *val = hx_trim(colon + 1);
-    if (lineno > 0 && overridden(cfg, key))
+    if (lineno > 0 && overridden(cfg, key)) {
+        hx_strlist_push(&cfg->set_seen, key);
         return 0; /* harness run --set KEY=...: that line is replaced */
+    }
+    if (hx_program_key(key)) {
+        char why[512];
+        return hx_program_line(cfg, lineno, key, val, why, sizeof why) ? set_err(err, errlen, cfg, lineno, "%s", why)
+                                                                       : 0;
+    }
     HxStrList vals = {0};
     split_values(val, &vals);
     int rc = parse_key(lineno, key, &vals, cfg, seen_scalar, err, errlen);
@@ -494,13 +491,64 @@ static int parse_line(int lineno, char *line, HxConfig *cfg, int *seen_scalar,
 /* After the last line (lineno): the default study name, the checks across
  * keys, the defaults, and the scenes resolved to files. 0, or -1 with err
  * set. */
+/* The scopes (`when`) of the swept keys, and the worker keys a backend
+ * takes: `threads: 1 2` beside serial alone would plan serial runs only. */
+static int finish_dims(HxConfig *cfg, char *err, size_t errlen)
+{
+    char why[256];
+    for (int d = 0; d < HX_NDIM; d++)
+        if (hx_scope_resolve(cfg, &cfg->dim_when[d], cfg->nparams, why, sizeof why) != 0)
+            return set_err(err, errlen, cfg, cfg->dim_line[d], "%s: %s", hx_dim_key[d], why);
+    static const int worker[2] = {HX_DIM_THREADS, HX_DIM_RANKS};
+    for (int i = 0; i < 2 && !cfg->prog; i++) {
+        int d = worker[i], used = 0;
+        for (size_t b = 0; b < cfg->dim[HX_DIM_BACKEND].n; b++)
+            used |= hx_dim_applies(d, cfg->dim[HX_DIM_BACKEND].v[b]);
+        if (cfg->dim_line[d] && !used) { /* a warning: older configs did this */
+            char w[512];
+            set_err(w, sizeof w, cfg, cfg->dim_line[d], "warning: %s: no backend of the study takes it (backend: %s), "
+                    "so no run sweeps it; add %s to backend", hx_dim_key[d], cfg->dim[HX_DIM_BACKEND].v[0],
+                    d == HX_DIM_THREADS ? "openmp or mpi" : "mpi or mpi-cuda");
+            hx_strlist_push(&cfg->warnings, w);
+        }
+    }
+    return 0;
+}
+
+/* A command study: raytrace's keys refused, its program checked. */
+static int finish_command(const int *seen_scalar, HxConfig *cfg, char *err, size_t errlen)
+{
+    for (int d = 0; d < HX_NDIM; d++)
+        if (cfg->dim_line[d] && !hx_dim_applies(d, "-"))
+            return set_err(err, errlen, cfg, cfg->dim_line[d], "key '%s' is raytrace's: a command study sweeps its "
+                           "own parameters ('param NAME: VALUES')", hx_dim_key[d]);
+    static const int raytrace_only[] = {1, 7, 10, 11}; /* scene_dir, raytrace, scene_cache, instructions */
+    for (int i = 0; i < 4; i++)
+        if (seen_scalar[raytrace_only[i]])
+            return set_err(err, errlen, cfg, seen_scalar[raytrace_only[i]], "key '%s' is raytrace's, not for a "
+                           "command study", scalar_keys[raytrace_only[i]]);
+    if (cfg->extra_args.n)
+        return set_err(err, errlen, cfg, cfg->prog->key_line[0] ? cfg->prog->key_line[0] : 1,
+                       "extra_args is raytrace's: put the arguments in 'command:'");
+    hx_strlist_push(&cfg->dim[HX_DIM_SCENE], "-");
+    hx_strlist_push(&cfg->scene_path, "-");
+    hx_strlist_push(&cfg->dim[HX_DIM_BACKEND], "-");
+    if (!cfg->baseline)
+        cfg->baseline = hx_strdup("workers=1");
+    int line;
+    char why[512];
+    if (hx_program_finish(cfg, &line, why, sizeof why) != 0)
+        return set_err(err, errlen, cfg, line, "%s", why);
+    return 0;
+}
+
+/* After the last line (lineno): the default study name, the checks across
+ * keys, the defaults, and the scenes resolved to files. 0, or -1 with err
+ * set. */
 static int config_finish(const char *path, int lineno, const int *seen_scalar, HxConfig *cfg,
                          char *err, size_t errlen)
 {
     int rc = 0;
-    if (!cfg->dim_line[HX_DIM_SCENE])
-        return set_err(err, errlen, cfg, lineno > 0 ? lineno : 1,
-                       "missing required key 'scenes'");
     if (!cfg->study) {
         /* Default study name: the config's file name without .conf. */
         const char *base = strrchr(path, '/');
@@ -510,6 +558,16 @@ static int config_finish(const char *path, int lineno, const int *seen_scalar, H
             n -= 5;
         cfg->study = hx_strndup(base, n);
     }
+    if (!cfg->mpirun)
+        cfg->mpirun = hx_strdup("mpirun");
+    if (cfg->prog) {
+        rc = finish_command(seen_scalar, cfg, err, errlen);
+        fill_default_dims(cfg);
+        return rc ? rc : finish_dims(cfg, err, errlen);
+    }
+    if (!cfg->dim_line[HX_DIM_SCENE])
+        return set_err(err, errlen, cfg, lineno > 0 ? lineno : 1,
+                       "missing required key 'scenes' (or 'command:' for a command study)");
     /* threads waiting in a barrier spin: only one thread counts exactly */
     for (size_t i = 0; cfg->instructions && i < cfg->dim[HX_DIM_BACKEND].n; i++)
         if (strcmp(cfg->dim[HX_DIM_BACKEND].v[i], "serial") != 0)
@@ -518,9 +576,9 @@ static int config_finish(const char *path, int lineno, const int *seen_scalar, H
                            cfg->dim[HX_DIM_BACKEND].v[i]);
     if (!cfg->baseline)
         cfg->baseline = hx_strdup("backend=serial");
-    if (!cfg->mpirun)
-        cfg->mpirun = hx_strdup("mpirun");
     fill_default_dims(cfg);
+    if (finish_dims(cfg, err, errlen) != 0)
+        return -1;
 
     /* Resolve scenes now, so a missing file fails before any run starts. */
     int sline = cfg->dim_line[HX_DIM_SCENE];
@@ -545,9 +603,18 @@ static int config_finish(const char *path, int lineno, const int *seen_scalar, H
     return rc;
 }
 
+/* A key of the config format (a param's bare NAME is not). */
+static int known_key(const char *k)
+{
+    int known = dim_of_key(k) >= 0 || strcmp(k, "extra_args") == 0 || hx_program_key(k);
+    for (int j = 0; scalar_keys[j]; j++)
+        known |= strcmp(k, scalar_keys[j]) == 0;
+    return known;
+}
+
 /* The overrides of `harness run --set` (cfg->set, "KEY=VALUE"), checked
  * before the file is read: the form, a known key, each key once. */
-static int check_overrides(const HxConfig *cfg, char *err, size_t errlen)
+static int check_overrides(HxConfig *cfg, char *err, size_t errlen)
 {
     for (size_t i = 0; i < cfg->set.n; i++) {
         const char *kv = cfg->set.v[i], *eq = strchr(kv, '=');
@@ -556,11 +623,11 @@ static int check_overrides(const HxConfig *cfg, char *err, size_t errlen)
             return set_err(err, errlen, cfg, line, "expected KEY=VALUE (e.g. threads='1 2 4')");
         char key[128], other[128];
         const char *k = override_key(kv, key, sizeof key);
-        int known = dim_of_key(k) >= 0 || strcmp(k, "extra_args") == 0;
-        for (int j = 0; scalar_keys[j]; j++)
-            known |= strcmp(k, scalar_keys[j]) == 0;
+        int known = known_key(k);
         if (!*k)
             return set_err(err, errlen, cfg, line, "expected KEY=VALUE, the key is empty");
+        /* NAME=VALUES may be a param of the config: known once it is read */
+        known |= strspn(k, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_") == strlen(k);
         if (!known)
             return set_err(err, errlen, cfg, line, "unknown key '%s'", k);
         for (size_t j = 0; j < i; j++)
@@ -576,7 +643,19 @@ static int parse_overrides(HxConfig *cfg, int *seen_scalar, char *err, size_t er
     int rc = 0;
     for (size_t i = 0; i < cfg->set.n && rc == 0; i++) {
         const char *kv = cfg->set.v[i], *eq = strchr(kv, '=');
-        HxBuf line = {0};
+        HxBuf line = {0}, pk = {0};
+        char key[128];
+        const char *k = override_key(kv, key, sizeof key);
+        int known = known_key(k);
+        hx_buf_printf(&pk, "param %s", k);
+        if (!known && hx_strlist_find(&cfg->set_seen, pk.s) < 0)
+            rc = set_err(err, errlen, cfg, -(int)i - 1, "unknown key '%s'%s", k,
+                         cfg->prog ? " (and no param of that name)" : "");
+        else if (!known) /* NAME=VALUES: the config's param NAME */
+            hx_buf_put(&line, "param ");
+        hx_buf_free(&pk);
+        if (rc)
+            break;
         hx_buf_putn(&line, kv, (size_t)(eq - kv));
         hx_buf_printf(&line, ": %s", eq + 1);
         rc = parse_line(-(int)i - 1, line.s, cfg, seen_scalar, err, errlen);
@@ -620,22 +699,6 @@ int hx_config_parse_set(const char *path, const char *text, const HxStrList *set
     return config_finish(path, lineno, seen_scalar, cfg, err, errlen);
 }
 
-/* The number of runs the config expands to (hx_expand), counted without
- * building the plan: dimensions a backend does not use count once. */
-static double plan_size(const HxConfig *cfg)
-{
-    double total = 0;
-    for (size_t b = 0; b < cfg->dim[HX_DIM_BACKEND].n; b++) {
-        double n = (double)cfg->dim[HX_DIM_SCENE].n * (double)(cfg->repeats + cfg->warmup);
-        for (int d = 0; d < HX_NDIM; d++)
-            if (d != HX_DIM_SCENE && d != HX_DIM_BACKEND && cfg->dim[d].n &&
-                hx_dim_applies(d, cfg->dim[HX_DIM_BACKEND].v[b]))
-                n *= (double)cfg->dim[d].n;
-        total += n;
-    }
-    return total;
-}
-
 int hx_config_load(const char *path, HxConfig *cfg, char *err, size_t errlen)
 {
     return hx_config_load_set(path, NULL, cfg, err, errlen);
@@ -652,7 +715,7 @@ int hx_config_load_set(const char *path, const HxStrList *set, HxConfig *cfg, ch
     }
     int rc = hx_config_parse_set(path, b.s ? b.s : "", set, cfg, err, errlen);
     hx_buf_free(&b);
-    double runs = rc == 0 ? plan_size(cfg) : 0;
+    double runs = rc == 0 ? hx_plan_size(cfg) : 0;
     if (runs > HX_MAX_RUNS) {
         snprintf(err, errlen, "%s: the study expands to %.0f runs (warm-ups included), more than the "
                  "limit of %d: split it into several configs", path, runs, HX_MAX_RUNS);
@@ -685,6 +748,11 @@ void hx_config_free(HxConfig *cfg)
     hx_strlist_free(&cfg->scene_path);
     hx_strlist_free(&cfg->extra_args);
     hx_strlist_free(&cfg->set);
+    hx_strlist_free(&cfg->set_seen);
+    hx_strlist_free(&cfg->warnings);
+    for (int d = 0; d < HX_NDIM; d++)
+        hx_scope_free(&cfg->dim_when[d]);
+    hx_program_free(cfg);
     free(cfg->scene_dir);
     free(cfg->baseline);
     free(cfg->raytrace);
@@ -693,107 +761,3 @@ void hx_config_free(HxConfig *cfg)
     memset(cfg, 0, sizeof *cfg);
 }
 
-char *hx_make_config_id(const char *const v[HX_NDIM])
-{
-    /* A readable, stable key: the same run gets the same id in every study,
-     * which is what --resume and `compare` match on. */
-    HxBuf b = {0};
-    for (int d = 0; d < HX_NDIM; d++) {
-        if (d)
-            hx_buf_put(&b, " ");
-        hx_buf_printf(&b, "%s=%s", hx_dim_col[d], v[d]);
-    }
-    return b.s;
-}
-
-static void push_run(HxPlan *plan, size_t *cap, const HxConfig *cfg,
-                     const char *const v[HX_NDIM], size_t scene_idx, int repeat,
-                     int warmup)
-{
-    if (plan->n == *cap) {
-        *cap = *cap ? 2 * *cap : 64;
-        plan->runs = hx_xrealloc(plan->runs, *cap * sizeof *plan->runs);
-    }
-    HxRun *r = &plan->runs[plan->n++];
-    memset(r, 0, sizeof *r);
-    for (int d = 0; d < HX_NDIM; d++)
-        r->v[d] = v[d];
-    r->scene_path = cfg->scene_path.v[scene_idx];
-    r->scene_name = v[HX_DIM_SCENE];
-    r->repeat = repeat;
-    r->warmup = warmup;
-    long w = 1, t = 1;
-    if (strcmp(v[HX_DIM_THREADS], "-") != 0)
-        hx_parse_int(v[HX_DIM_THREADS], 1, 4096, &w);
-    if (hx_backend_mpi(v[HX_DIM_BACKEND]) && strcmp(v[HX_DIM_RANKS], "-") != 0)
-        hx_parse_int(v[HX_DIM_RANKS], 1, 4096, &t);
-    r->workers = (int)(w * t);
-    r->config_id = hx_make_config_id(v);
-    HxBuf b = {0};
-    hx_buf_printf(&b, "%s #r%d", r->config_id, repeat);
-    r->run_id = b.s;
-}
-
-/* Recursive cartesian product over dimensions d..HX_NDIM-1. */
-static void expand_rec(const HxConfig *cfg, HxPlan *plan, size_t *cap,
-                       const char *v[HX_NDIM], size_t scene_idx, int d)
-{
-    if (d == HX_NDIM) {
-        for (int w = 0; w < cfg->warmup; w++)
-            push_run(plan, cap, cfg, v, scene_idx, w - cfg->warmup, 1);
-        for (int r = 0; r < cfg->repeats; r++)
-            push_run(plan, cap, cfg, v, scene_idx, r, 0);
-        return;
-    }
-    if (d == HX_DIM_SCENE) {
-        for (size_t i = 0; i < cfg->dim[d].n; i++) {
-            v[d] = cfg->dim[d].v[i];
-            expand_rec(cfg, plan, cap, v, i, d + 1);
-        }
-        return;
-    }
-    if (d == HX_DIM_BACKEND) {
-        /* serial first (the image reference), then the config's order */
-        for (int pass = 0; pass < 2; pass++)
-            for (size_t i = 0; i < cfg->dim[d].n; i++) {
-                int is_serial = strcmp(cfg->dim[d].v[i], "serial") == 0;
-                if (is_serial != (pass == 0))
-                    continue;
-                v[d] = cfg->dim[d].v[i];
-                expand_rec(cfg, plan, cap, v, scene_idx, d + 1);
-            }
-        return;
-    }
-    if (!hx_dim_applies(d, v[HX_DIM_BACKEND])) {
-        v[d] = "-";
-        expand_rec(cfg, plan, cap, v, scene_idx, d + 1);
-        return;
-    }
-    for (size_t i = 0; i < cfg->dim[d].n; i++) {
-        v[d] = cfg->dim[d].v[i];
-        expand_rec(cfg, plan, cap, v, scene_idx, d + 1);
-    }
-}
-
-int hx_expand(const HxConfig *cfg, HxPlan *plan)
-{
-    memset(plan, 0, sizeof *plan);
-    size_t cap = 0;
-    const char *v[HX_NDIM];
-    for (int d = 0; d < HX_NDIM; d++)
-        v[d] = "-";
-    expand_rec(cfg, plan, &cap, v, 0, 0);
-    return 0;
-}
-
-void hx_plan_free(HxPlan *plan)
-{
-    for (size_t i = 0; i < plan->n; i++) {
-        free(plan->runs[i].config_id);
-        free(plan->runs[i].run_id);
-        free(plan->runs[i].cores);
-        free(plan->runs[i].cores_planned);
-    }
-    free(plan->runs);
-    memset(plan, 0, sizeof *plan);
-}

@@ -4,6 +4,7 @@
  * get their own columns, keys a newer renderer adds go to one `extra` column
  * as k=v;k=v, so adding a key to `raytrace` never breaks old CSVs or tools. */
 #include "hx.h"
+#include "raybench/record_schema.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -13,6 +14,18 @@
 #include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
+
+/* The record's columns, from include/raybench/record_schema.h: OWN keys get
+ * a column of the record part (in the schema's order, that of existing
+ * CSVs), AT keys one elsewhere, EXTRA keys none. */
+#define HX_REC_COL_OWN(column) column,
+#define HX_REC_COL_AT(column)
+#define HX_REC_COL_EXTRA(column)
+#define HX_REC_COLUMN(key, type, unit, col_kind, column, who, doc) HX_REC_COL_##col_kind(column)
+#define HX_REC_MAP_OWN(key, column) {key, column},
+#define HX_REC_MAP_AT(key, column) {key, column},
+#define HX_REC_MAP_EXTRA(key, column)
+#define HX_REC_MAP(key, type, unit, col_kind, column, who, doc) HX_REC_MAP_##col_kind(#key, column)
 
 const char *const hx_columns[] = {
     /* who, when, where */
@@ -28,39 +41,24 @@ const char *const hx_columns[] = {
     "cores_actual", "pin_held",
     /* measured by the harness for every run (wait4): CPU time, peak memory */
     "user_ms", "sys_ms", "maxrss_kib",
-    /* the record line, known keys */
-    "rec_scene", "width", "height", "rec_backend", "rec_accel", "rec_threads",
-    "rec_ranks", "parse_ms", "build_ms", "render_ms", "write_ms", "total_ms",
-    "rays", "primary_rays", "shadow_rays", "secondary_rays", "node_visits",
-    "prim_tests", "mrays_per_s", "image_fnv1a", "rec_tile", "rec_schedule",
-    "rec_mpi_schedule", "render_ms_min", "rec_block", "upload_ms",
-    "download_ms", "rec_wall_ms", "rec_gpu",
+    /* the record line, known keys (rec_scene ... rec_gpu) */
+    RT_RECORD_KEYS(HX_REC_COLUMN)
     /* provenance: the kernel, the MPI library, the renderer's build, and a
      * hash of the settings that change what a run measures (checked by
      * --resume, which may add runs: harness/resume.c) */
     "kernel", "mpi_version", "build_flags", "config_hash",
+    /* command studies: the program, its params (k=v;k=v), its version
+     * line and its metrics (name:unit:lower|higher;...) */
+    "program", "params", "program_version", "metric_info",
     /* every other record key, k=v;k=v */
     "extra",
 };
 const int hx_ncolumns = (int)(sizeof hx_columns / sizeof hx_columns[0]);
 
-/* record key -> column, where the name would collide with a planned value
- * (the record says what the renderer actually did, e.g. its default tile). */
-static const char *const record_map[][2] = {
-    {"scene", "rec_scene"}, {"backend", "rec_backend"}, {"accel", "rec_accel"},
-    {"threads", "rec_threads"}, {"ranks", "rec_ranks"}, {"tile", "rec_tile"},
-    {"schedule", "rec_schedule"}, {"mpi_schedule", "rec_mpi_schedule"},
-    {"block", "rec_block"}, {"wall_ms", "rec_wall_ms"}, {"gpu", "rec_gpu"},
-    {"cores", "cores_actual"},
-    {"width", "width"}, {"height", "height"}, {"parse_ms", "parse_ms"},
-    {"build_ms", "build_ms"}, {"render_ms", "render_ms"}, {"write_ms", "write_ms"},
-    {"total_ms", "total_ms"}, {"rays", "rays"}, {"primary_rays", "primary_rays"},
-    {"shadow_rays", "shadow_rays"}, {"secondary_rays", "secondary_rays"},
-    {"node_visits", "node_visits"}, {"prim_tests", "prim_tests"},
-    {"mrays_per_s", "mrays_per_s"}, {"image_fnv1a", "image_fnv1a"},
-    {"render_ms_min", "render_ms_min"}, {"upload_ms", "upload_ms"},
-    {"download_ms", "download_ms"},
-};
+/* record key -> column (the schema's OWN and AT keys); rec_ where the name
+ * would collide with a planned value (the record says what the renderer
+ * actually did, e.g. its default tile). */
+static const char *const record_map[][2] = {RT_RECORD_KEYS(HX_REC_MAP)};
 
 const char *hx_record_column(const char *key)
 {

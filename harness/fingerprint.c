@@ -169,18 +169,19 @@ void hx_fingerprint_get(HxFingerprint *fp, const HxTopo *t, int want_gpu, const 
         }
     }
     /* the renderer's build flags and commit, as it was built (-V) */
-    char version[2048];
+    char version[2048] = "";
     char *rv[] = {(char *)raytrace, "--version", NULL};
-    if (hx_run_argv(rv, NULL, version, sizeof version, 1) != 0)
+    if (raytrace && hx_run_argv(rv, NULL, version, sizeof version, 1) != 0)
         version[0] = '\0';
     line_after(version, "build:", fp->build_flags, sizeof fp->build_flags);
     if (!fp->build_flags[0])
-        strcpy(fp->build_flags, "unknown");
+        strcpy(fp->build_flags, raytrace ? "unknown" : "-");
     line_after(version, "commit:", fp->git_commit, sizeof fp->git_commit);
     if (strchr(fp->git_commit, ' ')) /* a commit is one word */
         fp->git_commit[0] = '\0';
     if (!fp->git_commit[0]) { /* an older renderer: its folder's checkout */
-        char *repo_dir = hx_dirname(raytrace);
+        /* a command study: the checkout the harness runs in */
+        char *repo_dir = raytrace ? hx_dirname(raytrace) : hx_strdup(".");
         git_commit_of(repo_dir, exclude, fp->git_commit, sizeof fp->git_commit);
         free(repo_dir);
     }

@@ -171,9 +171,10 @@ static int load_series(sqlite3 *db, const char *dbpath, const char *metric, cons
         " JOIN vals a ON a.run_id = r.id AND a.key = ?1"
         " LEFT JOIN vals b ON b.run_id = r.id AND b.key = ?2"
         " LEFT JOIN commits c ON c.sha = r.git_commit"
-        " JOIN (SELECT git_commit AS g, MIN(utc) AS first FROM runs GROUP BY git_commit) f ON f.g = r.git_commit"
+        " JOIN (SELECT git_commit AS g, MIN(utc) AS first, MIN(id) AS first_id FROM runs GROUP BY git_commit) f"
+        " ON f.g = r.git_commit"
         " WHERE r.status = 'ok' AND a.num IS NOT NULL"
-        " ORDER BY r.config_id, r.fingerprint, COALESCE(c.commit_time, 0), f.first, r.git_commit, r.id");
+        " ORDER BY r.config_id, r.fingerprint, COALESCE(c.commit_time, 0), f.first, f.first_id, r.git_commit, r.id");
     if (!st)
         return -1;
     sqlite3_bind_text(st, 1, num, -1, SQLITE_TRANSIENT);
@@ -258,7 +259,7 @@ static int step_counts(double p, double ratio, const StepRule *rule)
 
 /* Reports the steps of one series (in each run of flagged commits, the one
  * with the smallest p, then the largest change); the count of slowdowns. */
-static int check_series(const Series *s, const StepRule *rule, const char *metric)
+static int check_series(const Series *s, const StepRule *rule, const char *metric, int higher)
 {
     int slow = 0;
     size_t best = 0;
@@ -281,10 +282,27 @@ static int check_series(const Series *s, const StepRule *rule, const char *metri
             continue;
         hx_put_clean_line(stdout, "STEP %s [%s]: %s at commit %s (after %s): %+.1f%%, p=%.2g", lab, s->fingerprint,
                metric, s->p[best].sha, s->p[best - 1].sha, 100.0 * (best_r - 1.0), best_p);
-        slow += best_r > 1.0;
+        slow += higher ? best_r < 1.0 : best_r > 1.0; /* a rate's slowdown is a drop */
         best_p = 2.0;
     }
     return slow;
+}
+
+/* Whether metric is a rate (higher is better), as a command study's
+ * metric_info declares it; times and counts are not. */
+static int metric_higher(sqlite3 *db, const char *metric)
+{
+    sqlite3_stmt *st = NULL;
+    int higher = 0;
+    if (sqlite3_prepare_v2(db, "SELECT txt FROM vals WHERE key = 'metric_info' AND txt <> '' LIMIT 1", -1, &st,
+                           NULL) == SQLITE_OK &&
+        sqlite3_step(st) == SQLITE_ROW && sqlite3_column_text(st, 0)) {
+        char decl[160];
+        if (hx_kv_get_sep((const char *)sqlite3_column_text(st, 0), metric, ':', decl, sizeof decl))
+            higher = strstr(decl, ":higher") != NULL;
+    }
+    sqlite3_finalize(st);
+    return higher || strcmp(metric, "mrays_per_s") == 0;
 }
 
 /* ---- plot --------------------------------------------------------------- */
@@ -498,7 +516,7 @@ static int history_series_cmd(const char *sub, HistOpts *o, int argc, char **arg
     if (hx_db_open(o->db, 0, &db) != 0)
         return 1;
     SeriesSet ss;
-    int rc = load_series(db, o->db, metric, &o->want, &ss);
+    int rc = load_series(db, o->db, metric, &o->want, &ss), higher = metric_higher(db, metric);
     sqlite3_close(db);
     if (rc != 0)
         return 1;
@@ -512,7 +530,7 @@ static int history_series_cmd(const char *sub, HistOpts *o, int argc, char **arg
     } else {
         int slow = 0;
         for (size_t i = 0; i < ss.n; i++)
-            slow += check_series(&ss.s[i], &o->rule, metric);
+            slow += check_series(&ss.s[i], &o->rule, metric, higher);
         printf("history check: %zu series, %d slowdown step(s) (window %d commits, p < %g, change > %g%%)\n",
                ss.n, slow, o->rule.window, o->rule.alpha, 100.0 * o->rule.threshold);
         rc = slow ? 1 : 0;

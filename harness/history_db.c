@@ -131,8 +131,14 @@ static int put_row_vals(sqlite3_stmt *st, sqlite3_int64 run, const HxCsv *csv, s
 static char *row_config(const HxCsv *csv, size_t r)
 {
     const char *id = hx_csv_get(csv, r, "run_id");
-    const char *h = strstr(id, " #r");
-    return hx_strndup(id, h ? (size_t)(h - id) : strlen(id));
+    const char *h = strstr(id, " #r"), *prog = hx_csv_get(csv, r, "program");
+    HxBuf b = {0};
+    /* a command study's runs are its program's: another program's with
+     * the same params is another series */
+    if (*prog && strcmp(prog, "raytrace") != 0)
+        hx_buf_printf(&b, "program=%s ", prog);
+    hx_buf_putn(&b, id, h ? (size_t)(h - id) : strlen(id));
+    return b.s;
 }
 
 static int put_run(sqlite3 *db, sqlite3_stmt *run_st, sqlite3_stmt *val_st, sqlite3_int64 study,

@@ -56,6 +56,10 @@ int hx_cmp_double(const void *a, const void *b);
  * NULL: stdout discarded); quiet discards its stderr. Returns its exit status, 127
  * when it could not be started, 128+N when killed by signal N. */
 int hx_run_argv(char *const argv[], const char *dir, char *out, size_t n, int quiet);
+/* The value of key in "k1=v1;k2=v2" (sep '=') copied into out, which is
+ * returned; NULL when the key is not there. */
+const char *hx_kv_get(const char *list, const char *key, char *out, size_t n);
+const char *hx_kv_get_sep(const char *list, const char *key, char sep, char *out, size_t n);
 /* Appends s to b as a gnuplot single-quoted string: gnuplot does no
  * substitution there (no backquote command, no @macro), ' is doubled, and
  * control characters (a newline would end the command) become '?'. */
@@ -114,6 +118,31 @@ extern const char *const hx_dim_col[HX_NDIM];  /* CSV column ("scene", ...) */
  * see the allocation's nodes or would fight Slurm's own binding). */
 typedef enum { HX_LAUNCHER_MPIRUN, HX_LAUNCHER_SRUN } HxLauncher;
 
+/* A `when KEY=V1,V2` on a swept key (docs/harness.md, "Your own
+ * program"): the key applies only where KEY has one of the values. key:
+ * -1 none, HX_SCOPE_BACKEND, else the index of an earlier param. */
+#define HX_SCOPE_BACKEND 1000
+typedef struct {
+    int key;
+    HxStrList vals;
+    char *name;                 /* KEY as written; resolved after the last line */
+} HxScope;
+
+/* One line of a user parameter: its values where its scope holds. */
+typedef struct {
+    HxStrList vals;
+    HxScope when;
+    int line;
+} HxParamAlt;
+
+typedef struct {
+    char *name;
+    HxParamAlt *alt;            /* the first alternative whose scope holds */
+    int nalt;
+} HxParam;
+
+struct HxProgram;               /* a command study's program (program.c) */
+
 typedef struct {
     char *path;                 /* config file as given */
     char *study;
@@ -133,12 +162,19 @@ typedef struct {
     int instructions;           /* each run under cachegrind: record key instructions */
     int instructions_line;
     HxStrList set;              /* harness run --set KEY=VALUE, as given */
+    HxStrList set_seen;         /* the config's keys an override replaced */
+    HxStrList warnings;         /* "FILE:LINE: warning: ...", printed by run */
+    HxScope dim_when[HX_NDIM];  /* threads, ranks, ... only where it holds */
+    HxParam *params;            /* `param NAME:` in declaration order */
+    int nparams;
+    struct HxProgram *prog;     /* `command:` given: a command study; NULL: raytrace */
 } HxConfig;
 
 typedef struct {
     const char *v[HX_NDIM];     /* "-" where not set or not applicable */
     const char *scene_path;
     const char *scene_name;     /* basename without .txt */
+    const char **pv;            /* each param's value ("-": not in scope) */
     int repeat;                 /* 0-based; warm-ups count -warmup..-1 */
     int warmup;
     int workers;                /* threads (openmp), ranks (mpi), else 1 */
@@ -183,9 +219,34 @@ int hx_backend_mpi(const char *backend);
 int hx_backend_gpu(const char *backend);
 /* Whether any backend of the config is one of those. */
 int hx_config_has(const HxConfig *cfg, int (*pred)(const char *));
+/* Whether the run is started as MPI ranks: an MPI backend, or a command
+ * study's run with ranks. */
+int hx_run_is_mpi(const char *const v[HX_NDIM]);
+
+/* ---- the run matrix (plan.c) ---- */
+/* Checks one value of raytrace's swept dimension dim. 0, or -1 with why. */
+int hx_dim_value_check(int dim, const char *v, char *why, size_t n);
+/* The runs the config expands to, counted without building the plan. */
+double hx_plan_size(const HxConfig *cfg);
 int hx_expand(const HxConfig *cfg, HxPlan *plan);
 void hx_plan_free(HxPlan *plan);
-char *hx_make_config_id(const char *const v[HX_NDIM]);
+/* "scene=... pin=close" and each param as " NAME=VALUE"; a command study
+ * (backend "-") names only threads, ranks, pin and its params. params is
+ * "NAME=VALUE;..." or NULL. malloc'd. */
+char *hx_make_config_id(const char *const v[HX_NDIM], const char *params);
+/* The run's params as "NAME=VALUE;NAME=VALUE" (the CSV's `params`), "" when
+ * the study has none. malloc'd. */
+char *hx_run_params(const HxConfig *cfg, const HxRun *r);
+/* A value list with ranges: "A..B" (step 1), "A..B +S", "A..B *F" become
+ * their values. 0, or -1 with why. */
+int hx_values_expand(const HxStrList *in, HxStrList *out, char *why, size_t n);
+/* Splits a trailing "when KEY=V1,V2" off vals into sc (name, vals); 0
+ * when there is none (sc->name NULL) or it is well formed, -1 with why. */
+int hx_split_when(HxStrList *vals, HxScope *sc, char *why, size_t n);
+/* Resolves sc->name (backend, or one of the first upto params) into
+ * sc->key and checks that KEY has each value. 0, or -1 with why. */
+int hx_scope_resolve(const HxConfig *cfg, HxScope *sc, int upto, char *why, size_t n);
+void hx_scope_free(HxScope *sc);
 
 /* ---- topology and pinning (topo.c) ---- */
 typedef struct {
@@ -354,6 +415,7 @@ typedef struct {
                           * swept): the series over threads at fixed ranks;
                           * NULL otherwise */
     int axis2;           /* threads, for series2 */
+    int swept;           /* HX_DIM_THREADS, HX_DIM_RANKS or -2 (none) */
     int suspect;         /* a run was oversubscribed or its pinning did not
                           * hold: left out of fits unless asked */
     const char *suspect_why;
@@ -383,10 +445,15 @@ typedef struct {
     HxStrList labels;    /* cross-table columns, first-seen order */
     int *row_status_wrong; /* per row: 1 when the gate marks it wrong */
     size_t nwrong_rows;
+    char metric[96];     /* the metric read: as asked, else the study's default */
+    char unit[24];       /* its unit ("ms", "GB/s", ...; "" unknown) */
+    int higher;          /* 1: higher is better (a rate), 0: lower (a time) */
 } HxStudy;
 
 /* The analysis of s->csv, already read (everything else in s zero); on
- * failure s->csv is freed. hx_study_load is hx_csv_read and this. */
+ * failure s->csv is freed. hx_study_load is hx_csv_read and this. metric
+ * NULL: the study's default (render_ms for raytrace, a command study's
+ * first metric, else wall_ms), in s->metric with its unit and direction. */
 int hx_study_build(const char *path, const char *metric, HxStudy *s, char *err, size_t errlen);
 int hx_study_load(const char *path, const char *metric, HxStudy *s,
                   char *err, size_t errlen);
@@ -394,6 +461,10 @@ void hx_study_free(HxStudy *s);
 /* hx_study_load for a subcommand: the error goes to stderr as "WHO: message".
  * Returns 0 or -1. */
 int hx_study_open(const char *who, const char *path, const char *metric, HxStudy *s);
+/* The speedup of v over base: base / v for times, v / base for rates. */
+double hx_study_speedup(const HxStudy *s, double base, double v);
+/* Whether a is better than b by the metric's direction. */
+int hx_study_better(const HxStudy *s, double a, double b);
 /* Speedup baselines of a group: (a) same series at one worker, (b) the
  * fastest group of the same scene matching KEY=VALUE. NULL if none. */
 const HxGroup *hx_baseline_one_worker(const HxStudy *s, const HxGroup *g);

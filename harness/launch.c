@@ -4,6 +4,7 @@
  * valgrind's cachegrind for instruction counts, the renderer's options from
  * the run's dimensions, and the environment that pins OpenMP threads and
  * orders the GPUs. --dry-run prints the same command lines the runs get. */
+#include "program.h"
 #include "run.h"
 
 #include <errno.h>
@@ -240,13 +241,65 @@ static void null_terminate(HxStrList *l)
     l->n--;
 }
 
-void hx_build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r,
-                      const char *raytrace, const char *image, HxCommand *c)
+/* The name of the executable argv0 runs (a link resolved: /usr/bin/python3
+ * runs python3.11), for the CPU watcher; malloc'd, NULL when not found. */
+static char *exe_name(const char *argv0)
+{
+    char *abs = NULL;
+    if (strchr(argv0, '/')) {
+        abs = realpath(argv0, NULL);
+    } else {
+        const char *path = getenv("PATH");
+        for (const char *d = path ? path : "/usr/bin:/bin"; d && *d && !abs;) {
+            size_t dl = strcspn(d, ":");
+            HxBuf f = {0};
+            hx_buf_printf(&f, "%.*s/%s", (int)dl, d, argv0);
+            if (dl && access(f.s, X_OK) == 0)
+                abs = realpath(f.s, NULL);
+            hx_buf_free(&f);
+            d = d[dl] ? d + dl + 1 : NULL;
+        }
+    }
+    const char *b = abs ? strrchr(abs, '/') : NULL;
+    char *name = b ? hx_strdup(b + 1) : NULL;
+    free(abs);
+    return name;
+}
+
+/* A command study's run: the launcher for ranks, else bound to its cores;
+ * the program's argv and env; its folder; its CPUs watched. */
+static void program_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, const char *rundir,
+                            const char *workdir, int pinned, HxCommand *c)
+{
+    if (hx_run_is_mpi(r->v) && cfg->launcher == HX_LAUNCHER_SRUN)
+        srun_launcher(r, pinned, c);
+    else if (hx_run_is_mpi(r->v))
+        mpirun_launcher(cfg, topo, r, rundir, pinned, c);
+    else
+        c->bind = pinned;
+    size_t first = c->argv.n;
+    HxVars vars;
+    hx_vars_of_run(cfg, r, rundir, workdir, &vars);
+    hx_program_command(cfg, &vars, c);
+    hx_vars_free(&vars);
+    c->dir = hx_strdup(rundir);
+    c->watch_exe = exe_name(c->argv.v[first]);
+    c->watch_any = hx_run_is_mpi(r->v) && cfg->launcher == HX_LAUNCHER_SRUN;
+}
+
+void hx_build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, const char *raytrace,
+                      const char *image, const char *rundir, const char *workdir, HxCommand *c)
 {
     memset(c, 0, sizeof *c);
     const char *be = r->v[HX_DIM_BACKEND];
     int is_mpi = hx_backend_mpi(be);
     int pinned = strcmp(r->v[HX_DIM_PIN], "none") != 0;
+    if (cfg->prog) {
+        program_command(cfg, topo, r, rundir, workdir, pinned, c);
+        null_terminate(&c->argv);
+        null_terminate(&c->env);
+        return;
+    }
     if (is_mpi && cfg->launcher == HX_LAUNCHER_SRUN)
         srun_launcher(r, pinned, c);
     else if (is_mpi)
@@ -273,14 +326,32 @@ void hx_command_free(HxCommand *c)
     c->env.n++;
     hx_strlist_free(&c->argv);
     hx_strlist_free(&c->env);
+    free(c->dir);
+    free(c->watch_exe);
+    c->dir = c->watch_exe = NULL;
 }
 
 void hx_print_command(FILE *out, const HxCommand *c)
 {
+    if (c->dir)
+        fprintf(out, "(in %s) ", c->dir);
     for (size_t i = 0; i + 1 < c->env.n + 1 && c->env.v[i]; i += 2)
         fprintf(out, "%s=%s ", c->env.v[i], c->env.v[i + 1]);
-    for (size_t i = 0; i < c->argv.n; i++)
-        fprintf(out, "%s%s", i ? " " : "", c->argv.v[i]);
+    for (size_t i = 0; i < c->argv.n; i++) {
+        /* quoted as a shell would need it, so the line shows one argument
+         * per word (the run itself gets the argv, no shell) */
+        const char *a = c->argv.v[i];
+        int plain = *a && strspn(a, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-+=/.,:@%") == strlen(a);
+        fputs(i ? " " : "", out);
+        if (plain) {
+            fputs(a, out);
+            continue;
+        }
+        fputc('\'', out);
+        for (; *a; a++)
+            fputs(*a == '\'' ? "'\\''" : (char[2]){*a, 0}, out);
+        fputc('\'', out);
+    }
     fputc('\n', out);
 }
 

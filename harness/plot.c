@@ -21,7 +21,8 @@ static void usage_plot(FILE *f)
           "CUDA block sizes) and PREFIX-scenes as .png and .svg, each with its .dat and .gp\n"
           "beside it. Needs gnuplot (Debian gnuplot-nox); wrong-image runs are left out.\n"
           "  -o, --output PREFIX  path prefix, e.g. plots/quick\n"
-          "  --metric COLUMN      time column (default render_ms)\n"
+          "  --metric COLUMN      a column or record key (default render_ms; a command\n"
+          "                       study's first metric, else wall_ms)\n"
           "  -h, --help           this text\n", f);
 }
 
@@ -195,7 +196,10 @@ static void plot_scaling(HxPlot *c, const HxStudy *s, int efficiency)
                 maxw = next->axis;
             if (!printed)
                 fprintf(dat, "# series %d\n", nseries);
-            double sp = one->median / next->median, lo = one->median / next->q3, hi = one->median / next->q1;
+            /* a time's speedup is T(1)/T(p), a rate's R(p)/R(1) */
+            double sp = hx_study_speedup(s, one->median, next->median);
+            double lo = s->higher ? next->q1 / one->median : one->median / next->q3;
+            double hi = s->higher ? next->q3 / one->median : one->median / next->q1;
             double w = next->axis;
             fprintf(dat, "%d %.6g %.6g %.6g %.6g %.6g %.6g %.6g\n", next->axis, next->median, sp, sp / w, lo, hi,
                     lo / w, hi / w);
@@ -366,7 +370,10 @@ static void plot_scenes(HxPlot *c, const HxStudy *s)
         fputc('\n', dat);
     }
     hx_plot_head(gp, c, "scenes", "Scenes x configurations (median; missing bar = TLE/failed)");
-    fprintf(gp, "set datafile missing '?'\nset ylabel 'median time (ms, log scale)'\n");
+    HxBuf yl = {0};
+    hx_buf_printf(&yl, "median %s (%s, log scale)", s->metric, s->unit[0] ? s->unit : "-");
+    hx_plot_put(gp, "set datafile missing '?'\nset ylabel %s\n", yl.s);
+    hx_buf_free(&yl);
     fprintf(gp, "set logscale y\nset yrange [%g:*]\n", isfinite(lo) ? pow(10, floor(log10(lo))) : 0.01);
     fprintf(gp, "set style data histograms\nset style histogram clustered gap 1\n");
     fprintf(gp, "set style fill solid 0.8 border -1\nset xtics rotate by -30\n");
@@ -381,7 +388,7 @@ int hx_cmd_plot(int argc, char **argv)
     static const struct option lo[] = {
         {"output", required_argument, NULL, 'o'}, {"metric", required_argument, NULL, 'm'},
         {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
-    const char *prefix = NULL, *metric = "render_ms";
+    const char *prefix = NULL, *metric = NULL;
     int c;
     while ((c = getopt_long(argc, argv, "o:h", lo, NULL)) != -1) {
         switch (c) {

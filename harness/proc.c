@@ -149,9 +149,10 @@ static void kill_group(pid_t pgid, double grace_ms, pid_t child, int *reaped, in
 
 /* The child's side of the fork: own process group, default signals, pipes,
  * binding, environment, exec. Does not return. */
-static void exec_child(char *const *argv, char *const *env_add, const HxTopo *topo,
-                       const HxRun *run, int bind, const int po[2], const int pe[2])
+static void exec_child(const HxCommand *cmd, const HxTopo *topo, const HxRun *run, const int po[2],
+                       const int pe[2])
 {
+    char *const *argv = cmd->argv.v, *const *env_add = cmd->env.v;
     setpgid(0, 0);
     signal(SIGINT, SIG_DFL);
     signal(SIGTERM, SIG_DFL);
@@ -167,7 +168,11 @@ static void exec_child(char *const *argv, char *const *env_add, const HxTopo *to
     close(po[1]);
     close(pe[0]);
     close(pe[1]);
-    if (bind && hx_bind_child(topo, run) != 0)
+    if (cmd->dir && chdir(cmd->dir) != 0) {
+        fprintf(stderr, "cannot enter the run's folder %s: %s\n", cmd->dir, strerror(errno));
+        _exit(127);
+    }
+    if (cmd->bind && hx_bind_child(topo, run) != 0)
         fprintf(stderr, "harness: warning: binding to cores %s failed: %s\n",
                 run->cores_planned, strerror(errno));
     for (int i = 0; env_add && env_add[i]; i += 2)
@@ -183,6 +188,7 @@ typedef struct {
     double t0, deadline; /* hx_now_ms() at the fork; t0 + the timeout */
     int reaped, status;
     HxChildResult *res;
+    HxWatch *watch;      /* NULL: not watched */
 } Child;
 
 /* Reads the child's stdout (out_fd) and stderr (err_fd) until both close, or
@@ -218,8 +224,12 @@ static void read_output(Child *c, int out_fd, int err_fd)
             break;
         }
         double wait = c->deadline - now;
-        /* wake up now and then to notice an exited leader (see above) */
-        int ms = wait > 100 ? 100 : (int)wait + 1;
+        /* wake up now and then to notice an exited leader (see above), and
+         * every 20 ms to see where a watched run's threads are */
+        int every = c->watch ? 20 : 100;
+        int ms = wait > every ? every : (int)wait + 1;
+        if (c->watch && !c->reaped)
+            hx_watch_sample(c->watch);
         int pr = poll(fds, 2, ms);
         if (pr < 0) {
             if (errno == EINTR)
@@ -275,8 +285,16 @@ static void wait_leader(Child *c)
     }
 }
 
-int hx_run_child(char *const *argv, char *const *env_add, const HxTopo *topo,
-                 const HxRun *run, int bind, double timeout_s, HxChildResult *res)
+void hx_child_result_free(HxChildResult *res)
+{
+    hx_buf_free(&res->out);
+    hx_buf_free(&res->err);
+    free(res->cores_seen);
+    res->cores_seen = NULL;
+}
+
+int hx_run_child(const HxCommand *cmd, const HxTopo *topo, const HxRun *run, double timeout_s,
+                 HxChildResult *res)
 {
     memset(res, 0, sizeof *res);
     int po[2], pe[2] = {-1, -1};
@@ -297,13 +315,15 @@ int hx_run_child(char *const *argv, char *const *env_add, const HxTopo *topo,
         return -1;
     }
     if (pid == 0)
-        exec_child(argv, env_add, topo, run, bind, po, pe);
+        exec_child(cmd, topo, run, po, pe);
     setpgid(pid, pid); /* both sides: no race with an early kill */
     close(po[1]);
     close(pe[1]);
-    Child c = {pid, t0, t0 + timeout_s * 1e3, 0, 0, res};
+    Child c = {pid, t0, t0 + timeout_s * 1e3, 0, 0, res, cmd->watch_exe ? hx_watch_new(pid, cmd->watch_exe, cmd->watch_any) : NULL};
     read_output(&c, po[0], pe[0]);
     wait_leader(&c);
+    if (c.watch)
+        res->cores_seen = hx_watch_end(c.watch, topo);
     if (res->timed_out)
         res->wall_ms = hx_now_ms() - t0;
     if (WIFEXITED(c.status)) {

@@ -8,6 +8,7 @@
  * compared as such, the rest go into the row's config_hash. The plan
  * (repeats, swept values) is not in the hash: a row is matched to the plan
  * by its run_id (docs/harness.md, "Growing a study"). */
+#include "program.h"
 #include "run.h"
 
 #include <stdlib.h>
@@ -21,6 +22,18 @@ void hx_settings_hash(const HxConfig *cfg, char out[20])
         hx_buf_put(&b, "|instructions");
     for (size_t i = 0; i < cfg->extra_args.n; i++)
         hx_buf_printf(&b, "|%s", cfg->extra_args.v[i]);
+    if (cfg->prog) { /* what a command study's run is, but its swept params */
+        const struct HxProgram *pg = cfg->prog;
+        const HxStrList *lists[] = {&pg->command, &pg->env, &pg->inputs, &pg->templates};
+        for (size_t l = 0; l < sizeof lists / sizeof lists[0]; l++)
+            for (size_t i = 0; i < lists[l]->n; i++)
+                hx_buf_printf(&b, "|%zu:%s", l, lists[l]->v[i]);
+        for (int i = 0; i < pg->nmetrics; i++)
+            hx_buf_printf(&b, "|m:%s:%s:%s", pg->metrics[i].name, pg->metrics[i].m.pattern, pg->metrics[i].unit);
+        for (int i = 0; i < pg->nchecks; i++)
+            hx_buf_printf(&b, "|c:%s", pg->checks[i].pattern);
+        hx_buf_printf(&b, "|exit:%d", pg->exit_code);
+    }
     hx_fnv1a_hex(b.s, out);
     hx_buf_free(&b);
 }

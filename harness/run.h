@@ -10,6 +10,8 @@
 
 #include "hx.h"
 
+#include <sys/types.h>
+
 /* ---- process control (proc.c) ---- */
 
 typedef struct {
@@ -24,6 +26,7 @@ typedef struct {
     double user_ms, sys_ms;
     long maxrss_kib;
     HxBuf out, err;
+    char *cores_seen;  /* watched runs: the CPUs its threads ran on ("0,1"), else NULL */
 } HxChildResult;
 
 /* SIGINT or SIGTERM received (the signal number), else 0: the current run is
@@ -34,29 +37,50 @@ int hx_stop_signal(void);
 void hx_install_stop_handlers(void);
 /* Kills and reaps every process of the last run that is still alive. */
 void hx_reap_strays(void);
-/* Runs argv (PATH search) with env_add's name, value pairs set, in its own
- * process group, bound to run's planned cores when bind, stdout and stderr
- * read into res (stdout's tail past 4 MiB, stderr's start: reading stops
- * past 64 KiB); killed (the whole group) at timeout_s or on a stop signal.
- * 0, or -1 when pipe or fork failed. */
-int hx_run_child(char *const *argv, char *const *env_add, const HxTopo *topo,
-                 const HxRun *run, int bind, double timeout_s, HxChildResult *res);
+struct HxCommand;
+/* Runs c's argv (PATH search) with its env's name, value pairs set, in its
+ * folder (c->dir, NULL: here), in its own process group, bound to run's
+ * planned cores when c->bind, stdout and stderr read into res (stdout's tail
+ * past 4 MiB, stderr's start: reading stops past 64 KiB); killed (the whole
+ * group) at timeout_s or on a stop signal. With c->watch_exe, the CPUs of
+ * its processes running that program are sampled (res->cores_seen). 0, or
+ * -1 when pipe or fork failed. */
+int hx_run_child(const struct HxCommand *c, const HxTopo *topo, const HxRun *run, double timeout_s,
+                 HxChildResult *res);
+void hx_child_result_free(HxChildResult *res);
+
+/* ---- which CPUs a run's threads use (watch.c) ---- */
+typedef struct HxWatch HxWatch;
+/* Follows the descendants of pid (itself included) whose executable's
+ * name is exe (all of them when none is); with any, also every process of
+ * exe started since pid was (srun's tasks, which slurmd starts). */
+HxWatch *hx_watch_new(pid_t pid, const char *exe, int any);
+/* One look at every thread's current CPU. */
+void hx_watch_sample(HxWatch *w);
+/* The CPUs seen, each as the first CPU of its core ("0,1"; NULL when none),
+ * and frees w. */
+char *hx_watch_end(HxWatch *w, const HxTopo *topo);
 /* "SIGSEGV" and the like, NULL for a signal without a name here. */
 const char *hx_signal_name(int sig);
 
 /* ---- per-run command line (launch.c) ---- */
 
-typedef struct {
+typedef struct HxCommand {
     HxStrList argv;  /* NULL-terminated (the NULL not counted in n) */
     HxStrList env;   /* name, value pairs, NULL-terminated likewise */
     int bind;        /* bind the child with hwloc before exec */
+    char *dir;       /* the folder it starts in; NULL: the harness's */
+    char *watch_exe; /* the program whose CPUs are watched; NULL: none */
+    int watch_any;   /* not only its descendants (srun) */
 } HxCommand;
 
 /* Sets cfg->scene_cache once per study (kept when the config gives it). */
 void hx_resolve_scene_cache(HxConfig *cfg, const char *out_path);
-/* The command line and environment of run r, writing its image to image. */
-void hx_build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r,
-                      const char *raytrace, const char *image, HxCommand *c);
+/* The command line and environment of run r, writing its image to image
+ * (raytrace), or starting in rundir with the study's folder workdir (a
+ * command study). */
+void hx_build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, const char *raytrace,
+                      const char *image, const char *rundir, const char *workdir, HxCommand *c);
 void hx_command_free(HxCommand *c);
 /* "NAME=value ... argv..." on one line (--dry-run). */
 void hx_print_command(FILE *out, const HxCommand *c);

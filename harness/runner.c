@@ -6,6 +6,7 @@
  * a study killed half-way leaves only whole rows, and --resume continues it.
  * The correctness gate compares each run's image hash with the first ok
  * serial run of the same image. */
+#include "program.h"
 #include "run.h"
 
 #include "config.h"
@@ -148,21 +149,23 @@ static void usage_run(FILE *f)
 
 /* "scene=demo backend=openmp threads=2 ...": every dimension that has a
  * value, so that no two configurations read alike */
-static void dims_text(HxBuf *b, const HxRun *r)
+static void dims_text(HxBuf *b, const HxRun *r, const HxConfig *cfg)
 {
     for (int d = 0; d < HX_NDIM; d++)
         if (strcmp(r->v[d], "-") != 0)
             hx_buf_printf(b, "%s%s=%s", b->len ? " " : "", hx_dim_col[d], r->v[d]);
+    for (int p = 0; p < cfg->nparams; p++)
+        hx_buf_printf(b, "%s%s=%s", b->len ? " " : "", cfg->params[p].name, r->pv[p]);
 }
 
 /* One progress line per run: its place in the plan, every dimension, the
  * outcome, and the time left at the mean pace so far (runs skipped by
  * --resume are left out of the pace). */
-static void progress_line(const HxPlan *plan, size_t i, const HxRun *r, const char *status, const char *render_ms,
-                          const char *detail, double elapsed_ms, size_t attempted)
+static void progress_line(const HxConfig *cfg, const HxPlan *plan, size_t i, const HxRun *r, const char *status,
+                          const char *shown, const char *detail, double elapsed_ms, size_t attempted)
 {
     HxBuf b = {0};
-    dims_text(&b, r);
+    dims_text(&b, r, cfg);
     double left_s = elapsed_ms / 1e3 / (double)attempted * (double)(plan->n - i - 1);
     char eta[32];
     if (left_s >= 3600)
@@ -170,18 +173,19 @@ static void progress_line(const HxPlan *plan, size_t i, const HxRun *r, const ch
     else
         snprintf(eta, sizeof eta, "%dm%02ds", (int)(left_s / 60), (int)left_s % 60);
     fprintf(stderr, "[%zu/%zu] %s%s r%d: %s%s%s%s%s (left ~%s)\n", i + 1, plan->n, r->warmup ? "warm-up " : "",
-            b.s, r->repeat, status, render_ms && *render_ms ? " render_ms=" : "", render_ms ? render_ms : "",
+            b.s, r->repeat, status, shown && *shown ? " " : "", shown ? shown : "",
             detail ? ": " : "", detail ? detail : "", eta);
     hx_buf_free(&b);
 }
 
 /* Notes a failed run's configuration (once) for the end-of-study summary. */
-static void note_failure(HxStrList *failures, const HxRun *r, const char *status, const char *detail)
+static void note_failure(HxStrList *failures, const HxConfig *cfg, const HxRun *r, const char *status,
+                         const char *detail)
 {
     if (strcmp(status, "ok") == 0 || strcmp(status, "refused") == 0)
         return;
     HxBuf b = {0};
-    dims_text(&b, r);
+    dims_text(&b, r, cfg);
     hx_buf_put(&b, ":");
     for (size_t k = 0; k < failures->n; k++)
         if (strncmp(failures->v[k], b.s, b.len) == 0) {
@@ -225,6 +229,7 @@ typedef struct {
      * configuration for the summary */
     HxStrList done_ids, timed_out, deterministic, failures;
     RefTable refs;
+    char *workdir, *version, *metric_info; /* command studies */
     double t0, child_ms;
     size_t executed, skipped, attempted, nstat[6];
 } Study;
@@ -265,6 +270,12 @@ static char **row_head(const Study *st, const HxRun *r)
     set(vals, "oversubscribed", r->oversubscribed ? "1" : "0");
     set(vals, "baseline", st->cfg.baseline);
     set(vals, "cores_planned", r->cores_planned);
+    char *params = hx_run_params(&st->cfg, r);
+    set(vals, "program", st->cfg.prog ? st->cfg.prog->name : "raytrace");
+    set(vals, "params", params);
+    set(vals, "program_version", st->version ? st->version : "-");
+    set(vals, "metric_info", st->metric_info ? st->metric_info : "");
+    free(params);
     return vals;
 }
 
@@ -314,7 +325,8 @@ static int add_instructions(const char *image, const char *rec, char **vals)
 }
 
 /* The status of a run whose child has ended (vals gets the record). */
-static const char *outcome(Study *st, const HxRun *r, HxChildResult *res, char **vals, char **detail)
+static const char *outcome(Study *st, const HxRun *r, const char *rundir, HxChildResult *res, char **vals,
+                           char **detail)
 {
     HxBuf b = {0};
     if (res->timed_out) {
@@ -333,6 +345,8 @@ static const char *outcome(Study *st, const HxRun *r, HxChildResult *res, char *
         setf(vals, "exit_code", "%d", 128 + res->code);
         return "crash";
     }
+    if (st->cfg.prog)
+        return hx_program_status(&st->cfg, rundir, res, vals, detail);
     setf(vals, "exit_code", "%d", res->code);
     /* the record is the last line starting with "record: " */
     char *rec = NULL;
@@ -381,10 +395,24 @@ static const char *run_one(Study *st, const HxRun *r, char **vals, char **detail
         *detail = b.s;
         return "refused";
     }
+    char *rundir = st->cfg.prog ? hx_rundir(st->workdir, (size_t)(r - st->plan.runs)) : NULL;
+    char why[512];
+    if (rundir) {
+        HxVars vars;
+        hx_vars_of_run(&st->cfg, r, rundir, st->workdir, &vars);
+        int bad = hx_program_prepare(&st->cfg, &vars, rundir, why, sizeof why);
+        hx_vars_free(&vars);
+        if (bad) {
+            hx_rmtree(rundir);
+            free(rundir);
+            *detail = hx_strdup(why);
+            return "error";
+        }
+    }
     HxCommand cmd;
-    hx_build_command(&st->cfg, &st->topo, r, st->raytrace, st->image, &cmd);
+    hx_build_command(&st->cfg, &st->topo, r, st->raytrace, st->image, rundir, st->workdir, &cmd);
     HxChildResult res;
-    int spawned = hx_run_child(cmd.argv.v, cmd.env.v, &st->topo, r, cmd.bind, st->cfg.timeout_s, &res);
+    int spawned = hx_run_child(&cmd, &st->topo, r, st->cfg.timeout_s, &res);
     hx_reap_strays();
     hx_command_free(&cmd);
     const char *status = NULL;
@@ -402,10 +430,12 @@ static const char *run_one(Study *st, const HxRun *r, char **vals, char **detail
             setf(vals, "sys_ms", "%.3f", res.sys_ms);
             setf(vals, "maxrss_kib", "%ld", res.maxrss_kib);
         }
-        status = outcome(st, r, &res, vals, detail);
+        status = outcome(st, r, rundir, &res, vals, detail);
     }
-    hx_buf_free(&res.out);
-    hx_buf_free(&res.err);
+    hx_child_result_free(&res);
+    if (rundir && !st->cfg.prog->keep)
+        hx_rmtree(rundir);
+    free(rundir);
     return status;
 }
 
@@ -454,11 +484,21 @@ static int run_plan(Study *st)
         } else if (!r->warmup) {
             for (int k = 0; k < 6; k++) /* the summary counts rows on disk */
                 st->nstat[k] += strcmp(status, stat_names[k]) == 0;
-            note_failure(&st->failures, r, status, detail);
+            note_failure(&st->failures, &st->cfg, r, status, detail);
         }
-        if (!st->quiet)
-            progress_line(&st->plan, i, r, status, vals[hx_column_index("render_ms")], detail,
-                          hx_now_ms() - st->t0, ++st->attempted);
+        if (!st->quiet) {
+            /* raytrace's render time, a command's metrics (or wall time) */
+            HxBuf shown = {0};
+            const char *rm = vals[hx_column_index("render_ms")], *ex = vals[hx_column_index("extra")];
+            if (rm && *rm)
+                hx_buf_printf(&shown, "render_ms=%s", rm);
+            else if (st->cfg.prog && st->cfg.prog->nmetrics && ex && *ex)
+                hx_buf_put(&shown, ex);
+            else if (st->cfg.prog && vals[hx_column_index("wall_ms")])
+                hx_buf_printf(&shown, "wall_ms=%s", vals[hx_column_index("wall_ms")]);
+            progress_line(&st->cfg, &st->plan, i, r, status, shown.s, detail, hx_now_ms() - st->t0, ++st->attempted);
+            hx_buf_free(&shown);
+        }
         free(detail);
         row_free(vals);
         if (rc)
@@ -538,7 +578,9 @@ static void print_dry_run(const Study *st)
     for (size_t i = 0; i < st->plan.n; i++) {
         const HxRun *r = &st->plan.runs[i];
         HxCommand cmd;
-        hx_build_command(&st->cfg, &st->topo, r, st->raytrace, "IMAGE.ppm", &cmd);
+        char rundir[32];
+        snprintf(rundir, sizeof rundir, "RUNDIR-%04zu", i + 1);
+        hx_build_command(&st->cfg, &st->topo, r, st->raytrace, "IMAGE.ppm", rundir, "WORKDIR", &cmd);
         printf("[%zu] %s%s  cores=%s%s%s\n    ", i + 1, r->warmup ? "(warm-up) " : "", r->run_id,
                r->cores_planned, r->oversubscribed ? " oversubscribed" : "", r->refused ? " REFUSED" : "");
         hx_print_command(stdout, &cmd);
@@ -548,6 +590,8 @@ static void print_dry_run(const Study *st)
 
 static void warn_plan(const Study *st)
 {
+    for (size_t i = 0; i < st->cfg.warnings.n; i++)
+        fprintf(stderr, "%s\n", st->cfg.warnings.v[i]);
     size_t nover = 0;
     for (size_t i = 0; i < st->plan.n; i++)
         nover += st->plan.runs[i].oversubscribed && !st->plan.runs[i].warmup;
@@ -558,6 +602,23 @@ static void warn_plan(const Study *st)
                 : "refused (status refused; set 'oversubscribe: allow' to run them)");
     if (!st->topo.have_hwloc)
         fprintf(stderr, "harness: built without hwloc: runs are not pinned\n");
+}
+
+/* A command study's folder, version and setup. 0, or -1 (printed). */
+static int program_open(Study *st)
+{
+    char err[1024];
+    if (hx_workdir_open(&st->cfg, st->out_path, st->tmpdir, &st->workdir, err, sizeof err) != 0) {
+        fprintf(stderr, "harness run: %s\n", err);
+        return -1;
+    }
+    st->version = hx_program_version(&st->cfg);
+    st->metric_info = hx_program_metric_info(&st->cfg);
+    if (st->skipped + st->done_ids.n < st->plan.n && hx_program_setup(&st->cfg, st->workdir, err, sizeof err) != 0) {
+        fprintf(stderr, "harness run: %s\n", err);
+        return -1;
+    }
+    return 0;
 }
 
 /* Opens (locks) the CSV, reads what --resume skips, makes the temporary
@@ -594,30 +655,25 @@ static int study_open(Study *st, int resume, int overwrite)
     hx_install_stop_handlers();
     int want_gpu = hx_config_has(&st->cfg, hx_backend_gpu);
     st->want_mpi = hx_config_has(&st->cfg, hx_backend_mpi);
+    for (size_t i = 0; st->cfg.prog && i < st->plan.n; i++)
+        st->want_mpi |= hx_run_is_mpi(st->plan.runs[i].v);
     /* the MPI library is mpirun's, whichever launcher starts the ranks */
-    hx_fingerprint_get(&st->fp, &st->topo, want_gpu, st->raytrace, st->want_mpi ? st->cfg.mpirun : NULL,
-                       st->out_path);
-    return 0;
+    hx_fingerprint_get(&st->fp, &st->topo, want_gpu, st->cfg.prog ? NULL : st->raytrace,
+                       st->want_mpi ? st->cfg.mpirun : NULL, st->out_path);
+    return st->cfg.prog ? program_open(st) : 0;
 }
 
 static void study_close(Study *st)
 {
     if (st->fd >= 0)
         close(st->fd);
-    if (st->tmpdir) {
-        /* everything in it: a killed renderer may have left IMAGE.tmp.XXXXXX */
-        DIR *d = opendir(st->tmpdir);
-        struct dirent *e;
-        while (d && (e = readdir(d)) != NULL)
-            if (strcmp(e->d_name, ".") != 0 && strcmp(e->d_name, "..") != 0) {
-                char *f = hx_path_join(st->tmpdir, e->d_name);
-                unlink(f);
-                free(f);
-            }
-        if (d)
-            closedir(d);
-        rmdir(st->tmpdir);
-    }
+    /* everything in it: a killed renderer may have left IMAGE.tmp.XXXXXX,
+     * a command study its work folder */
+    if (st->tmpdir)
+        hx_rmtree(st->tmpdir);
+    free(st->workdir);
+    free(st->version);
+    free(st->metric_info);
     free(st->image);
     free(st->tmpdir);
     free(st->raytrace);
@@ -696,7 +752,8 @@ int hx_cmd_run(int argc, char **argv)
     hx_strlist_free(&o.set);
     if (orc >= 0)
         return orc;
-    hx_resolve_scene_cache(&st.cfg, o.out_path);
+    if (!st.cfg.prog)
+        hx_resolve_scene_cache(&st.cfg, o.out_path);
     /* the command line wins: the same config runs on a workstation with
      * mpirun and in a Slurm job (harness slurm) with srun */
     if (o.launcher_set)
@@ -710,7 +767,7 @@ int hx_cmd_run(int argc, char **argv)
     HxBuf defout = {0};
     if (o.dry) {
         print_dry_run(&st);
-    } else if (access(st.raytrace, X_OK) != 0) {
+    } else if (!st.cfg.prog && access(st.raytrace, X_OK) != 0) {
         fprintf(stderr, "harness run: raytrace not executable at '%s' (set --raytrace, 'raytrace:' in the config "
                         "or $RAYTRACE)\n", st.raytrace);
         rc = 1;

@@ -554,7 +554,7 @@ static void size_plan(const HxPlan *plan, const SlurmOpts *o, Sizing *sz)
         const HxRun *r = &plan->runs[i];
         long v;
         sz->nrows += !r->warmup;
-        if (hx_backend_mpi(r->v[HX_DIM_BACKEND])) {
+        if (hx_run_is_mpi(r->v)) {
             sz->nmpi++;
             sz->ngpu += hx_backend_gpu(r->v[HX_DIM_BACKEND]);
             if (strcmp(r->v[HX_DIM_RANKS], "-") != 0 &&

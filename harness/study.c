@@ -23,7 +23,26 @@ static char *row_config_id(const HxCsv *csv, size_t r, int skip)
         if (d == skip || (skip == -2 && (d == HX_DIM_THREADS || d == HX_DIM_RANKS)))
             v[d] = "*";
     }
-    return hx_make_config_id(v);
+    /* a command study: its program and params are part of it */
+    const char *params = hx_csv_get(csv, r, "params");
+    char *id = hx_make_config_id(v, params);
+    if (strcmp(v[HX_DIM_BACKEND], "-") != 0)
+        return id;
+    HxBuf b = {0};
+    hx_buf_printf(&b, "program=%s %s", hx_csv_get(csv, r, "program"), id);
+    free(id);
+    return b.s;
+}
+
+/* The swept worker dimension of a row: threads for OpenMP, ranks for MPI;
+ * a command study's ranks if it has them, else its threads; -2: none. */
+static int swept_dim(const HxCsv *csv, size_t r, const char *backend)
+{
+    if (strcmp(backend, "-") == 0)
+        return strcmp(hx_csv_get(csv, r, "ranks"), "-") != 0     ? HX_DIM_RANKS
+               : strcmp(hx_csv_get(csv, r, "threads"), "-") != 0 ? HX_DIM_THREADS
+                                                                 : -2;
+    return strcmp(backend, "openmp") == 0 ? HX_DIM_THREADS : hx_backend_mpi(backend) ? HX_DIM_RANKS : -2;
 }
 
 static int dim_int(const HxCsv *csv, size_t r, int d)
@@ -37,9 +56,8 @@ static int dim_int(const HxCsv *csv, size_t r, int d)
  * (threads and ranks both swept) also threads at fixed ranks (series2). */
 static void group_series(HxGroup *g, const HxCsv *csv, size_t r, const int *varies)
 {
-    int swept = strcmp(g->backend, "openmp") == 0 ? HX_DIM_THREADS
-              : hx_backend_mpi(g->backend)        ? HX_DIM_RANKS
-                                                  : -2;
+    int swept = swept_dim(csv, r, g->backend);
+    g->swept = swept;
     g->series_id = row_config_id(csv, r, swept);
     g->axis = swept >= 0 ? dim_int(csv, r, swept) : 1;
     if (swept == HX_DIM_RANKS && varies[HX_DIM_THREADS] && varies[HX_DIM_RANKS]) {
@@ -78,10 +96,40 @@ static int dim_varies(const HxCsv *csv, const char *col)
     return 0;
 }
 
+/* Whether param key takes more than one value in the study's rows. */
+static int param_varies(const HxCsv *csv, const char *key)
+{
+    char first[128] = "", v[128];
+    for (size_t r = 0; r < csv->nrows; r++) {
+        if (!hx_kv_get(hx_csv_get(csv, r, "params"), key, v, sizeof v))
+            continue;
+        if (!first[0])
+            snprintf(first, sizeof first, "%s", v);
+        else if (strcmp(first, v) != 0)
+            return 1;
+    }
+    return 0;
+}
+
+/* A command study's params that vary, as " NAME=VALUE". */
+static void label_params(HxBuf *b, const HxCsv *csv, size_t r)
+{
+    const char *p = hx_csv_get(csv, r, "params");
+    while (*p) {
+        size_t n = strcspn(p, ";"), k = strcspn(p, "=");
+        char key[128];
+        snprintf(key, sizeof key, "%.*s", (int)(k < n ? k : n), p);
+        if (param_varies(csv, key))
+            hx_buf_printf(b, " %.*s", (int)n, p);
+        p += n + (p[n] == ';');
+    }
+}
+
 static char *row_label(const HxCsv *csv, size_t r, int with_workers, const int *varies)
 {
     HxBuf b = {0};
-    hx_buf_put(&b, hx_csv_get(csv, r, "backend"));
+    const char *be = hx_csv_get(csv, r, "backend");
+    hx_buf_put(&b, strcmp(be, "-") == 0 && *hx_csv_get(csv, r, "program") ? hx_csv_get(csv, r, "program") : be);
     const char *acc = hx_csv_get(csv, r, "accel");
     if (strcmp(acc, "-") != 0)
         hx_buf_printf(&b, "/%s", acc);
@@ -101,6 +149,7 @@ static char *row_label(const HxCsv *csv, size_t r, int with_workers, const int *
         if (strcmp(v, "-") != 0 && *v)
             hx_buf_printf(&b, " %s=%s", hx_dim_col[d], v);
     }
+    label_params(&b, csv, r);
     return b.s;
 }
 
@@ -108,18 +157,7 @@ static char *row_label(const HxCsv *csv, size_t r, int with_workers, const int *
  * number is copied into num. */
 static const char *extra_value(const HxCsv *csv, size_t r, const char *key, char *num, size_t n)
 {
-    const char *extra = hx_csv_get(csv, r, "extra");
-    size_t kl = strlen(key);
-    for (const char *k = extra; (k = strstr(k, key)) != NULL; k += kl) {
-        if ((k != extra && k[-1] != ';') || k[kl] != '=')
-            continue;
-        size_t m = 0;
-        for (k += kl + 1; *k && *k != ';' && m + 1 < n; k++)
-            num[m++] = *k;
-        num[m] = '\0';
-        return num;
-    }
-    return NULL;
+    return hx_kv_get(hx_csv_get(csv, r, "extra"), key, num, n);
 }
 
 /* The metric of row r: a numeric column, a record key kept in `extra`, or
@@ -169,9 +207,76 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
     return hx_study_build(path, metric, s, err, errlen);
 }
 
-int hx_study_build(const char *path, const char *metric, HxStudy *s, char *err, size_t errlen)
+/* The metric a study is read by when none is named: render_ms for
+ * raytrace's rows, else a command study's first metric, else wall_ms. */
+static void default_metric(const HxCsv *csv, char *buf, size_t n)
+{
+    for (size_t r = 0; r < csv->nrows; r++)
+        if (*hx_csv_get(csv, r, "render_ms")) {
+            snprintf(buf, n, "render_ms");
+            return;
+        }
+    for (size_t r = 0; r < csv->nrows; r++) {
+        const char *mi = hx_csv_get(csv, r, "metric_info");
+        if (*mi) {
+            snprintf(buf, n, "%.*s", (int)strcspn(mi, ":;"), mi);
+            return;
+        }
+    }
+    snprintf(buf, n, "wall_ms");
+}
+
+/* The metric's unit and direction: a command study's declaration
+ * (metric_info "name:unit:higher;..."), else by its name. */
+static void metric_sense(HxStudy *s, const char *metric)
 {
     const HxCsv *csv = &s->csv;
+    char decl[160];
+    snprintf(s->unit, sizeof s->unit, "%s", strstr(metric, "/calib") ? "x calib" : "");
+    s->higher = 0;
+    for (size_t r = 0; r < csv->nrows; r++) {
+        const char *mi = hx_csv_get(csv, r, "metric_info");
+        if (!*mi)
+            continue;
+        if (hx_kv_get_sep(mi, metric, ':', decl, sizeof decl)) {
+            char *colon = strchr(decl, ':');
+            s->higher = colon && strcmp(colon + 1, "higher") == 0;
+            if (colon)
+                *colon = '\0';
+            snprintf(s->unit, sizeof s->unit, "%.23s", decl);
+            return;
+        }
+        break;
+    }
+    size_t ml = strlen(metric);
+    if (!s->unit[0] && ml > 3 && strcmp(metric + ml - 3, "_ms") == 0)
+        snprintf(s->unit, sizeof s->unit, "ms");
+    else if (strcmp(metric, "maxrss_kib") == 0)
+        snprintf(s->unit, sizeof s->unit, "KiB");
+    else if (strcmp(metric, "mrays_per_s") == 0) {
+        snprintf(s->unit, sizeof s->unit, "Mrays/s");
+        s->higher = 1;
+    }
+}
+
+double hx_study_speedup(const HxStudy *s, double base, double v)
+{
+    return s->higher ? v / base : base / v;
+}
+
+int hx_study_better(const HxStudy *s, double a, double b)
+{
+    return s->higher ? a > b : a < b;
+}
+
+int hx_study_build(const char *path, const char *metric_opt, HxStudy *s, char *err, size_t errlen)
+{
+    const HxCsv *csv = &s->csv;
+    default_metric(csv, s->metric, sizeof s->metric);
+    if (metric_opt)
+        snprintf(s->metric, sizeof s->metric, "%s", metric_opt);
+    const char *metric = s->metric;
+    metric_sense(s, metric);
     static const char *const need[] = {"status", "scene", "backend", "run_id", NULL};
     for (int i = 0; need[i]; i++)
         if (hx_csv_col(csv, need[i]) < 0) {
@@ -307,7 +412,9 @@ static void group_rows(HxStudy *s, const char *metric)
         note_suspect(g, csv, r);
         const char *st = hx_csv_get(csv, r, "status");
         double t;
-        if (strcmp(st, "ok") == 0 && hx_parse_double(hx_csv_get(csv, r, "render_ms"), &t) == 0)
+        /* compare's --min-ms: render_ms, or a command's wall time */
+        if (strcmp(st, "ok") == 0 && (hx_parse_double(hx_csv_get(csv, r, "render_ms"), &t) == 0 ||
+                                      hx_parse_double(hx_csv_get(csv, r, "wall_ms"), &t) == 0))
             g->raw[g->nraw++] = t;
         if (s->row_status_wrong[r]) {
             g->nwrong++;
@@ -411,7 +518,7 @@ const HxGroup *hx_baseline_fastest(const HxStudy *s, const HxGroup *g, const cha
             continue;
         if (strcmp(hx_csv_get(&s->csv, b->first_row, key), eq + 1) != 0)
             continue;
-        if (!best || b->median < best->median)
+        if (!best || hx_study_better(s, b->median, best->median))
             best = b;
     }
     return best;
@@ -421,7 +528,7 @@ const HxGroup *hx_baseline_fastest(const HxStudy *s, const HxGroup *g, const cha
 char *hx_series_label(const HxGroup *g, int second)
 {
     char *lab = hx_strdup(g->label);
-    const char *tok = second || strcmp(g->backend, "openmp") == 0 ? " T=" : " P=";
+    const char *tok = second || g->swept == HX_DIM_THREADS ? " T=" : " P=";
     char *at = strstr(lab, tok);
     if (at) {
         char *end = strchr(at + 1, ' ');

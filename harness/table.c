@@ -96,7 +96,8 @@ static void usage_table(FILE *f)
           "  --baseline KEY=VALUE  column=value selecting baseline (b)\n"
           "  --format md|csv|json  output format (default md)\n"
           "  --wide                every column (the default table fits 100 columns)\n"
-          "  --metric COLUMN       time column (default render_ms)\n"
+          "  --metric COLUMN       a column or record key (default render_ms; a command\n"
+          "                        study's first metric, else wall_ms)\n"
           "  --include-suspect     fit oversubscribed and unpinned points too\n"
           "  -h, --help            this text\n", f);
 }
@@ -114,15 +115,21 @@ static void config_stats(const HxStudy *s, const HxGroup *g, const char *baselin
     c->g = g;
     c->a = hx_baseline_one_worker(s, g);
     c->b = hx_baseline_fastest(s, g, baseline);
-    c->spa = c->a && g->nt ? c->a->median / g->median : NAN;
+    c->spa = c->a && g->nt ? hx_study_speedup(s, c->a->median, g->median) : NAN;
     c->spa_lo = c->spa_hi = NAN;
-    if (c->a && g->nt && c->a != g)
+    if (c->a && g->nt && c->a != g) {
         hx_bootstrap_ci(g->t, g->nt, c->a->t, c->a->nt, &c->spa_lo, &c->spa_hi);
+        if (s->higher) { /* a rate's speedup is the inverse ratio */
+            double lo = 1.0 / c->spa_hi;
+            c->spa_hi = 1.0 / c->spa_lo;
+            c->spa_lo = lo;
+        }
+    }
     c->efa = c->spa / g->axis;
     /* Karp-Flatt only where it means something: a speedup below 1 gives
      * e > 1, a "serial fraction" that no program has */
     c->kf = g->axis > 1 && c->spa >= 1 ? hx_karp_flatt(c->spa, g->axis) : NAN;
-    c->spb = c->b && g->nt ? c->b->median / g->median : NAN;
+    c->spb = c->b && g->nt ? hx_study_speedup(s, c->b->median, g->median) : NAN;
     c->efb = c->spb / g->workers;
     HxBuf n = {0};
     if (g->ntimeout)
@@ -161,11 +168,19 @@ static void fmt_ci(char *b, size_t n, double v, double lo, double hi, int ms)
 
 static void table_configs(Emit *e, const HxStudy *s, const char *baseline, int wide)
 {
-    static const char *const narrow[] = {"scene", "configuration", "n", "median ms [CI]", "speedup (a) [CI]",
-                                         "eff. (a)", "speedup (b)", "notes"};
-    static const char *const all[] = {
-        "scene", "configuration", "workers", "n", "median ms [CI]", "min ms", "IQR ms", "outliers",
-        "T(1) ms", "speedup (a) [CI]", "efficiency (a)", "Karp-Flatt", "base (b) ms", "base (b)",
+    /* the metric's unit in the headers; a rate's best is its maximum */
+    char med_h[48], min_h[40], iqr_h[40], t1_h[40], bt_h[40];
+    const char *u = s->unit[0] && strcmp(s->unit, "1") != 0 ? s->unit : "";
+    snprintf(med_h, sizeof med_h, "median %s%s[CI]", u, *u ? " " : "");
+    snprintf(min_h, sizeof min_h, "%s %s", s->higher ? "max" : "min", u);
+    snprintf(iqr_h, sizeof iqr_h, "IQR %s", u);
+    snprintf(t1_h, sizeof t1_h, "T(1) %s", u);
+    snprintf(bt_h, sizeof bt_h, "base (b) %s", u);
+    const char *const narrow[] = {"scene", "configuration", "n", med_h, "speedup (a) [CI]",
+                                  "eff. (a)", "speedup (b)", "notes"};
+    const char *const all[] = {
+        "scene", "configuration", "workers", "n", med_h, min_h, iqr_h, "outliers",
+        t1_h, "speedup (a) [CI]", "efficiency (a)", "Karp-Flatt", bt_h, "base (b)",
         "speedup (b)", "efficiency (b)", "notes"};
     if (wide)
         emit_header(e, "Per configuration (CI: 95% bootstrap interval)", all, 17);
@@ -180,7 +195,10 @@ static void table_configs(Emit *e, const HxStudy *s, const char *baseline, int w
         snprintf(w, sizeof w, "%d", g->workers);
         snprintf(n, sizeof n, "%zu/%zu", g->nok, g->nrows);
         fmt_ci(med, sizeof med, g->median, g->ci_lo, g->ci_hi, 1);
-        fmt_ms(mn, sizeof mn, g->min);
+        double top = g->min;
+        for (size_t k = 0; s->higher && k < g->nt; k++)
+            top = k == 0 || g->t[k] > top ? g->t[k] : top;
+        fmt_ms(mn, sizeof mn, top);
         fmt_ms(iqr, sizeof iqr, g->q3 - g->q1);
         snprintf(out, sizeof out, "%d", g->noutliers);
         fmt_ms(t1, sizeof t1, c.a ? c.a->median : NAN);
@@ -243,7 +261,8 @@ static void fit_series(const HxStudy *s, size_t i, int second, int include_suspe
                 t = hx_xrealloc(t, cap * sizeof *t);
             }
             p[out->np] = axis;
-            t[out->np++] = g->t[j];
+            /* a rate r fits as its time per unit of work, 1/r */
+            t[out->np++] = s->higher ? 1.0 / g->t[j] : g->t[j];
         }
     }
     if (out->distinct >= 2)
@@ -283,7 +302,7 @@ static Fit *collect_fits(const HxStudy *s, int include_suspect, size_t *n)
                 continue;
             f.scene = s->g[i].scene;
             f.series = hx_series_label(&s->g[i], second);
-            f.sweep = second || strcmp(s->g[i].backend, "openmp") == 0 ? "threads" : "ranks";
+            f.sweep = second || s->g[i].swept == HX_DIM_THREADS ? "threads" : "ranks";
             if (*n == cap) {
                 cap = cap ? 2 * cap : 8;
                 fits = hx_xrealloc(fits, cap * sizeof *fits);
@@ -304,8 +323,12 @@ static void fits_free(Fit *fits, size_t n)
 
 static void table_fits(Emit *e, const HxStudy *s, int include_suspect)
 {
-    static const char *const h[] = {"scene", "series", "sweep", "points", "serial fraction", "std. error",
-                                    "a ms", "b ms", "note"};
+    char ah[48], bh[48];
+    const char *u = s->unit[0] ? s->unit : "-";
+    /* a rate is fitted as 1/rate */
+    snprintf(ah, sizeof ah, s->higher ? "a (1/%s)" : "a %s", u);
+    snprintf(bh, sizeof bh, s->higher ? "b (1/%s)" : "b %s", u);
+    const char *const h[] = {"scene", "series", "sweep", "points", "serial fraction", "std. error", ah, bh, "note"};
     size_t n;
     Fit *fits = collect_fits(s, include_suspect, &n);
     if (n)
@@ -438,7 +461,7 @@ int hx_cmd_table(int argc, char **argv)
         {"metric", required_argument, NULL, 'm'}, {"wide", no_argument, NULL, 'w'},
         {"include-suspect", no_argument, NULL, 'i'}, {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0}};
-    const char *baseline = NULL, *format = "md", *metric = "render_ms";
+    const char *baseline = NULL, *format = "md", *metric = NULL;
     int c, wide = 0, include_suspect = 0;
     while ((c = getopt_long(argc, argv, "h", lo, NULL)) != -1) {
         switch (c) {
@@ -466,6 +489,7 @@ int hx_cmd_table(int argc, char **argv)
     HxStudy s;
     if (hx_study_open("harness table", argv[optind], metric, &s))
         return 1;
+    metric = s.metric;
     if (!baseline) {
         baseline = "backend=serial";
         if (s.csv.nrows && *hx_csv_get(&s.csv, 0, "baseline"))
@@ -481,11 +505,13 @@ int hx_cmd_table(int argc, char **argv)
     }
     Emit e = {stdout, strcmp(format, "csv") == 0, 0};
     if (!e.csv)
-        printf("## Study %s (%s, metric %s, baseline (b): fastest %s)\n",
-               s.csv.nrows ? hx_csv_get(&s.csv, 0, "study") : "", argv[optind], metric, baseline);
+        printf("## Study %s (%s, metric %s%s, baseline (b): %s %s)\n",
+               s.csv.nrows ? hx_csv_get(&s.csv, 0, "study") : "", argv[optind], metric,
+               s.higher ? ", higher is better" : "", s.higher ? "best" : "fastest", baseline);
     table_configs(&e, &s, baseline, wide);
     table_fits(&e, &s, include_suspect);
-    table_cross(&e, &s);
+    if (s.scenes.n > 1 || (s.scenes.n == 1 && strcmp(s.scenes.v[0], "-") != 0)) /* not a command study's */
+        table_cross(&e, &s);
     hx_study_free(&s);
     return 0;
 }

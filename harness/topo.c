@@ -240,7 +240,7 @@ void hx_plan_cores(const HxTopo *t, const HxConfig *cfg, HxPlan *plan)
         /* srun spreads an MPI run over every node of the job; the harness
          * only sees the first one, so it assumes the nodes are alike (whole
          * nodes of one partition, as `harness slurm` asks for). */
-        int span = hx_backend_mpi(r->v[HX_DIM_BACKEND]) ? nodes : 1;
+        int span = hx_run_is_mpi(r->v) ? nodes : 1;
         r->oversubscribed = r->workers > t->ncores * span;
         r->refused = r->oversubscribed && !cfg->oversubscribe_allow;
         /* Cores on other nodes cannot be named here, and raytrace's cores=

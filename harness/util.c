@@ -421,3 +421,23 @@ void hx_fnv1a_hex(const char *s, char out[20])
     }
     snprintf(out, 20, "%016llx", (unsigned long long)h);
 }
+
+const char *hx_kv_get_sep(const char *list, const char *key, char sep, char *out, size_t n)
+{
+    size_t kl = strlen(key);
+    for (const char *k = list; (k = strstr(k, key)) != NULL; k += kl) {
+        if ((k != list && k[-1] != ';') || k[kl] != sep)
+            continue;
+        size_t m = 0;
+        for (k += kl + 1; *k && *k != ';' && m + 1 < n; k++)
+            out[m++] = *k;
+        out[m] = '\0';
+        return out;
+    }
+    return NULL;
+}
+
+const char *hx_kv_get(const char *list, const char *key, char *out, size_t n)
+{
+    return hx_kv_get_sep(list, key, '=', out, n);
+}

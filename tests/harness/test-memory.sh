@@ -1,7 +1,8 @@
 #!/bin/bash
 # The harness's own measurement of every run: peak memory (maxrss_kib, from
 # wait4's rusage) within 5% of what a program of known peak allocates, 64
-# and 256 MiB, and CPU time (user_ms, sys_ms) present.
+# and 256 MiB, and CPU time (user_ms, sys_ms) present: once as raytrace (the
+# record line's workload), once as a command study of the plain program.
 # usage: test-memory.sh HARNESS ALLOC_PROGRAM
 set -u
 . "$(dirname "$0")/common.sh"
@@ -9,10 +10,17 @@ test_setup memory "$1" "$2"
 for m in 64 256; do echo "# dummy" > "alloc$m.txt"; done
 printf 'study: mem\nscene_dir: .\nscenes: alloc64 alloc256\nrepeats: 2\npin: none\nraytrace: %s\n' "$FAKE" > mem.conf
 "$H" run mem.conf -o mem.csv -q > run.out 2>&1 || { cat run.out; fail "harness run failed"; }
-col() { awk -F, -v want="$1" 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == want) c = i; next } c { print $c }' mem.csv; }
-rows=$(paste -d' ' <(col scene) <(col maxrss_kib) <(col user_ms) <(col sys_ms) 2> /dev/null) ||
-    fail "cannot read the columns"
-[ "$(printf '%s\n' "$rows" | grep -c .)" -eq 4 ] || fail "expected 4 rows: $rows"
+printf 'command: %s {mib}
+param mib: 64 256
+repeats: 2
+pin: none
+' "$FAKE" > cmd.conf
+"$H" run cmd.conf -o cmd.csv -q > run.out 2>&1 || { cat run.out; fail "harness run (command study) failed"; }
+col() { awk -F, -v want="$1" 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == want) c = i; next } c { print $c }' "$2"; }
+rows=$(paste -d' ' <(col scene mem.csv) <(col maxrss_kib mem.csv) <(col user_ms mem.csv) <(col sys_ms mem.csv) &&
+    paste -d' ' <(col params cmd.csv | sed 's/^mib=/alloc/') <(col maxrss_kib cmd.csv) <(col user_ms cmd.csv) \
+        <(col sys_ms cmd.csv)) 2> /dev/null || fail "cannot read the columns"
+[ "$(printf '%s\n' "$rows" | grep -c .)" -eq 8 ] || fail "expected 8 rows: $rows"
 printf '%s\n' "$rows" | while read -r scene rss user sys; do
     mib=${scene#alloc}
     want=$((mib * 1024))

@@ -240,4 +240,25 @@ out=$(cd "$T/repo" && timeout 60 "$H" slurm huge.conf --submit --cpus-per-task $
   fail "--submit of a job larger than the node exited 0"
 echo "$out" | grep -q "^harness slurm: job [0-9]* cannot start as submitted (PENDING: PartitionConfig)" ||
   fail "no 'cannot start' line: $out"
+# ---- 6: a command study's ranks through srun, their pinning proved ----
+cat > "$T/repo/cmd.conf" <<'CONF'
+study: cmd
+command: awk 'BEGIN{for(i=0;i<3e6;i++)s+=i; print "sum=" s}'
+ranks: 1 2
+metric sum: 'sum=([0-9.e+]+)' unit 1 better higher
+repeats: 2
+timeout: 60
+CONF
+submit cmd.conf > "$T/sub5.out" 2> "$T/sub5.err" || { cat "$T/sub5.err"; logs; fail "command study: --submit failed"; }
+grep -q '^harness slurm: job [0-9]* COMPLETED: 4/4 rows in results/cmd-slurm.csv' "$T/sub5.err" ||
+  { cat "$T/sub5.err"; fail "command study: no COMPLETED line"; }
+python3 - "$T/repo/results/cmd-slurm.csv" <<'PY' || fail "command study's CSV"
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+assert sorted(r["ranks"] for r in rows) == ["1", "1", "2", "2"], [r["ranks"] for r in rows]
+for r in rows:
+    assert r["status"] == "ok" and r["program"] == "awk" and "sum=" in r["extra"], r
+    # the tasks are slurmstepd's, not srun's: seen by the harness anyway
+    assert r["pin_held"] == "yes" and r["cores_actual"] == r["cores_planned"], (r["run_id"], r["cores_planned"], r["cores_actual"], r["pin_held"])
+PY
 echo "slurm real-cluster test passed ($cpus CPUs; job $job cancelled at $done1/10 rows, job $job2 resumed it)"

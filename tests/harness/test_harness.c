@@ -485,7 +485,7 @@ static char *make_study(const char *name, int reps, double scale, long ray_bump,
                 vv[HX_DIM_PIN] = "close";
                 for (int d = 0; d < HX_NDIM; d++)
                     v[hx_column_index(hx_dim_col[d])] = hx_strdup(vv[d]);
-                char *cid = hx_make_config_id(vv);
+                char *cid = hx_make_config_id(vv, NULL);
                 HxBuf id = {0};
                 hx_buf_printf(&id, "%s #r%d", cid, r);
                 free(cid);
