@@ -695,7 +695,7 @@ int hx_program_collect(const HxConfig *cfg, const char *rundir, const HxBuf *out
             metric_value(&pg->metrics[i], text, &v, why, n) != 0)
             rc = -1;
         else
-            hx_buf_printf(extra, "%s%s=%.17g", extra->len ? ";" : "", pg->metrics[i].name, v);
+            hx_buf_printf(extra, "%s%s=%.12g", extra->len ? ";" : "", pg->metrics[i].name, v);
     }
     hx_buf_free(&own);
     return rc;
