@@ -26,8 +26,8 @@ run_hpcc() { # N=5000 (a 200 MB matrix): with the reference BLAS about 1.5 minut
         --set nb=128 --set repeats="${REPEATS:-2}" 2>&1 | tail -3
     $H table "$OUT/hpcc.csv" --metric triad_gbs > "$OUT/hpcc-triad-table.md"
 }
-run_xz() { # 64 MiB, 32 blocks of 2 MiB: two per thread at 16 threads
-    $H run configs/xz.conf -o "$OUT/xz.csv" --overwrite --set threads="$W" --set mib="${XZ_MIB:-64}" \
+run_xz() { # 128 MiB, 32 blocks of 4 MiB: two per thread at 16 threads
+    $H run configs/xz.conf -o "$OUT/xz.csv" --overwrite --set threads="$W" --set mib="${XZ_MIB:-128}" \
         --set repeats="${REPEATS:-3}" 2>&1 | tail -3
     $H table "$OUT/xz.csv" --metric maxrss_kib > "$OUT/xz-memory-table.md"
 }
