@@ -48,6 +48,9 @@ int hx_file_exists(const char *path);
 /* Reads a whole file into b (NUL-terminated); -1 with errno set on failure. */
 int hx_read_file(const char *path, HxBuf *b);
 int hx_is_dir(const char *path);
+/* The program name runs: a path (with a '/') if executable, else the first
+ * executable NAME on PATH; resolved (realpath), malloc'd, or NULL. */
+char *hx_which(const char *name);
 char *hx_dirname(const char *path);     /* malloc'd */
 char *hx_path_join(const char *a, const char *b);
 int hx_cmp_double(const void *a, const void *b);

@@ -245,21 +245,7 @@ static void null_terminate(HxStrList *l)
  * runs python3.11), for the CPU watcher; malloc'd, NULL when not found. */
 static char *exe_name(const char *argv0)
 {
-    char *abs = NULL;
-    if (strchr(argv0, '/')) {
-        abs = realpath(argv0, NULL);
-    } else {
-        const char *path = getenv("PATH");
-        for (const char *d = path ? path : "/usr/bin:/bin"; d && *d && !abs;) {
-            size_t dl = strcspn(d, ":");
-            HxBuf f = {0};
-            hx_buf_printf(&f, "%.*s/%s", (int)dl, d, argv0);
-            if (dl && access(f.s, X_OK) == 0)
-                abs = realpath(f.s, NULL);
-            hx_buf_free(&f);
-            d = d[dl] ? d + dl + 1 : NULL;
-        }
-    }
+    char *abs = hx_which(argv0);
     const char *b = abs ? strrchr(abs, '/') : NULL;
     char *name = b ? hx_strdup(b + 1) : NULL;
     free(abs);

@@ -411,28 +411,16 @@ static int locate(HxStrList *argv, char *why, size_t n)
     const char *a0 = argv->v[0];
     if (strchr(a0, '{'))
         return 0;
+    char *abs = hx_which(a0);
+    if (!abs)
+        return fail(why, n, "program '%s' %s", a0, strchr(a0, '/') ? "not found or not executable" : "not found on PATH");
     if (strchr(a0, '/')) {
-        char *abs = realpath(a0, NULL);
-        if (!abs || access(abs, X_OK) != 0) {
-            free(abs);
-            return fail(why, n, "program '%s' %s", a0, errno == ENOENT || !abs ? "not found" : "not executable");
-        }
         free(argv->v[0]);
         argv->v[0] = abs;
-        return 0;
+    } else {
+        free(abs); /* a name stays a name: the run's PATH finds it */
     }
-    const char *path = getenv("PATH");
-    for (const char *d = path ? path : "/usr/bin:/bin"; d && *d;) {
-        size_t dl = strcspn(d, ":");
-        HxBuf f = {0};
-        hx_buf_printf(&f, "%.*s/%s", (int)dl, d, a0);
-        int ok = dl && access(f.s, X_OK) == 0 && !hx_is_dir(f.s);
-        hx_buf_free(&f);
-        if (ok)
-            return 0;
-        d = d[dl] ? d + dl + 1 : NULL;
-    }
-    return fail(why, n, "program '%s' not found on PATH", a0);
+    return 0;
 }
 
 /* Each template's placeholders known, each template file's text too. */

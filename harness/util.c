@@ -441,3 +441,21 @@ const char *hx_kv_get(const char *list, const char *key, char *out, size_t n)
 {
     return hx_kv_get_sep(list, key, '=', out, n);
 }
+
+char *hx_which(const char *name)
+{
+    if (strchr(name, '/'))
+        return access(name, X_OK) == 0 && !hx_is_dir(name) ? realpath(name, NULL) : NULL;
+    const char *path = getenv("PATH");
+    for (const char *d = path ? path : "/usr/bin:/bin"; d && *d;) {
+        size_t dl = strcspn(d, ":");
+        HxBuf f = {0};
+        hx_buf_printf(&f, "%.*s/%s", (int)dl, d, name);
+        char *abs = dl && access(f.s, X_OK) == 0 && !hx_is_dir(f.s) ? realpath(f.s, NULL) : NULL;
+        hx_buf_free(&f);
+        if (abs)
+            return abs;
+        d = d[dl] ? d + dl + 1 : NULL;
+    }
+    return NULL;
+}
