@@ -354,7 +354,16 @@ static int has_calib(const HxCsv *csv)
     return ok;
 }
 
-int hx_cmd_compare(int argc, char **argv)
+/* compare's options. */
+typedef struct {
+    double factor, alpha, min_ms;
+    int json;
+    const char *metric;
+} CompareOpts;
+
+/* Parses the options into o. -1: go on; else the exit status (--help 0,
+ * a bad option 1). */
+static int compare_opts(int argc, char **argv, CompareOpts *o)
 {
     static const struct option lo[] = {
         {"factor", required_argument, NULL, 'f'}, {"alpha", required_argument, NULL, 'a'},
@@ -364,42 +373,52 @@ int hx_cmd_compare(int argc, char **argv)
     /* defaults from 20 reruns of unchanged code on the noisy 2-core machine
      * (docs/harness.md, "False alarms"): calibrated times and 1.8 raised
      * none; plain render_ms at 1.5 raised 2 */
-    double factor = 1.8, alpha = 0.05, min_ms = 0.5;
-    int json = 0;
-    const char *metric = NULL;
+    *o = (CompareOpts){1.8, 0.05, 0.5, 0, NULL};
     int c;
     while ((c = getopt_long(argc, argv, "h", lo, NULL)) != -1) {
         switch (c) {
         case 'f':
-            if (hx_parse_double(optarg, &factor) || factor <= 1.0) {
+            if (hx_parse_double(optarg, &o->factor) || o->factor <= 1.0) {
                 fprintf(stderr, "harness compare: --factor: expected a number > 1, got '%s'\n", optarg);
                 return 1;
             }
             break;
         case 'a':
-            if (hx_parse_double(optarg, &alpha) || alpha <= 0 || alpha >= 1) {
+            if (hx_parse_double(optarg, &o->alpha) || o->alpha <= 0 || o->alpha >= 1) {
                 fprintf(stderr, "harness compare: --alpha: expected 0 < A < 1, got '%s'\n", optarg);
                 return 1;
             }
             break;
         case 'n':
-            if (hx_parse_double(optarg, &min_ms) || min_ms < 0) {
+            if (hx_parse_double(optarg, &o->min_ms) || o->min_ms < 0) {
                 fprintf(stderr, "harness compare: --min-ms: expected a number >= 0, got '%s'\n", optarg);
                 return 1;
             }
             break;
-        case 'm': metric = optarg; break;
+        case 'm': o->metric = optarg; break;
         case 'F':
             if (strcmp(optarg, "text") != 0 && strcmp(optarg, "json") != 0) {
                 fprintf(stderr, "harness compare: --format: expected text or json, got '%s'\n", optarg);
                 return 1;
             }
-            json = strcmp(optarg, "json") == 0;
+            o->json = strcmp(optarg, "json") == 0;
             break;
         case 'h': usage_compare(stdout); return 0;
         default: usage_compare(stderr); return 1;
         }
     }
+    return -1;
+}
+
+int hx_cmd_compare(int argc, char **argv)
+{
+    CompareOpts o;
+    int orc = compare_opts(argc, argv, &o);
+    if (orc >= 0)
+        return orc;
+    double factor = o.factor, alpha = o.alpha, min_ms = o.min_ms;
+    int json = o.json;
+    const char *metric = o.metric;
     if (argc - optind != 2) {
         fprintf(stderr, "harness compare: expected NEW.csv BASE.csv (see --help)\n");
         return 1;

@@ -96,6 +96,13 @@ want=$(for n in 10 20 30; do for t in 1 2 4; do echo "threads=$t ranks=- pin=clo
     for p in 1 2; do echo "threads=- ranks=$p pin=close mode=mpi n=$n #r0"; done; done | sort)
 [ "$ids" = "$want" ] || { diff <(echo "$want") <(echo "$ids"); fail "the plan of ranges and scopes"; }
 
+# raytrace's keys scope the same way: OpenMP's threads, MPI's ranks
+echo "# dummy" > demo.txt
+printf 'scenes: demo\nscene_dir: .\nbackend: serial openmp mpi\nthreads: 1 2 when backend=openmp\nranks: 1..4 *2 when backend=mpi\nrepeats: 1\noversubscribe: allow\n' > rt.conf
+"$H" run --dry-run rt.conf > plan.txt 2>&1 || { cat plan.txt; fail "raytrace dry run"; }
+got=$(grep '^\[' plan.txt | sed -n 's/.*backend=\([a-z]*\) .* threads=\([-0-9]*\) ranks=\([-0-9]*\) .*/\1 \2 \3/p' | tr '\n' ',')
+[ "$got" = "serial - -,openmp 1 -,openmp 2 -,mpi - 1,mpi - 2,mpi - 4," ] || fail "raytrace scopes: $got"
+
 echo "== 5. MPI ranks through mpirun, pinned, pinning proved"
 cat > mpi.conf <<'EOF'
 command: awk 'BEGIN{for(i=0;i<4e6;i++)s+=i; print "sum=" s}'
