@@ -153,18 +153,21 @@ typedef struct {
     int higher;      /* the metric is a rate: higher is better */
 } Rule;
 
-/* One configuration's verdict: ok, REGRESSION, IMPROVEMENT or new. */
+/* One configuration's verdict: REGRESSION, IMPROVEMENT, no change,
+ * INCONCLUSIVE (the samples cannot tell), or new. */
 typedef struct {
     const char *verdict, *scene, *label;
     char *reason;
     double base_median, new_median, ratio, p, min_ratio;
+    double ci_lo, ci_hi, mde; /* the ratio's 95% interval, the smallest detectable change */
+    long need;                /* repeats a side that would resolve the factor */
     size_t n_new, n_base;
 } Verdict;
 
 typedef struct {
     Verdict *v;
     size_t n, cap;
-    int compared, regressions, improvements;
+    int compared, regressions, improvements, inconclusive;
 } Verdicts;
 
 static Verdict *push_verdict(Verdicts *vs, const HxGroup *g, const char *verdict, const char *reason,
@@ -180,12 +183,13 @@ static Verdict *push_verdict(Verdicts *vs, const HxGroup *g, const char *verdict
     v->scene = g->scene;
     v->label = g->label;
     v->reason = hx_strdup(reason);
-    v->base_median = v->new_median = v->ratio = v->p = v->min_ratio = NAN;
+    v->base_median = v->new_median = v->ratio = v->p = v->min_ratio = v->ci_lo = v->ci_hi = v->mde = NAN;
     /* g is BASE's group, other NEW's; a "new" verdict has only NEW's */
     v->n_base = strcmp(verdict, "new") == 0 ? 0 : g->nt;
     v->n_new = strcmp(verdict, "new") == 0 ? g->nt : other ? other->nt : 0;
     vs->regressions += strcmp(verdict, "REGRESSION") == 0;
     vs->improvements += strcmp(verdict, "IMPROVEMENT") == 0;
+    vs->inconclusive += strcmp(verdict, "INCONCLUSIVE") == 0;
     return v;
 }
 
@@ -239,6 +243,34 @@ static double best_sample(const HxGroup *g, int higher)
     return v;
 }
 
+/* What the samples can resolve: the 95% bootstrap interval of the cost
+ * ratio (new/base for times, base/new for rates), the smallest change it
+ * could tell from none (the interval's half-width as a factor, e^w), and
+ * the repeats a side that would resolve the asked factor (the width shrinks
+ * as 1/sqrt(n)). */
+typedef struct {
+    double lo, hi, mde;
+    long need;
+} Resolution;
+
+static Resolution resolution(const HxGroup *n, const HxGroup *b, const Rule *rule)
+{
+    Resolution r = {NAN, NAN, NAN, 0};
+    hx_bootstrap_ci(b->t, b->nt, n->t, n->nt, &r.lo, &r.hi);
+    if (rule->higher && isfinite(r.lo)) {
+        double lo = 1.0 / r.hi;
+        r.hi = 1.0 / r.lo;
+        r.lo = lo;
+    }
+    if (!(r.lo > 0.0) || !isfinite(r.hi))
+        return r;
+    double w = (log(r.hi) - log(r.lo)) / 2.0, target = log(rule->factor) / 2.0;
+    size_t nmin = n->nt < b->nt ? n->nt : b->nt;
+    r.mde = exp(w);
+    r.need = w > target ? (long)ceil((double)nmin * (w / target) * (w / target)) : (long)nmin;
+    return r;
+}
+
 static void judge_time(const HxGroup *n, const HxGroup *b, const Rule *rule, Verdicts *vs)
 {
     /* ratio and rmin as costs, above 1 worse, whatever the direction */
@@ -249,15 +281,15 @@ static void judge_time(const HxGroup *n, const HxGroup *b, const Rule *rule, Ver
     }
     HxBuf r = {0};
     if (b->raw_median < rule->min_ms) { /* render_ms, whatever the metric */
-        hx_buf_printf(&r, "render_ms %.3f -> %.3f too short to judge (< %.3g ms)", b->raw_median, n->raw_median,
+        hx_buf_printf(&r, "time %.3f -> %.3f ms too short to judge (< %.3g ms)", b->raw_median, n->raw_median,
                       rule->min_ms);
-        push_verdict(vs, b, "ok", r.s, n);
+        push_verdict(vs, b, "INCONCLUSIVE", r.s, n);
         hx_buf_free(&r);
         return;
     }
     double p = NAN;
     int slow, fast;
-    char how[128];
+    char how[160];
     if (b->nt >= 4 && n->nt >= 4) {
         p = hx_mann_whitney_p(n->t, n->nt, b->t, b->nt);
         /* the minimum must move too: noise on a busy machine only ever adds
@@ -270,15 +302,31 @@ static void judge_time(const HxGroup *n, const HxGroup *b, const Rule *rule, Ver
         fast = ratio < 1.0 / rule->factor && rmin < 1.0 / rule->factor;
         snprintf(how, sizeof how, "min ratio %.2f, n=%zu/%zu (too few for a test)", rmin, n->nt, b->nt);
     }
-    hx_buf_printf(&r, "median %.3f -> %.3f%s%s, %s %.3f (%s)%s", b->median, n->median, *rule->unit ? " " : "",
-                  rule->unit, rule->higher ? "cost ratio (base/new)" : "ratio", ratio, how,
-                  (slow || fast) && rule->fp_differs ? " [different machines]" : "");
-    Verdict *v = push_verdict(vs, b, slow ? "REGRESSION" : fast ? "IMPROVEMENT" : "ok", r.s, n);
+    Resolution res = resolution(n, b, rule);
+    /* "no change" only where the interval rules out the asked factor both
+     * ways; anything else that is not a verdict is inconclusive */
+    int none = res.lo > 1.0 / rule->factor && res.hi < rule->factor;
+    const char *verdict = slow ? "REGRESSION" : fast ? "IMPROVEMENT" : none ? "no change" : "INCONCLUSIVE";
+    hx_buf_printf(&r, "median %.3f -> %.3f%s%s, %s %.3f [%.3f, %.3f] (%s)%s", b->median, n->median,
+                  *rule->unit ? " " : "", rule->unit, rule->higher ? "cost ratio (base/new)" : "ratio", ratio, res.lo,
+                  res.hi, how, (slow || fast) && rule->fp_differs ? " [different machines]" : "");
+    if (none && (res.lo > 1.0 || res.hi < 1.0))
+        hx_buf_printf(&r, "; a change of x%.2f, within the factor %.2f", ratio, rule->factor);
+    if (!slow && !fast && !none && isfinite(res.mde))
+        hx_buf_printf(&r, "; at this noise only changes beyond x%.2f are detectable, about %ld repeats a side "
+                          "would resolve x%.2f", res.mde, res.need, rule->factor);
+    else if (!slow && !fast && !none)
+        hx_buf_put(&r, "; too few samples for an interval (3 a side at least)");
+    Verdict *v = push_verdict(vs, b, verdict, r.s, n);
     v->base_median = b->median;
     v->new_median = n->median;
     v->ratio = ratio;
     v->p = p;
     v->min_ratio = rmin;
+    v->ci_lo = res.lo;
+    v->ci_hi = res.hi;
+    v->mde = res.mde;
+    v->need = res.need;
     hx_buf_free(&r);
 }
 
@@ -322,9 +370,9 @@ static void print_json(const Verdicts *vs, const Rule *rule, const char *new_csv
     hx_json_kstr(o, "metric", metric);
     hx_json_num(o, "factor", rule->factor);
     hx_json_num(o, "alpha", rule->alpha);
-    printf(", \"machines_differ\": %s, \"compared\": %d, \"regressions\": %d, \"improvements\": %d,\n"
-           " \"verdicts\": [",
-           rule->fp_differs ? "true" : "false", vs->compared, vs->regressions, vs->improvements);
+    printf(", \"machines_differ\": %s, \"compared\": %d, \"regressions\": %d, \"improvements\": %d,"
+           " \"inconclusive\": %d,\n \"verdicts\": [",
+           rule->fp_differs ? "true" : "false", vs->compared, vs->regressions, vs->improvements, vs->inconclusive);
     for (size_t i = 0; i < vs->n; i++) {
         const Verdict *v = &vs->v[i];
         fputs(i ? ",\n  {\"verdict\": " : "\n  {\"verdict\": ", o);
@@ -336,6 +384,9 @@ static void print_json(const Verdicts *vs, const Rule *rule, const char *new_csv
         hx_json_num(o, "ratio", v->ratio);
         hx_json_num(o, "p", v->p);
         hx_json_num(o, "min_ratio", v->min_ratio);
+        hx_json_pair(o, "ratio_ci95", v->ci_lo, v->ci_hi);
+        hx_json_num(o, "detectable_ratio", v->mde);
+        hx_json_num(o, "repeats_needed", v->need > 0 ? (double)v->need : NAN);
         hx_json_num(o, "n_base", (double)v->n_base);
         hx_json_num(o, "n_new", (double)v->n_new);
         hx_json_kstr(o, "reason", v->reason);
@@ -352,6 +403,60 @@ static int has_calib(const HxCsv *csv)
         if (strcmp(hx_csv_get(csv, r, "status"), "ok") == 0)
             ok = strstr(hx_csv_get(csv, r, "extra"), "calib_ms=") != NULL;
     return ok;
+}
+
+/* The widest spread of calib_ms (max/min) within one configuration of
+ * csv; its configuration and range in where. */
+static double calib_spread(const HxCsv *csv, char *where, size_t n)
+{
+    double worst = 1.0;
+    for (size_t r = 0; r < csv->nrows; r++) {
+        const char *id = hx_csv_get(csv, r, "run_id");
+        size_t idn = strcspn(id, "#");
+        double lo = INFINITY, hi = 0, c;
+        char num[32];
+        for (size_t k = 0; k < csv->nrows; k++) {
+            const char *other = hx_csv_get(csv, k, "run_id");
+            if (strncmp(other, id, idn) != 0 || strcmp(hx_csv_get(csv, k, "status"), "ok") != 0 ||
+                !hx_kv_get(hx_csv_get(csv, k, "extra"), "calib_ms", num, sizeof num) || hx_parse_double(num, &c) ||
+                !(c > 0))
+                continue;
+            lo = c < lo ? c : lo;
+            hi = c > hi ? c : hi;
+        }
+        if (hi > 0 && hi / lo > worst) {
+            worst = hi / lo;
+            snprintf(where, n, "'%.*s' (%.1f-%.1f ms)", (int)(idn > 0 && id[idn - 1] == ' ' ? idn - 1 : idn), id,
+                     lo, hi);
+        }
+    }
+    return worst;
+}
+
+/* A time divided by the calibration only helps while the calibration
+ * varies less than the change it should reveal. Refused (-1, one line)
+ * when asked for; else replaced by the plain time with a note. */
+static int calib_refused(HxStudy *nw, HxStudy *base, const char *nw_path, const char *base_path, double factor,
+                         int asked, int json, const char **metric)
+{
+    char where[2][512] = {"", ""};
+    double spread[2] = {calib_spread(&nw->csv, where[0], sizeof where[0]),
+                        calib_spread(&base->csv, where[1], sizeof where[1])};
+    int k = spread[1] > spread[0];
+    if (spread[k] <= factor)
+        return 0;
+    const char *path = k ? base_path : nw_path;
+    if (asked) {
+        hx_put_clean_line(stderr, "harness compare: --metric %s refused: the calibration varies x%.1f within %s of "
+                          "%s, more than the factor %.2f it should reveal; compare the plain time", *metric,
+                          spread[k], where[k], path, factor);
+        return -1;
+    }
+    if (!json)
+        hx_put_clean_line(stdout, "NOTE render_ms/calib not used: the calibration varies x%.1f within %s of %s, "
+                          "more than the factor %.2f; comparing render_ms", spread[k], where[k], path, factor);
+    *metric = "render_ms";
+    return 0;
 }
 
 /* compare's options. */
@@ -445,6 +550,12 @@ int hx_cmd_compare(int argc, char **argv)
             printf("NOTE times are not calibrated (run the studies with extra_args: --calibrate): on a noisy "
                    "machine expect a false alarm now and then (docs/harness.md, \"False alarms\")\n");
     }
+    if (metric && strstr(metric, "/calib") && calib_refused(&nw, &base, argv[optind], argv[optind + 1], factor,
+                                                           o.metric != NULL, json, &metric) != 0) {
+        hx_csv_free(&nw.csv);
+        hx_csv_free(&base.csv);
+        return 1;
+    }
     if (hx_study_build(argv[optind], metric, &nw, err, sizeof err) != 0) {
         fprintf(stderr, "harness compare: %s\n", err);
         hx_csv_free(&base.csv);
@@ -482,8 +593,8 @@ int hx_cmd_compare(int argc, char **argv)
         for (size_t k = 0; k < v.n; k++)
             printf("%s %s %s: %s\n", v.v[k].verdict, v.v[k].scene, v.v[k].label, v.v[k].reason);
     if (!json)
-        printf("compare: %d configuration(s) compared, %d regression(s), %d improvement(s) (factor %.2f, alpha %.3g)\n",
-               v.compared, v.regressions, v.improvements, factor, alpha);
+        printf("compare: %d configuration(s) compared, %d regression(s), %d improvement(s), %d inconclusive "
+               "(factor %.2f, alpha %.3g)\n", v.compared, v.regressions, v.improvements, v.inconclusive, factor, alpha);
     int regressions = v.regressions;
     verdicts_free(&v);
     hx_strlist_free(&fpn);

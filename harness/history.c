@@ -167,14 +167,19 @@ static int load_series(sqlite3 *db, const char *dbpath, const char *metric, cons
         return -1;
     }
     sqlite3_stmt *st = hx_db_prep(db, dbpath,
-        "SELECT r.config_id, r.fingerprint, r.git_commit, a.num, b.num FROM runs r"
+        /* a series: one configuration on one machine under one set of
+         * settings (config_hash: extra_args, a command study's command,
+         * ...), so that different work never shares a line */
+        "SELECT r.config_id, r.fingerprint || ' ' || COALESCE(r.config_hash, ''), r.git_commit, a.num, b.num"
+        " FROM runs r"
         " JOIN vals a ON a.run_id = r.id AND a.key = ?1"
         " LEFT JOIN vals b ON b.run_id = r.id AND b.key = ?2"
         " LEFT JOIN commits c ON c.sha = r.git_commit"
         " JOIN (SELECT git_commit AS g, MIN(utc) AS first, MIN(id) AS first_id FROM runs GROUP BY git_commit) f"
         " ON f.g = r.git_commit"
         " WHERE r.status = 'ok' AND a.num IS NOT NULL"
-        " ORDER BY r.config_id, r.fingerprint, COALESCE(c.commit_time, 0), f.first, f.first_id, r.git_commit, r.id");
+        " ORDER BY r.config_id, r.fingerprint, r.config_hash, COALESCE(c.commit_time, 0), f.first, f.first_id,"
+        " r.git_commit, r.id");
     if (!st)
         return -1;
     sqlite3_bind_text(st, 1, num, -1, SQLITE_TRANSIENT);
@@ -346,7 +351,8 @@ static void write_history_dat(FILE *dat, const SeriesSet *ss, const HxStrList *o
     for (size_t i = 0; i < ss->n; i++) {
         char cfg[400], raw[512], lab[512];
         config_label(cfg, sizeof cfg, ss->s[i].config);
-        snprintf(raw, sizeof raw, "%s [%.8s]", cfg, ss->s[i].fingerprint);
+        const char *hash = strchr(ss->s[i].fingerprint, ' ');
+        snprintf(raw, sizeof raw, "%s [%.8s/%.6s]", cfg, ss->s[i].fingerprint, hash ? hash + 1 : "");
         hx_plot_clean_label(lab, sizeof lab, raw);
         fprintf(dat, "\"%s\"\n", lab);
         for (size_t k = 0; k < ss->s[i].np; k++) {

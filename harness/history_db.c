@@ -138,6 +138,9 @@ static char *row_config(const HxCsv *csv, size_t r)
     if (*prog && strcmp(prog, "raytrace") != 0)
         hx_buf_printf(&b, "program=%s ", prog);
     hx_buf_putn(&b, id, h ? (size_t)(h - id) : strlen(id));
+    const char *ver = hx_csv_get(csv, r, "program_version");
+    if (*ver && strcmp(ver, "-") != 0) /* another version of the program is other work */
+        hx_buf_printf(&b, " version=%s", ver);
     return b.s;
 }
 

@@ -19,17 +19,19 @@ for i in $(seq 0 "$n"); do
         echo "compare-noise: run $i had failed runs" >&2
     echo "compare-noise: run $i of $n done" >&2
 done
-echo "| setting | reruns flagged as regressions | as improvements | configurations x reruns |"
-echo "|---|---|---|---|"
+echo "| setting | reruns flagged as regressions | as improvements | with an inconclusive configuration | metric refused | configurations x reruns |"
+echo "|---|---|---|---|---|---|"
 for setting in "--metric render_ms --factor 1.5" "--metric render_ms --factor 1.8" \
                "--metric render_ms/calib --factor 1.5" "--metric render_ms/calib --factor 1.8"; do
-    bad=0 better=0 cfgs=0
+    bad=0 better=0 unsure=0 refused=0 cfgs=0
     for i in $(seq 1 "$n"); do
         # shellcheck disable=SC2086
-        r=$("$h" compare $setting "$out/run$i.csv" "$out/run0.csv" || true)
+        r=$("$h" compare $setting "$out/run$i.csv" "$out/run0.csv" 2> "$out/err" || true)
+        grep -q 'refused' "$out/err" && refused=$((refused + 1))
         echo "$r" | grep -q '^REGRESSION' && bad=$((bad + 1))
         echo "$r" | grep -q '^IMPROVEMENT' && better=$((better + 1))
-        cfgs=$((cfgs + $(echo "$r" | grep -c -E '^(ok|REGRESSION|IMPROVEMENT) ')))
+        echo "$r" | grep -q '^INCONCLUSIVE' && unsure=$((unsure + 1))
+        cfgs=$((cfgs + $(echo "$r" | grep -c -E '^(no change|INCONCLUSIVE|REGRESSION|IMPROVEMENT) ')))
     done
-    echo "| \`$setting\` | $bad of $n | $better of $n | $cfgs |"
+    echo "| \`$setting\` | $bad of $n | $better of $n | $unsure of $n | $refused of $n | $cfgs |"
 done

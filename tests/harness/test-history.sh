@@ -104,7 +104,7 @@ grep -q "^12 studies in esc.db" esc-show.out || { cat -A esc-show.out; fail "esc
 grep -q 'st?\[2J???udy .* ho?\[2J???st  *fp?\[2J???  *esc1.csv$' esc-show.out ||
     { cat -A esc-show.out; fail "escape: show: the fields not shown with '?'"; }
 "$H" history check --db esc.db > esc-check.out && { cat -A esc-check.out; fail "escape: check found no step"; }
-grep -q '^STEP scene=ok?\[2J???a .*\[fp?\[2J???\]: render_ms at commit c0ffee07' esc-check.out ||
+grep -q '^STEP scene=ok?\[2J???a .*\[fp?\[2J??? [0-9a-f]*\]: render_ms at commit c0ffee07' esc-check.out ||
     { cat -A esc-check.out; fail "escape: check: the STEP line"; }
 for f in esc-show.out esc-check.out; do
     LC_ALL=C grep -q "$(printf '[\001-\010\013-\037\177]')" "$f" && { cat -A "$f"; fail "escape: $f holds a control character"; }

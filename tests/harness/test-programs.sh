@@ -143,15 +143,18 @@ echo "== 7. --resume grows a command study"
     fail "after --resume: $(csv base.csv threads | sort | uniq -c)"
 echo "== 8. history across commits: a rate that drops is a slowdown"
 command -v git > /dev/null || fail "git missing"
+# the "code" is the checkout's rate.txt; the config stays the same
+printf 'command: sh -c %s\ninput rate.txt: rate.txt\nmetric rate: %s unit GB/s\nrepeats: 5\npin: none\n' \
+    "'echo \"rate: \$(cat rate.txt) GB/s\"'" "'rate: ([0-9.]+)'" > h.conf
 mkdir repo && cd repo || exit 1
 git init -q . && git config user.email t@example.org && git config user.name t
 for i in 1 2 3; do
-    echo "$i" > f && git add f || fail "git add"
-    GIT_AUTHOR_DATE="2026-01-0$i 12:00:00 +0000" GIT_COMMITTER_DATE="2026-01-0$i 12:00:00 +0000" \
-        git commit -qm "c$i" || fail "git commit"
     rate=12.5
     [ "$i" -lt 3 ] || rate=6.25
-    "$H" run ../r.conf -o "../h$i.csv" -q --set threads=1 --set "env RATE=$rate" > /dev/null 2>&1 || fail "study at c$i"
+    echo "$rate" > rate.txt && echo "$i" > f && git add rate.txt f || fail "git add"
+    GIT_AUTHOR_DATE="2026-01-0$i 12:00:00 +0000" GIT_COMMITTER_DATE="2026-01-0$i 12:00:00 +0000" \
+        git commit -qm "c$i" || fail "git commit"
+    "$H" run ../h.conf -o "../h$i.csv" -q > /dev/null 2>&1 || fail "study at c$i"
     "$H" history add "../h$i.csv" --db ../h.db > /dev/null || fail "history add c$i"
 done
 cd .. || exit 1
