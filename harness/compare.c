@@ -310,6 +310,9 @@ static void judge_time(const HxGroup *n, const HxGroup *b, const Rule *rule, Ver
     hx_buf_printf(&r, "median %.3f -> %.3f%s%s, %s %.3f [%.3f, %.3f] (%s)%s", b->median, n->median,
                   *rule->unit ? " " : "", rule->unit, rule->higher ? "cost ratio (base/new)" : "ratio", ratio, res.lo,
                   res.hi, how, (slow || fast) && rule->fp_differs ? " [different machines]" : "");
+    if (n->nbusy || b->nbusy || n->nstolen || b->nstolen) /* the noise the rows recorded */
+        hx_buf_printf(&r, "; noisy rows: busy %zu/%zu new, %zu/%zu base; CPU steal %zu/%zu new, %zu/%zu base",
+                      n->nbusy, n->nrows, b->nbusy, b->nrows, n->nstolen, n->nrows, b->nstolen, b->nrows);
     if (none && (res.lo > 1.0 || res.hi < 1.0))
         hx_buf_printf(&r, "; a change of x%.2f, within the factor %.2f", ratio, rule->factor);
     if (!slow && !fast && !none && isfinite(res.mde))

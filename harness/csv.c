@@ -50,6 +50,10 @@ const char *const hx_columns[] = {
     /* command studies: the program, its params (k=v;k=v), its version
      * line and its metrics (name:unit:lower|higher;...) */
     "program", "params", "program_version", "metric_info",
+    /* what else the machine did during the run (harness/noise.c): the load
+     * at its start, other work in cores, steal and iowait in % of all CPU
+     * time, and the verdict: busy, stolen, both or empty */
+    "load1", "others_cores", "steal_pct", "iowait_pct", "noise",
     /* every other record key, k=v;k=v */
     "extra",
 };

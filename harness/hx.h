@@ -422,6 +422,8 @@ typedef struct {
     int suspect;         /* a run was oversubscribed or its pinning did not
                           * hold: left out of fits unless asked */
     const char *suspect_why;
+    size_t npartial;     /* ok rows whose pinning held only in part */
+    size_t nbusy, nstolen; /* rows on a busy machine, with CPU steal (noise) */
     double ci_lo, ci_hi; /* 95% bootstrap interval of the median */
     char *label;         /* short, readable, for tables and plots */
     char *backend;

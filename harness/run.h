@@ -49,6 +49,22 @@ int hx_run_child(const struct HxCommand *c, const HxTopo *topo, const HxRun *run
                  HxChildResult *res);
 void hx_child_result_free(HxChildResult *res);
 
+/* ---- what else the machine did during a run (noise.c) ---- */
+typedef struct {
+    unsigned long long busy, idle, iowait, steal; /* clock ticks, all CPUs */
+    double load1;                                 /* 1-minute load, -1 unknown */
+    int ok;
+} HxCpuStat;
+typedef struct {
+    double load1, others_cores, steal_pct, iowait_pct; /* -1: unknown */
+    int busy, stolen;
+} HxNoise;
+void hx_cpu_stat(HxCpuStat *s);
+/* The noise between samples a and b of a run of wall_ms that used
+ * own_cpu_ms of CPU itself, with workers workers on a machine of cpus. */
+void hx_noise(const HxCpuStat *a, const HxCpuStat *b, double wall_ms, double own_cpu_ms, int cpus, int workers,
+              HxNoise *n);
+
 /* ---- which CPUs a run's threads use (watch.c) ---- */
 typedef struct HxWatch HxWatch;
 /* Follows the descendants of pid (itself included) whose executable's
@@ -87,6 +103,31 @@ void hx_print_command(FILE *out, const HxCommand *c);
 /* The renderer: --raytrace (opt), the config's, $RAYTRACE, or the build
  * tree's ../renderer/raytrace next to the harness. malloc'd. */
 char *hx_find_raytrace(const HxConfig *cfg, const char *opt);
+
+/* ---- the correctness gate (gate.c) ---- */
+
+typedef struct {
+    char *key;         /* scene_path|resolution|max_depth: what fixes the image */
+    char *hash;
+    char *run_id;
+    int serial;
+} HxImageRef;
+
+typedef struct {
+    HxImageRef *v;
+    size_t n;
+} HxRefTable;
+
+HxImageRef *hx_ref_find(HxRefTable *t, const char *key);
+/* Applies the gate to an ok row; returns the new status (static string) and
+ * may set *detail. Reference: the first ok serial run of the image, else the
+ * first ok run. CUDA rows are never failed on the hash: the GPU image may
+ * differ by rounding and is checked against a tolerance by the image test. */
+const char *hx_gate(HxRefTable *t, const char *key, const char *backend, const char *hash, const char *run_id,
+                    char **detail);
+void hx_ref_free(HxRefTable *t);
+/* "scene_path|resolution|max_depth", malloc'd. */
+char *hx_image_key(const char *scene_path, const char *res, const char *depth);
 
 /* ---- what --resume accepts (resume.c) ---- */
 

@@ -4,8 +4,8 @@
  * (proc.c), started by the command line launch.c builds. A row is formatted
  * whole, written with one write() and fsync()ed before the next run starts:
  * a study killed half-way leaves only whole rows, and --resume continues it.
- * The correctness gate compares each run's image hash with the first ok
- * serial run of the same image. */
+ * The correctness gate (gate.c) compares each run's image hash with the
+ * first ok serial run of the same image. */
 #include "program.h"
 #include "run.h"
 
@@ -21,83 +21,6 @@
 #include <sys/stat.h>
 #include <sys/types.h>
 #include <unistd.h>
-
-/* ---- correctness gate ---- */
-
-typedef struct {
-    char *key;         /* scene_path|resolution|max_depth: what fixes the image */
-    char *hash;
-    char *run_id;
-    int serial;
-} ImageRef;
-
-typedef struct {
-    ImageRef *v;
-    size_t n;
-} RefTable;
-
-static ImageRef *ref_find(RefTable *t, const char *key)
-{
-    for (size_t i = 0; i < t->n; i++)
-        if (strcmp(t->v[i].key, key) == 0)
-            return &t->v[i];
-    return NULL;
-}
-
-/* Applies the gate to an ok row; returns the new status (static string) and
- * may set *detail. Reference: the first ok serial run of the image, else the
- * first ok run. CUDA rows are never failed on the hash: the GPU image may
- * differ by rounding and is checked against a tolerance by the image test. */
-static const char *gate(RefTable *t, const char *key, const char *backend,
-                        const char *hash, const char *run_id, char **detail)
-{
-    if (!hash || !*hash)
-        return "ok";
-    int serial = strcmp(backend, "serial") == 0;
-    int cuda = hx_backend_gpu(backend);
-    ImageRef *r = ref_find(t, key);
-    if (!r || (!r->serial && serial)) {
-        if (!r && !cuda) {
-            t->v = hx_xrealloc(t->v, (t->n + 1) * sizeof *t->v);
-            r = &t->v[t->n++];
-            r->key = hx_strdup(key);
-        } else if (!r) {
-            return "ok";
-        } else {
-            free(r->hash);
-            free(r->run_id);
-        }
-        r->hash = hx_strdup(hash);
-        r->run_id = hx_strdup(run_id);
-        r->serial = serial;
-        return "ok";
-    }
-    if (strcmp(r->hash, hash) == 0)
-        return "ok";
-    HxBuf b = {0};
-    hx_buf_printf(&b, "%simage_fnv1a %s != reference %s (%s)",
-                  cuda ? "gpu-tolerance: " : "", hash, r->hash, r->run_id);
-    free(*detail);
-    *detail = b.s;
-    return cuda ? "ok" : "wrong-image";
-}
-
-static void ref_free(RefTable *t)
-{
-    for (size_t i = 0; i < t->n; i++) {
-        free(t->v[i].key);
-        free(t->v[i].hash);
-        free(t->v[i].run_id);
-    }
-    free(t->v);
-}
-
-static char *image_key(const char *scene_path, const char *res, const char *depth)
-{
-    HxBuf b = {0};
-    hx_buf_printf(&b, "%s|%s|%s", scene_path, res, depth);
-    return b.s;
-}
 
 /* ---- the command ---- */
 
@@ -228,8 +151,10 @@ typedef struct {
      * repeat would fail the same way); failures: one line per failing
      * configuration for the summary */
     HxStrList done_ids, timed_out, deterministic, failures;
-    RefTable refs;
+    HxRefTable refs;
     char *workdir, *version, *metric_info; /* command studies */
+    size_t nbusy, nstolen, npartial;       /* rows on a busy or stolen machine, with pinning not held */
+    double max_others, max_steal;
     double t0, child_ms;
     size_t executed, skipped, attempted, nstat[6];
 } Study;
@@ -367,11 +292,36 @@ static const char *outcome(Study *st, const HxRun *r, const char *rundir, HxChil
         *detail = hx_strdup("no instruction count from cachegrind (is valgrind installed?)");
         return "error";
     }
-    char *key = image_key(r->scene_path, r->v[HX_DIM_RESOLUTION], r->v[HX_DIM_MAX_DEPTH]);
-    const char *status = gate(&st->refs, key, r->v[HX_DIM_BACKEND], vals[hx_column_index("image_fnv1a")],
+    char *key = hx_image_key(r->scene_path, r->v[HX_DIM_RESOLUTION], r->v[HX_DIM_MAX_DEPTH]);
+    const char *status = hx_gate(&st->refs, key, r->v[HX_DIM_BACKEND], vals[hx_column_index("image_fnv1a")],
                               r->run_id, detail);
     free(key);
     return status;
+}
+
+/* The run's noise columns, and the study's count of noisy rows. */
+static void note_noise(Study *st, const HxRun *r, const HxCpuStat *before, const HxCpuStat *after,
+                       const HxChildResult *res, char **vals)
+{
+    HxNoise n;
+    hx_noise(before, after, res->wall_ms, res->have_usage ? res->user_ms + res->sys_ms : 0, st->fp.logical_cpus,
+             r->workers, &n);
+    if (n.load1 >= 0)
+        setf(vals, "load1", "%.2f", n.load1);
+    if (n.others_cores >= 0) {
+        setf(vals, "others_cores", "%.2f", n.others_cores);
+        setf(vals, "steal_pct", "%.2f", n.steal_pct);
+        setf(vals, "iowait_pct", "%.2f", n.iowait_pct);
+    }
+    set(vals, "noise", n.busy && n.stolen ? "busy,stolen" : n.busy ? "busy" : n.stolen ? "stolen" : "");
+    if (!r->warmup) {
+        st->nbusy += n.busy;
+        st->nstolen += n.stolen;
+        if (n.others_cores > st->max_others)
+            st->max_others = n.others_cores;
+        if (n.steal_pct > st->max_steal)
+            st->max_steal = n.steal_pct;
+    }
 }
 
 /* Runs r (or records why it is not run). Returns the status, NULL when a
@@ -412,7 +362,10 @@ static const char *run_one(Study *st, const HxRun *r, char **vals, char **detail
     HxCommand cmd;
     hx_build_command(&st->cfg, &st->topo, r, st->raytrace, st->image, rundir, st->workdir, &cmd);
     HxChildResult res;
+    HxCpuStat before, after;
+    hx_cpu_stat(&before);
     int spawned = hx_run_child(&cmd, &st->topo, r, st->cfg.timeout_s, &res);
+    hx_cpu_stat(&after);
     hx_reap_strays();
     hx_command_free(&cmd);
     const char *status = NULL;
@@ -430,6 +383,7 @@ static const char *run_one(Study *st, const HxRun *r, char **vals, char **detail
             setf(vals, "sys_ms", "%.3f", res.sys_ms);
             setf(vals, "maxrss_kib", "%ld", res.maxrss_kib);
         }
+        note_noise(st, r, &before, &after, &res, vals);
         status = outcome(st, r, rundir, &res, vals, detail);
     }
     hx_child_result_free(&res);
@@ -472,7 +426,9 @@ static int run_plan(Study *st)
             row_free(vals);
             return 0;
         }
-        set(vals, "pin_held", hx_pin_held(r->cores_planned, vals[hx_column_index("cores_actual")]));
+        const char *held = hx_pin_held(r->cores_planned, vals[hx_column_index("cores_actual")]);
+        set(vals, "pin_held", held);
+        st->npartial += !r->warmup && strcmp(status, "ok") == 0 && (!strcmp(held, "partial") || !strcmp(held, "no"));
         set(vals, "status", status);
         set(vals, "status_detail", detail ? detail : "");
         int rc = 0;
@@ -526,16 +482,42 @@ static int load_done(Study *st, char *err, size_t errlen)
         hx_strlist_push(&st->done_ids, hx_csv_get(&old, i, "run_id"));
         if (strcmp(hx_csv_get(&old, i, "status"), "ok") != 0)
             continue;
-        char *key = image_key(hx_csv_get(&old, i, "scene_path"), hx_csv_get(&old, i, "resolution"),
+        char *key = hx_image_key(hx_csv_get(&old, i, "scene_path"), hx_csv_get(&old, i, "resolution"),
                               hx_csv_get(&old, i, "max_depth"));
         char *d = NULL;
-        gate(&st->refs, key, hx_csv_get(&old, i, "backend"), hx_csv_get(&old, i, "image_fnv1a"),
+        hx_gate(&st->refs, key, hx_csv_get(&old, i, "backend"), hx_csv_get(&old, i, "image_fnv1a"),
              hx_csv_get(&old, i, "run_id"), &d);
         free(d);
         free(key);
     }
     hx_csv_free(&old);
     return 0;
+}
+
+/* The summary's first line: whether the rows can be trusted, and why not
+ * (docs/harness.md, "Noise"). */
+static void trust_line(const Study *st)
+{
+    size_t rows = 0;
+    for (int k = 0; k < 6; k++)
+        rows += st->nstat[k];
+    if (!rows)
+        return;
+    if (!st->nbusy && !st->nstolen && !st->npartial) {
+        fprintf(stderr, "harness: trusted: no row ran on a busy machine or with CPU steal, and every ok row's "
+                        "pinning held\n");
+        return;
+    }
+    HxBuf b = {0};
+    if (st->nbusy)
+        hx_buf_printf(&b, "%zu of %zu rows ran on a busy machine (other work up to %.1f cores)", st->nbusy, rows,
+                      st->max_others);
+    if (st->nstolen)
+        hx_buf_printf(&b, "%s%zu with CPU steal (up to %.1f%%)", b.len ? ", " : "", st->nstolen, st->max_steal);
+    if (st->npartial)
+        hx_buf_printf(&b, "%s%zu ok rows whose pinning did not hold", b.len ? ", " : "", st->npartial);
+    fprintf(stderr, "harness: NOT trusted: %s; `harness table` marks them (docs/harness.md, \"Noise\")\n", b.s);
+    hx_buf_free(&b);
 }
 
 /* The end of a study: counts, overhead, failures. Returns the exit status. */
@@ -548,6 +530,7 @@ static int summary(const Study *st, int rc)
     }
     const size_t *n = st->nstat;
     double total = hx_now_ms() - st->t0;
+    trust_line(st);
     fprintf(stderr, "harness: %s: %zu rows (ok %zu, wrong-image %zu, timeout %zu, crash %zu, error %zu, "
                     "refused %zu), %zu skipped (resume)\n", st->out_path,
             n[0] + n[1] + n[2] + n[3] + n[4] + n[5], n[0], n[1], n[2], n[3], n[4], n[5], st->skipped);
@@ -677,7 +660,7 @@ static void study_close(Study *st)
     free(st->image);
     free(st->tmpdir);
     free(st->raytrace);
-    ref_free(&st->refs);
+    hx_ref_free(&st->refs);
     hx_strlist_free(&st->done_ids);
     hx_strlist_free(&st->timed_out);
     hx_strlist_free(&st->deterministic);

@@ -70,6 +70,10 @@ static void group_series(HxGroup *g, const HxCsv *csv, size_t r, const int *vari
  * machine's contention, not the code's scaling. */
 static void note_suspect(HxGroup *g, const HxCsv *csv, size_t r)
 {
+    const char *noise = hx_csv_get(csv, r, "noise");
+    g->nbusy += strstr(noise, "busy") != NULL;
+    g->nstolen += strstr(noise, "stolen") != NULL;
+    g->npartial += strcmp(hx_csv_get(csv, r, "status"), "ok") == 0 && strcmp(hx_csv_get(csv, r, "pin_held"), "partial") == 0;
     if (strcmp(hx_csv_get(csv, r, "oversubscribed"), "1") == 0) {
         g->suspect = 1;
         g->suspect_why = "oversubscribed";

@@ -106,7 +106,7 @@ static void usage_table(FILE *f)
 typedef struct {
     const HxGroup *g, *a, *b;
     double spa, spa_lo, spa_hi, efa, kf, spb, efb;
-    char notes[160];
+    char notes[256];
 } ConfigStats;
 
 static void config_stats(const HxStudy *s, const HxGroup *g, const char *baseline, ConfigStats *c)
@@ -140,6 +140,15 @@ static void config_stats(const HxStudy *s, const HxGroup *g, const char *baselin
         hx_buf_printf(&n, "%s%s %zu", n.len ? ", " : "", g->first_status, g->nerror);
     if (g->suspect)
         hx_buf_printf(&n, "%s%s", n.len ? ", " : "", g->suspect_why);
+    /* what should not be trusted as it stands (docs/harness.md, "Noise") */
+    if (g->npartial)
+        hx_buf_printf(&n, "%spinning partial %zu/%zu", n.len ? ", " : "", g->npartial, g->nrows);
+    if (g->nbusy)
+        hx_buf_printf(&n, "%sbusy machine %zu/%zu", n.len ? ", " : "", g->nbusy, g->nrows);
+    if (g->nstolen)
+        hx_buf_printf(&n, "%sCPU steal %zu/%zu", n.len ? ", " : "", g->nstolen, g->nrows);
+    if (c->efa > 1.0 && g->axis > 1)
+        hx_buf_printf(&n, "%sefficiency above 1", n.len ? ", " : "");
     if (g->noutliers)
         hx_buf_printf(&n, "%soutliers %d", n.len ? ", " : "", g->noutliers);
     if (c->spa < 1 && g->axis > 1)

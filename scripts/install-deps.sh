@@ -14,13 +14,14 @@
 # checks), git (provenance, `harness history`), time (/usr/bin/time: peak
 # memory) and binutils (strings).
 # hpcc (HPC Challenge) and xz-utils are the third-party workloads of the
-# command studies configs/hpcc.conf and configs/xz.conf.
+# command studies configs/hpcc.conf and configs/xz.conf; stress-ng is the
+# noisy neighbour of the noise tests.
 set -euo pipefail
 pkgs=(meson ninja-build gcc pkg-config libpng-dev libhwloc-dev hwloc
       libopenmpi-dev openmpi-bin gnuplot-nox libxxhash-dev libassimp-dev assimp-testmodels
       libembree-dev slurm-wlm slurm-client munge libpmix2 libsqlite3-dev valgrind
       procps python3 git time binutils
-      hpcc xz-utils)
+      hpcc xz-utils stress-ng)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,6 +1,7 @@
 /* Unit tests of the harness internals: `test_harness GROUP` runs one group
  * (config, expand, stats, csv, compare) and exits non-zero on any failure. */
 #include "hx.h"
+#include "run.h"
 
 #include <getopt.h>
 #include <math.h>
@@ -294,8 +295,42 @@ static void test_expand(void)
     test_expand_gpus();
 }
 
+/* hx_noise on made-up /proc/stat samples (100 clock ticks a second). */
+static void test_noise(void)
+{
+    HxCpuStat a = {1000, 5000, 10, 0, 0.5, 1}, b = a;
+    HxNoise n;
+    /* 1 s of 2 CPUs: 150 ticks busy, of which the run's own 1000 ms: half a
+     * core of other work, and a CPU left free for the run's one worker */
+    b.busy += 150;
+    b.idle += 50;
+    hx_noise(&a, &b, 1000.0, 1000.0, 2, 1, &n);
+    CHECK_NEAR(n.others_cores, 0.5, 1e-9);
+    CHECK(n.busy == 0 && n.stolen == 0);
+    /* every tick busy: a whole core of other work beside the run */
+    b = a;
+    b.busy += 200;
+    hx_noise(&a, &b, 1000.0, 1000.0, 2, 1, &n);
+    CHECK_NEAR(n.others_cores, 1.0, 1e-9);
+    CHECK(n.busy == 1 && n.stolen == 0);
+    CHECK_NEAR(n.load1, 0.5, 0);
+    /* the same with 10 of the 200 ticks stolen */
+    b = a;
+    b.busy += 100;
+    b.idle += 90;
+    b.steal += 10;
+    hx_noise(&a, &b, 1000.0, 1000.0, 2, 1, &n);
+    CHECK_NEAR(n.others_cores, 0.0, 1e-9);
+    CHECK_NEAR(n.steal_pct, 5.0, 1e-9);
+    CHECK(n.busy == 0 && n.stolen == 1);
+    /* too short to judge */
+    hx_noise(&a, &b, 100.0, 100.0, 2, 1, &n);
+    CHECK(n.busy == 0 && n.stolen == 0);
+}
+
 static void test_stats(void)
 {
+    test_noise();
     double a[] = {5, 1, 3};
     CHECK_NEAR(hx_median(a, 3), 3, 0);
     double b[] = {4, 1, 3, 2};
