@@ -362,6 +362,35 @@ static void judge(const HxStudy *nw, const HxStudy *base, const HxGroup *b, cons
     (void)changed;
 }
 
+/* A group of bare samples, as judge_time reads one. */
+static void sample_group(HxGroup *g, const char *label, double *x, size_t n)
+{
+    memset(g, 0, sizeof *g);
+    g->scene = (char *)"-";
+    g->label = (char *)label;
+    g->t = x;
+    g->nt = g->nrows = g->nok = n;
+    g->median = n ? hx_median(x, n) : NAN;
+    g->min = n ? hx_min(x, n) : NAN;
+    g->raw_median = INFINITY; /* no --min-ms: the caller chose what to time */
+}
+
+int hx_judge_samples(const char *label, double *nw, size_t nn, double *base, size_t nb, double factor, double alpha,
+                     int higher, const char *unit, const char **verdict)
+{
+    HxGroup gn, gb;
+    sample_group(&gn, label, nw, nn);
+    sample_group(&gb, label, base, nb);
+    Rule rule = {factor, alpha, 0.0, unit, 0, higher};
+    Verdicts vs = {0};
+    judge_time(&gn, &gb, &rule, &vs);
+    *verdict = vs.v[0].verdict;
+    hx_put_clean_line(stdout, "%s %s: %s", vs.v[0].verdict, label, vs.v[0].reason);
+    int bad = vs.regressions > 0;
+    verdicts_free(&vs);
+    return bad;
+}
+
 /* --format json (schema: docs/harness.md, "JSON output") */
 static void print_json(const Verdicts *vs, const Rule *rule, const char *new_csv, const char *base_csv,
                        const char *metric)

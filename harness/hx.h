@@ -395,6 +395,11 @@ void hx_plot_put(FILE *gp, const char *fmt, const char *s);
 void hx_plot_file(FILE *gp, const char *fmt, const char *base, const char *kind, const char *ext);
 /* A label for a .dat column header: quotes and control characters blanked. */
 void hx_plot_clean_label(char *dst, size_t n, const char *src);
+/* The verdict of compare's time rule on bare samples, new against base
+ * (harness ab): printed as one line "VERDICT label: reason"; *verdict the
+ * word. 1 for a regression, else 0. */
+int hx_judge_samples(const char *label, double *nw, size_t nn, double *base, size_t nb, double factor, double alpha,
+                     int higher, const char *unit, const char **verdict);
 /* ---- commands ---- */
 int hx_cmd_run(int argc, char **argv);
 int hx_cmd_table(int argc, char **argv);
@@ -403,6 +408,7 @@ int hx_cmd_compare(int argc, char **argv);
 int hx_cmd_topo(int argc, char **argv);
 int hx_cmd_slurm(int argc, char **argv);
 int hx_cmd_history(int argc, char **argv);
+int hx_cmd_ab(int argc, char **argv);
 /* Stores study CSVs in the history database (history_db.c); 0, or 1 on failure. */
 int hx_history_add(const char *db, char **csvs, int n, int allow_dirty);
 

@@ -8,13 +8,14 @@
 static void usage(FILE *f)
 {
     fputs("usage: harness COMMAND [OPTIONS] ...\n"
-          "raybench benchmarking harness " RT_VERSION ": runs raytrace as a child process,\n"
-          "one CSV row per run, then tables, plots and regression checks.\n\n"
+          "raybench benchmarking harness " RT_VERSION ": runs raytrace, or any program, as a\n"
+          "child process, one CSV row per run, then tables, plots and regression checks.\n\n"
           "commands:\n"
           "  run CONFIG [-o FILE.csv]   execute a study (--dry-run, --resume)\n"
           "  table CSV                  statistics, speedups, Amdahl fit, cross table\n"
           "  plot CSV -o PREFIX         gnuplot PNG + SVG (scripts and data kept)\n"
           "  compare NEW.csv BASE.csv   regression check (exit 1 on regression)\n"
+          "  ab 'COMMAND A' 'COMMAND B' the two commands interleaved, and the verdict\n"
           "  topo [CONFIG]              hwloc topology and planned cores per run\n"
           "  slurm CONFIG [-o FILE]     sbatch script running the study with srun\n"
           "  history add|show|plot|check  performance across commits (SQLite)\n\n"
@@ -42,7 +43,7 @@ int main(int argc, char **argv)
         int (*fn)(int, char **);
     } cmds[] = {{"run", hx_cmd_run}, {"table", hx_cmd_table}, {"plot", hx_cmd_plot},
                 {"compare", hx_cmd_compare}, {"topo", hx_cmd_topo},
-                {"slurm", hx_cmd_slurm}, {"history", hx_cmd_history}};
+                {"slurm", hx_cmd_slurm}, {"history", hx_cmd_history}, {"ab", hx_cmd_ab}};
     for (size_t i = 0; i < sizeof cmds / sizeof cmds[0]; i++)
         if (strcmp(cmd, cmds[i].name) == 0)
             return cmds[i].fn(argc - 1, argv + 1);
