@@ -264,9 +264,39 @@ static int step_counts(double p, double ratio, const StepRule *rule)
 
 /* Reports the steps of one series (in each run of flagged commits, the one
  * with the smallest p, then the largest change); the count of slowdowns. */
-static int check_series(const Series *s, const StepRule *rule, const char *metric, int higher)
+/* A series without a step: "no change" when its last window of commits
+ * against the one before rules out a step of the threshold (the 95%
+ * bootstrap interval of the ratio of medians inside 1 +- threshold), else
+ * INCONCLUSIVE with the step the noise would let through. 1 when
+ * inconclusive. */
+static int no_step(const Series *s, const StepRule *rule, const char *lab)
 {
-    int slow = 0;
+    size_t w = (size_t)rule->window, k = s->np > w ? s->np - w : s->np / 2;
+    double *x, *y, lo = NAN, hi = NAN;
+    size_t nx = pool(s, k > w ? k - w : 0, k, &x), ny = pool(s, k, s->np, &y);
+    if (nx >= 3 && ny >= 3)
+        hx_bootstrap_ci(x, nx, y, ny, &lo, &hi);
+    free(x);
+    free(y);
+    if (lo > 1.0 - rule->threshold && hi < 1.0 + rule->threshold) {
+        hx_put_clean_line(stdout, "no change %s [%s]: last %zu commits against the %zu before: ratio in [%.3f, %.3f]",
+                          lab, s->fingerprint, s->np - k, k - (k > w ? k - w : 0), lo, hi);
+        return 0;
+    }
+    if (isnan(lo))
+        hx_put_clean_line(stdout, "INCONCLUSIVE %s [%s]: %zu commit(s), too few samples to tell", lab, s->fingerprint,
+                          s->np);
+    else
+        hx_put_clean_line(stdout, "INCONCLUSIVE %s [%s]: at this noise only steps beyond %.1f%% are detectable "
+                          "(ratio of the last %zu commits to the %zu before in [%.3f, %.3f]); more repeats per commit "
+                          "would resolve %.0f%%", lab, s->fingerprint, 100.0 * (sqrt(hi / lo) - 1.0), s->np - k,
+                          k - (k > w ? k - w : 0), lo, hi, 100.0 * rule->threshold);
+    return 1;
+}
+
+static int check_series(const Series *s, const StepRule *rule, const char *metric, int higher, int *unsure)
+{
+    int slow = 0, steps = 0;
     size_t best = 0;
     char lab[512];
     config_label(lab, sizeof lab, s->config);
@@ -288,8 +318,11 @@ static int check_series(const Series *s, const StepRule *rule, const char *metri
         hx_put_clean_line(stdout, "STEP %s [%s]: %s at commit %s (after %s): %+.1f%%, p=%.2g", lab, s->fingerprint,
                metric, s->p[best].sha, s->p[best - 1].sha, 100.0 * (best_r - 1.0), best_p);
         slow += higher ? best_r < 1.0 : best_r > 1.0; /* a rate's slowdown is a drop */
+        steps++;
         best_p = 2.0;
     }
+    if (!steps)
+        *unsure += no_step(s, rule, lab);
     return slow;
 }
 
@@ -534,11 +567,11 @@ static int history_series_cmd(const char *sub, HistOpts *o, int argc, char **arg
     if (is_plot) {
         rc = history_plot(&ss, metric, o->prefix);
     } else {
-        int slow = 0;
+        int slow = 0, unsure = 0;
         for (size_t i = 0; i < ss.n; i++)
-            slow += check_series(&ss.s[i], &o->rule, metric, higher);
-        printf("history check: %zu series, %d slowdown step(s) (window %d commits, p < %g, change > %g%%)\n",
-               ss.n, slow, o->rule.window, o->rule.alpha, 100.0 * o->rule.threshold);
+            slow += check_series(&ss.s[i], &o->rule, metric, higher, &unsure);
+        printf("history check: %zu series, %d slowdown step(s), %d inconclusive (window %d commits, p < %g, "
+               "change > %g%%)\n", ss.n, slow, unsure, o->rule.window, o->rule.alpha, 100.0 * o->rule.threshold);
         rc = slow ? 1 : 0;
     }
     series_free(&ss);

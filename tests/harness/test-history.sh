@@ -47,7 +47,12 @@ grep -q "^STEP scene=oka .*: render_ms at commit c0ffee07 (after c0ffee06): +" c
 grep -q "^STEP scene=okb" check.out && { cat check.out; fail "the flat configuration was flagged"; }
 [ "$(grep -c '^STEP' check.out)" -eq 1 ] || { cat check.out; fail "one step expected"; }
 "$H" history check --db h.db --scene okb > flat.out || { cat flat.out; fail "the flat configuration failed check"; }
-grep -q "1 series, 0 slowdown" flat.out || { cat flat.out; fail "flat: summary"; }
+grep -q "1 series, 0 slowdown step(s), 0 inconclusive" flat.out || { cat flat.out; fail "flat: summary"; }
+grep -q "^no change scene=okb .*: last 5 commits against the 5 before: ratio in \[0\.9[5-9][0-9]*, 1\.0[0-4]" flat.out ||
+    { cat flat.out; fail "flat: no 'no change' line"; }
+# one commit of the flat series alone cannot tell
+"$H" history check --db h.db --scene okb --window 20 --threshold 0.001 > unsure.out || fail "inconclusive fails"
+grep -q "^INCONCLUSIVE scene=okb .*only steps beyond" unsure.out || { cat unsure.out; fail "no INCONCLUSIVE line"; }
 "$H" history check --db h.db --metric instructions --threshold 0.03 --scene oka > ir.out && fail "an exact 4% step passed"
 grep -q "at commit c0ffee09 (after c0ffee08): +4.0%, p=0" ir.out || { cat ir.out; fail "the exact step"; }
 "$H" history check --db h.db --metric instructions --threshold 0.05 > ir5.out || { cat ir5.out; fail "a 4% step over a 5% threshold"; }
