@@ -409,6 +409,7 @@ int hx_cmd_topo(int argc, char **argv);
 int hx_cmd_slurm(int argc, char **argv);
 int hx_cmd_history(int argc, char **argv);
 int hx_cmd_ab(int argc, char **argv);
+int hx_cmd_ceiling(int argc, char **argv);
 /* Stores study CSVs in the history database (history_db.c); 0, or 1 on failure. */
 int hx_history_add(const char *db, char **csvs, int n, int allow_dirty);
 
@@ -459,6 +460,10 @@ typedef struct {
     char metric[96];     /* the metric read: as asked, else the study's default */
     char unit[24];       /* its unit ("ms", "GB/s", ...; "" unknown) */
     int higher;          /* 1: higher is better (a rate), 0: lower (a time) */
+    int nceil;           /* the machine's ceiling (harness ceiling): */
+    int *ceil_w;         /* at ceil_w[i] workers, each keeps ceil_r[i] */
+    double *ceil_r;      /* of a lone worker's speed */
+    char *ceil_path;
 } HxStudy;
 
 /* The analysis of s->csv, already read (everything else in s zero); on
@@ -476,6 +481,12 @@ int hx_study_open(const char *who, const char *path, const char *metric, HxStudy
 double hx_study_speedup(const HxStudy *s, double base, double v);
 /* Whether a is better than b by the metric's direction. */
 int hx_study_better(const HxStudy *s, double a, double b);
+/* The ceiling of the study's machine (ceiling.c): FILE, else
+ * ceiling-FINGERPRINT.csv beside the CSV or in results/. 0 when one was
+ * read (or none is there and none was asked for), -1 with a line said. */
+int hx_ceiling_load(HxStudy *s, const char *file, const char *csv_path);
+/* Its ratio at workers, NAN when not measured. */
+double hx_ceiling_at(const HxStudy *s, int workers);
 /* Speedup baselines of a group: (a) same series at one worker, (b) the
  * fastest group of the same scene matching KEY=VALUE. NULL if none. */
 const HxGroup *hx_baseline_one_worker(const HxStudy *s, const HxGroup *g);

@@ -16,6 +16,7 @@ static void usage(FILE *f)
           "  plot CSV -o PREFIX         gnuplot PNG + SVG (scripts and data kept)\n"
           "  compare NEW.csv BASE.csv   regression check (exit 1 on regression)\n"
           "  ab 'COMMAND A' 'COMMAND B' the two commands interleaved, and the verdict\n"
+          "  ceiling CONFIG             the machine's own ceiling for the study's efficiency\n"
           "  topo [CONFIG]              hwloc topology and planned cores per run\n"
           "  slurm CONFIG [-o FILE]     sbatch script running the study with srun\n"
           "  history add|show|plot|check  performance across commits (SQLite)\n\n"
@@ -43,7 +44,8 @@ int main(int argc, char **argv)
         int (*fn)(int, char **);
     } cmds[] = {{"run", hx_cmd_run}, {"table", hx_cmd_table}, {"plot", hx_cmd_plot},
                 {"compare", hx_cmd_compare}, {"topo", hx_cmd_topo},
-                {"slurm", hx_cmd_slurm}, {"history", hx_cmd_history}, {"ab", hx_cmd_ab}};
+                {"slurm", hx_cmd_slurm}, {"history", hx_cmd_history}, {"ab", hx_cmd_ab},
+                {"ceiling", hx_cmd_ceiling}};
     for (size_t i = 0; i < sizeof cmds / sizeof cmds[0]; i++)
         if (strcmp(cmd, cmds[i].name) == 0)
             return cmds[i].fn(argc - 1, argv + 1);

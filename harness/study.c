@@ -481,6 +481,9 @@ void hx_study_free(HxStudy *s)
     hx_strlist_free(&s->scenes);
     hx_strlist_free(&s->labels);
     hx_csv_free(&s->csv);
+    free(s->ceil_w);
+    free(s->ceil_r);
+    free(s->ceil_path);
     memset(s, 0, sizeof *s);
 }
 

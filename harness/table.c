@@ -99,6 +99,8 @@ static void usage_table(FILE *f)
           "  --metric COLUMN       a column or record key (default render_ms; a command\n"
           "                        study's first metric, else wall_ms)\n"
           "  --include-suspect     fit oversubscribed and unpinned points too\n"
+          "  --ceiling FILE        the machine's ceiling (harness ceiling; default\n"
+          "                        ceiling-FINGERPRINT.csv beside the CSV or in results/)\n"
           "  -h, --help            this text\n", f);
 }
 
@@ -106,6 +108,7 @@ static void usage_table(FILE *f)
 typedef struct {
     const HxGroup *g, *a, *b;
     double spa, spa_lo, spa_hi, efa, kf, spb, efb;
+    double ceil;         /* the machine's ceiling at these workers, NAN none */
     char notes[256];
 } ConfigStats;
 
@@ -126,6 +129,7 @@ static void config_stats(const HxStudy *s, const HxGroup *g, const char *baselin
         }
     }
     c->efa = c->spa / g->axis;
+    c->ceil = g->axis > 1 ? hx_ceiling_at(s, g->workers) : NAN;
     /* Karp-Flatt only where it means something: a speedup below 1 gives
      * e > 1, a "serial fraction" that no program has */
     c->kf = g->axis > 1 && c->spa >= 1 ? hx_karp_flatt(c->spa, g->axis) : NAN;
@@ -199,7 +203,7 @@ static void table_configs(Emit *e, const HxStudy *s, const char *baseline, int w
         ConfigStats c;
         config_stats(s, &s->g[i], baseline, &c);
         const HxGroup *g = c.g;
-        char w[16], n[32], med[112], mn[32], iqr[32], out[16], t1[32], sp[112], ef[32], kf[32], bt[32], sb[32],
+        char w[16], n[32], med[112], mn[32], iqr[32], out[16], t1[32], sp[112], ef[48], kf[32], bt[32], sb[32],
             eb[32];
         snprintf(w, sizeof w, "%d", g->workers);
         snprintf(n, sizeof n, "%zu/%zu", g->nok, g->nrows);
@@ -213,6 +217,8 @@ static void table_configs(Emit *e, const HxStudy *s, const char *baseline, int w
         fmt_ms(t1, sizeof t1, c.a ? c.a->median : NAN);
         fmt_ci(sp, sizeof sp, c.spa, c.spa_lo, c.spa_hi, 0);
         fmt_num(ef, sizeof ef, "%.3f", c.efa);
+        if (isfinite(c.ceil) && isfinite(c.efa)) /* against what this machine allows */
+            snprintf(ef, sizeof ef, "%.3f (%.2f of %.2f)", c.efa, c.efa / c.ceil, c.ceil);
         fmt_num(kf, sizeof kf, "%.3f", c.kf);
         fmt_ms(bt, sizeof bt, c.b ? c.b->median : NAN);
         fmt_num(sb, sizeof sb, "%.2f", c.spb);
@@ -412,6 +418,7 @@ static void json_config(FILE *o, const ConfigStats *c)
     hx_json_num(o, "speedup_a", c->spa);
     hx_json_pair(o, "speedup_a_ci95", c->spa_lo, c->spa_hi);
     hx_json_num(o, "efficiency_a", c->efa);
+    hx_json_num(o, "ceiling", c->ceil);
     hx_json_num(o, "karp_flatt", c->kf);
     if (c->b)
         hx_json_kstr(o, "baseline_b", c->b->label);
@@ -469,8 +476,8 @@ int hx_cmd_table(int argc, char **argv)
         {"baseline", required_argument, NULL, 'b'}, {"format", required_argument, NULL, 'f'},
         {"metric", required_argument, NULL, 'm'}, {"wide", no_argument, NULL, 'w'},
         {"include-suspect", no_argument, NULL, 'i'}, {"help", no_argument, NULL, 'h'},
-        {NULL, 0, NULL, 0}};
-    const char *baseline = NULL, *format = "md", *metric = NULL;
+        {"ceiling", required_argument, NULL, 'c'}, {NULL, 0, NULL, 0}};
+    const char *baseline = NULL, *format = "md", *metric = NULL, *ceiling = NULL;
     int c, wide = 0, include_suspect = 0;
     while ((c = getopt_long(argc, argv, "h", lo, NULL)) != -1) {
         switch (c) {
@@ -479,6 +486,7 @@ int hx_cmd_table(int argc, char **argv)
         case 'm': metric = optarg; break;
         case 'w': wide = 1; break;
         case 'i': include_suspect = 1; break;
+        case 'c': ceiling = optarg; break;
         case 'h': usage_table(stdout); return 0;
         default: usage_table(stderr); return 1;
         }
@@ -498,6 +506,10 @@ int hx_cmd_table(int argc, char **argv)
     HxStudy s;
     if (hx_study_open("harness table", argv[optind], metric, &s))
         return 1;
+    if (hx_ceiling_load(&s, ceiling, argv[optind]) != 0) {
+        hx_study_free(&s);
+        return 1;
+    }
     metric = s.metric;
     if (!baseline) {
         baseline = "backend=serial";
@@ -517,6 +529,9 @@ int hx_cmd_table(int argc, char **argv)
         printf("## Study %s (%s, metric %s%s, baseline (b): %s %s)\n",
                s.csv.nrows ? hx_csv_get(&s.csv, 0, "study") : "", argv[optind], metric,
                s.higher ? ", higher is better" : "", s.higher ? "best" : "fastest", baseline);
+    if (!e.csv && s.ceil_path)
+        printf("Efficiency (a) also against this machine's ceiling from %s: \"0.750 (1.07 of 0.70)\" is 1.07 of "
+               "the 0.70 that independent copies keep at that many workers.\n", s.ceil_path);
     table_configs(&e, &s, baseline, wide);
     table_fits(&e, &s, include_suspect);
     if (s.scenes.n > 1 || (s.scenes.n == 1 && strcmp(s.scenes.v[0], "-") != 0)) /* not a command study's */

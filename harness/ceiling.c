@@ -1,0 +1,345 @@
+/* ceiling.c: `harness ceiling CONFIG`: the machine's own scaling ceiling.
+ *
+ * W workers of a parallel run share more than cores: memory bandwidth,
+ * caches, turbo budget, a VM's host. W independent one-worker copies of the
+ * study's workload, run at once and pinned one per core where the study
+ * pins a W-worker run, have no communication and no serial part, so the
+ * speed each keeps against a copy alone is the best efficiency any parallel
+ * code can reach there (the "throughput ceiling"; Hoefler and Belli,
+ * "Scientific benchmarking of parallel computing systems", SC 2015, ask
+ * for such a machine baseline). `table` reports efficiency against it. */
+#include "program.h"
+#include "run.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <getopt.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+/* One copy started in its own process group, bound to core, quiet. */
+static pid_t spawn(const HxCommand *c, const HxTopo *t, int core)
+{
+    pid_t pid = fork();
+    if (pid != 0)
+        return pid;
+    setpgid(0, 0);
+    int null = open("/dev/null", O_RDWR);
+    for (int fd = 0; fd < 3 && null >= 0; fd++)
+        dup2(null, fd);
+    HxRun one;
+    memset(&one, 0, sizeof one);
+    one.ncores = 1;
+    one.cores = &core;
+    if ((c->dir && chdir(c->dir) != 0) || hx_bind_child(t, &one) != 0)
+        _exit(126);
+    for (size_t i = 0; c->env.v && c->env.v[i]; i += 2)
+        setenv(c->env.v[i], c->env.v[i + 1], 1);
+    execvp(c->argv.v[0], c->argv.v);
+    _exit(127);
+}
+
+/* Runs n copies at once on cores[0..n-1]; each one's wall ms into ms.
+ * 0, or -1 when one failed. */
+static int run_copies(HxCommand *c, const HxTopo *t, const int *cores, int n, double *ms)
+{
+    pid_t *pid = hx_xmalloc((size_t)n * sizeof *pid);
+    double t0 = hx_now_ms();
+    int bad = 0;
+    for (int i = 0; i < n; i++)
+        pid[i] = spawn(&c[i], t, cores[i]);
+    for (int done = 0; done < n;) {
+        int st;
+        pid_t p = wait(&st);
+        if (p < 0 && errno == EINTR)
+            continue;
+        if (p < 0)
+            break;
+        for (int i = 0; i < n; i++)
+            if (pid[i] == p) {
+                ms[i] = hx_now_ms() - t0;
+                bad |= !WIFEXITED(st) || WEXITSTATUS(st) != 0;
+                done++;
+            }
+    }
+    free(pid);
+    return bad ? -1 : 0;
+}
+
+/* The study's one-worker workload: its first run with one worker, no MPI,
+ * serial for raytrace. */
+static void one_worker(const HxConfig *cfg, const HxRun *first, HxRun *one)
+{
+    *one = *first;
+    one->v[HX_DIM_RANKS] = "-";
+    if (!cfg->prog) {
+        one->v[HX_DIM_BACKEND] = "serial";
+        one->v[HX_DIM_THREADS] = one->v[HX_DIM_BLOCK] = one->v[HX_DIM_SCHEDULE] = one->v[HX_DIM_MPI_SCHEDULE] = "-";
+    } else if (strcmp(first->v[HX_DIM_THREADS], "-") != 0) {
+        one->v[HX_DIM_THREADS] = "1";
+    }
+    one->v[HX_DIM_PIN] = "none"; /* spawn binds */
+    one->workers = 1;
+}
+
+typedef struct {
+    const char *out, *rt_opt;
+    int repeats;
+    HxStrList set;
+} CeilOpts;
+
+static int ceiling_opts(int argc, char **argv, CeilOpts *o)
+{
+    static const struct option lo[] = {{"output", required_argument, NULL, 'o'}, {"repeats", required_argument, NULL, 'r'},
+                                       {"set", required_argument, NULL, 's'}, {"raytrace", required_argument, NULL, 't'},
+                                       {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
+    memset(o, 0, sizeof *o);
+    o->repeats = 3;
+    long v;
+    int c;
+    while ((c = getopt_long(argc, argv, "o:h", lo, NULL)) != -1) {
+        switch (c) {
+        case 'o': o->out = optarg; break;
+        case 'r':
+            if (hx_parse_int(optarg, 1, 1000, &v)) {
+                fprintf(stderr, "harness ceiling: --repeats: expected an integer >= 1, got '%s'\n", optarg);
+                return 1;
+            }
+            o->repeats = (int)v;
+            break;
+        case 's': hx_strlist_push(&o->set, optarg); break;
+        case 't': o->rt_opt = optarg; break;
+        case 'h':
+            fputs("usage: harness ceiling CONFIG [--repeats N] [-o FILE] [--set KEY=VALUE]... [--raytrace PATH]\n"
+                  "For each worker count W of CONFIG's plan, runs W one-worker copies of the study's\n"
+                  "workload at once, pinned one per core where the study pins W workers, against one\n"
+                  "copy alone: the speed each copy keeps is the machine's ceiling for W-worker\n"
+                  "efficiency. Writes FILE (default results/ceiling-FINGERPRINT.csv), which `table`\n"
+                  "reads (docs/harness.md, \"Ceiling\").\n", stdout);
+            return 0;
+        default: return 1;
+        }
+    }
+    if (argc - optind != 1) {
+        fprintf(stderr, "harness ceiling: expected one CONFIG (see --help)\n");
+        return 1;
+    }
+    return -1;
+}
+
+/* The study's worker counts above 1 that are pinned, each with its cores:
+ * ws[i] workers on cores[i]. Their number. */
+static int worker_counts(const HxPlan *plan, int *ws, int **cores, int max)
+{
+    int n = 0;
+    for (size_t i = 0; i < plan->n && n < max; i++) {
+        const HxRun *r = &plan->runs[i];
+        int seen = 0;
+        for (int k = 0; k < n; k++)
+            seen |= ws[k] == r->workers;
+        if (seen || r->workers < 2 || r->ncores != r->workers || r->oversubscribed)
+            continue;
+        ws[n] = r->workers;
+        cores[n++] = r->cores;
+    }
+    return n;
+}
+
+/* One copy's command line per slot, each with its own image or folder. */
+static int build_copies(const HxConfig *cfg, const HxTopo *t, const HxRun *one, const char *rt, const char *tmp,
+                        int n, HxCommand *c)
+{
+    char *workdir = cfg->prog ? hx_path_join(tmp, "work") : NULL;
+    char why[512];
+    int rc = workdir && (mkdir(workdir, 0700) != 0 || hx_program_setup(cfg, workdir, why, sizeof why) != 0) ? -1 : 0;
+    for (int i = 0; i < n; i++) {
+        HxBuf img = {0}, dir = {0};
+        hx_buf_printf(&img, "%s/copy-%d.ppm", tmp, i);
+        hx_buf_printf(&dir, "%s/copy-%d", workdir ? workdir : tmp, i);
+        if (rc == 0 && cfg->prog) {
+            HxVars vars;
+            hx_vars_of_run(cfg, one, dir.s, workdir, &vars);
+            rc = hx_program_prepare(cfg, &vars, dir.s, why, sizeof why);
+            hx_vars_free(&vars);
+        }
+        hx_build_command(cfg, t, one, rt, img.s, dir.s, workdir, &c[i]);
+        hx_buf_free(&img);
+        hx_buf_free(&dir);
+    }
+    if (rc)
+        fprintf(stderr, "harness ceiling: %s\n", why);
+    free(workdir);
+    return rc;
+}
+
+/* Measures every worker count; one line each on stdout, one CSV row each
+ * into b. 0, or -1 when a copy failed. */
+static int measure(HxCommand *c, const HxTopo *t, const int *ws, int **cores, int nw, int repeats,
+                   const HxFingerprint *fp, const char *config, HxBuf *b)
+{
+    for (int k = 0; k < nw; k++) {
+        int w = ws[k], n = 0;
+        double *ratio = hx_xmalloc((size_t)(w * repeats) * sizeof *ratio), *ms = hx_xmalloc((size_t)w * sizeof *ms);
+        double solo = 0, solos = 0;
+        for (int r = 0; r < repeats; r++) {
+            /* alone, then all at once: a slow phase of the machine hits both */
+            if (run_copies(c, t, cores[k], 1, &solo) != 0 || run_copies(c, t, cores[k], w, ms) != 0) {
+                fprintf(stderr, "harness ceiling: a copy of the workload failed (run the study once to see why)\n");
+                free(ratio);
+                free(ms);
+                return -1;
+            }
+            solos += solo;
+            for (int i = 0; i < w; i++)
+                ratio[n++] = solo / ms[i];
+        }
+        double med = hx_median(ratio, (size_t)n), lo = hx_min(ratio, (size_t)n), hi = lo;
+        for (int i = 0; i < n; i++)
+            hi = ratio[i] > hi ? ratio[i] : hi;
+        printf("W=%d: each copy at %.3f of a copy alone (median of %d, %.3f to %.3f; alone %.1f ms)\n", w, med, n,
+               lo, hi, solos / repeats);
+        hx_buf_printf(b, "%s,%s,%d,%d,%.4f,%.4f,%.4f,%.3f,", fp->fingerprint, fp->host, w, repeats, med, lo, hi,
+                      solos / repeats);
+        hx_csv_field(b, config);
+        hx_buf_put(b, "\n");
+        free(ratio);
+        free(ms);
+        fflush(stdout);
+    }
+    return 0;
+}
+
+int hx_cmd_ceiling(int argc, char **argv)
+{
+    CeilOpts o;
+    int rc = ceiling_opts(argc, argv, &o);
+    HxConfig cfg;
+    if (rc < 0 && hx_config_open_set(argv[optind], &o.set, &cfg) != 0)
+        rc = 1;
+    hx_strlist_free(&o.set);
+    if (rc >= 0)
+        return rc;
+    HxPlan plan;
+    HxTopo t;
+    hx_expand(&cfg, &plan);
+    hx_topo_load(&t);
+    hx_plan_cores(&t, &cfg, &plan);
+    int ws[64], *cores[64], nw = worker_counts(&plan, ws, cores, 64), wmax = 1;
+    for (int k = 0; k < nw; k++)
+        wmax = ws[k] > wmax ? ws[k] : wmax;
+    char tmp[] = "/tmp/harness-ceiling-XXXXXX";
+    HxFingerprint fp;
+    HxBuf b = {0}, out = {0};
+    char *rt = hx_find_raytrace(&cfg, o.rt_opt);
+    if (t.ncores < 2 || !t.have_hwloc) {
+        fprintf(stderr, "harness ceiling: %s: one copy per core needs two cores or more and hwloc to pin them\n",
+                t.ncores < 2 ? "only one core is allowed here" : "built without hwloc");
+        rc = 1;
+    } else if (nw == 0) {
+        fprintf(stderr, "harness ceiling: %s plans no pinned run of 2 to %d workers: nothing to measure\n", cfg.path,
+                t.ncores);
+        rc = 1;
+    } else if (!mkdtemp(tmp)) {
+        fprintf(stderr, "harness ceiling: /tmp: %s\n", strerror(errno));
+        rc = 1;
+    } else {
+        HxRun one;
+        one_worker(&cfg, &plan.runs[0], &one);
+        if (!cfg.prog)
+            hx_resolve_scene_cache(&cfg, NULL);
+        HxCommand *c = hx_xmalloc((size_t)wmax * sizeof *c);
+        hx_fingerprint_get(&fp, &t, 0, cfg.prog ? NULL : rt, NULL, NULL);
+        hx_buf_put(&b, "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone_ms,config\n");
+        fprintf(stderr, "harness ceiling: %s on %s: %d worker count(s), %d repeat(s) each\n", cfg.path, fp.host, nw,
+                o.repeats);
+        rc = build_copies(&cfg, &t, &one, rt, tmp, wmax, c) != 0 ||
+             measure(c, &t, ws, cores, nw, o.repeats, &fp, cfg.path, &b) != 0;
+        for (int i = 0; i < wmax; i++)
+            hx_command_free(&c[i]);
+        free(c);
+        hx_rmtree(tmp);
+    }
+    if (rc == 0) {
+        if (o.out)
+            hx_buf_put(&out, o.out);
+        else
+            hx_buf_printf(&out, "%sceiling-%s.csv", hx_is_dir("results") ? "results/" : "", fp.fingerprint);
+        FILE *f = fopen(out.s, "w");
+        if (!f || fputs(b.s, f) == EOF || fclose(f) != 0) {
+            fprintf(stderr, "harness ceiling: %s: %s\n", out.s, strerror(errno));
+            rc = 1;
+        } else {
+            fprintf(stderr, "harness ceiling: wrote %s\n", out.s);
+        }
+    }
+    free(rt);
+    hx_buf_free(&b);
+    hx_buf_free(&out);
+    hx_topo_free(&t);
+    hx_plan_free(&plan);
+    hx_config_free(&cfg);
+    return rc;
+}
+
+int hx_ceiling_load(HxStudy *s, const char *file, const char *csv_path)
+{
+    const char *fp = s->csv.nrows ? hx_csv_get(&s->csv, 0, "fingerprint") : "";
+    HxBuf name = {0};
+    hx_buf_printf(&name, "ceiling-%s.csv", fp);
+    char *dir = hx_dirname(csv_path);
+    const char *cand[3] = {file, NULL, NULL};
+    char *beside = hx_path_join(dir, name.s), *inres = hx_path_join("results", name.s);
+    if (!file) {
+        cand[1] = beside;
+        cand[2] = inres;
+    }
+    HxCsv c;
+    char err[512];
+    int rc = 0, found = 0;
+    for (int i = 0; i < 3 && !found && rc == 0; i++) {
+        if (!cand[i] || (!file && !hx_file_exists(cand[i])))
+            continue;
+        if (hx_csv_read(cand[i], &c, err, sizeof err) != 0) {
+            fprintf(stderr, "harness table: --ceiling: %s\n", err);
+            rc = -1;
+            break;
+        }
+        if (hx_csv_col(&c, "ratio_median") < 0) {
+            fprintf(stderr, "harness table: --ceiling: %s: not a ceiling file (no ratio_median column)\n", cand[i]);
+            hx_csv_free(&c);
+            rc = -1;
+            break;
+        }
+        found = 1;
+        s->ceil_path = hx_strdup(cand[i]);
+        for (size_t r = 0; r < c.nrows; r++) {
+            long w;
+            double v;
+            if (strcmp(hx_csv_get(&c, r, "fingerprint"), fp) != 0 || hx_parse_int(hx_csv_get(&c, r, "workers"), 2, 1 << 20, &w) ||
+                hx_parse_double(hx_csv_get(&c, r, "ratio_median"), &v) || !(v > 0))
+                continue;
+            s->ceil_w = hx_xrealloc(s->ceil_w, (size_t)(s->nceil + 1) * sizeof *s->ceil_w);
+            s->ceil_r = hx_xrealloc(s->ceil_r, (size_t)(s->nceil + 1) * sizeof *s->ceil_r);
+            s->ceil_w[s->nceil] = (int)w;
+            s->ceil_r[s->nceil++] = v;
+        }
+        hx_csv_free(&c);
+    }
+    free(dir);
+    free(beside);
+    free(inres);
+    hx_buf_free(&name);
+    return rc;
+}
+
+double hx_ceiling_at(const HxStudy *s, int workers)
+{
+    for (int i = 0; i < s->nceil; i++)
+        if (s->ceil_w[i] == workers)
+            return s->ceil_r[i];
+    return NAN;
+}
