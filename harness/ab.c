@@ -129,23 +129,11 @@ static int ab_run(const HxCommand *c, const AbOpts *o, double *v, int *busy, cha
     hx_noise(&a, &b, res.wall_ms, res.user_ms + res.sys_ms, (int)sysconf(_SC_NPROCESSORS_ONLN), 1, &noise);
     *busy = noise.busy || noise.stolen;
     *v = res.wall_ms;
-    if (o->metric) {
-        regmatch_t g[2];
-        const char *t = res.out.s ? res.out.s : "", *last = NULL;
-        size_t len = 0;
-        for (const char *p = t; *p && regexec(&o->re, p, 2, g, p == t ? 0 : REG_NOTBOL) == 0;
-             p += g[0].rm_eo > 0 ? g[0].rm_eo : 1) {
-            int k = g[1].rm_so >= 0 ? 1 : 0;
-            last = p + g[k].rm_so;
-            len = (size_t)(g[k].rm_eo - g[k].rm_so);
-        }
-        char num[64];
-        snprintf(num, sizeof num, "%.*s", (int)len, last ? last : "");
-        if (!last || hx_parse_double(hx_trim(num), v) != 0) {
-            snprintf(why, n, "--metric '%s': no number on its stdout", o->metric);
-            hx_child_result_free(&res);
-            return -1;
-        }
+    char num[64];
+    if (o->metric && hx_match_number(&o->re, res.out.s ? res.out.s : "", v, num, sizeof num) != 0) {
+        snprintf(why, n, "--metric '%s': no number on its stdout", o->metric);
+        hx_child_result_free(&res);
+        return -1;
     }
     hx_child_result_free(&res);
     return 0;

@@ -635,28 +635,30 @@ static const char *from_name(const HxMatch *m)
 }
 
 /* The value of the metric's last match (its first group, else all of it). */
+int hx_match_number(const regex_t *re, const char *text, double *v, char *num, size_t n)
+{
+    regmatch_t g[2];
+    const char *at = NULL;
+    size_t len = 0;
+    for (const char *p = text; *p && regexec(re, p, 2, g, p == text ? 0 : REG_NOTBOL) == 0;
+         p += g[0].rm_eo > 0 ? g[0].rm_eo : 1) {
+        int k = g[1].rm_so >= 0 ? 1 : 0; /* the first group, else the match */
+        at = p + g[k].rm_so;
+        len = (size_t)(g[k].rm_eo - g[k].rm_so);
+    }
+    snprintf(num, n, "%.*s", (int)len, at ? at : "");
+    if (!at)
+        return -1;
+    return hx_parse_double(hx_trim(num), v) == 0 ? 0 : -2;
+}
+
 static int metric_value(const HxMetric *mt, const char *text, double *v, char *why, size_t n)
 {
-    regmatch_t g[2], last[2];
-    int found = 0;
-    for (const char *p = text; *p && regexec(&mt->m.re, p, 2, g, p == text ? 0 : REG_NOTBOL) == 0;) {
-        last[0] = g[0];
-        last[1] = g[1];
-        last[0].rm_so += p - text;
-        last[0].rm_eo += p - text;
-        if (g[1].rm_so >= 0) {
-            last[1].rm_so += p - text;
-            last[1].rm_eo += p - text;
-        }
-        found = 1;
-        p += g[0].rm_eo > 0 ? g[0].rm_eo : 1;
-    }
-    if (!found)
-        return fail(why, n, "metric %s: '%s' not found in %s", mt->name, mt->m.pattern, from_name(&mt->m));
-    const regmatch_t *use = last[1].rm_so >= 0 ? &last[1] : &last[0];
     char num[64];
-    snprintf(num, sizeof num, "%.*s", (int)(use->rm_eo - use->rm_so), text + use->rm_so);
-    if (hx_parse_double(hx_trim(num), v) != 0)
+    int rc = hx_match_number(&mt->m.re, text, v, num, sizeof num);
+    if (rc == -1)
+        return fail(why, n, "metric %s: '%s' not found in %s", mt->name, mt->m.pattern, from_name(&mt->m));
+    if (rc == -2)
         return fail(why, n, "metric %s: '%.40s' from %s is not a number", mt->name, num, from_name(&mt->m));
     return 0;
 }

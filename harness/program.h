@@ -77,6 +77,9 @@ int hx_program_prepare(const HxConfig *cfg, const HxVars *vars, const char *rund
  * found). */
 int hx_program_collect(const HxConfig *cfg, const char *rundir, const HxBuf *out, const HxBuf *err, HxBuf *extra,
                        char *why, size_t n);
+/* The number of re's last match in text (its first group, else all of
+ * it), the text of it in num: 0, -1 no match, -2 not a number. */
+int hx_match_number(const regex_t *re, const char *text, double *v, char *num, size_t n);
 /* "name:unit:higher;..." of the metrics (the CSV's metric_info). */
 char *hx_program_metric_info(const HxConfig *cfg);
 /* The first line the version command prints, or "-". malloc'd. */
