@@ -211,7 +211,9 @@ static void plot_scaling(HxPlot *c, const HxStudy *s, int efficiency)
             fprintf(dat, "\n\n");
             char *lab = hx_series_label(&s->g[i], 0);
             HxBuf t = {0};
-            hx_buf_printf(&t, "%s %s", s->g[i].scene, lab);
+            if (strcmp(s->g[i].scene, "-") != 0) /* a command study has no scene */
+                hx_buf_printf(&t, "%s ", s->g[i].scene);
+            hx_buf_put(&t, lab);
             hx_strlist_push(&titles, t.s);
             hx_buf_free(&t);
             free(lab);
