@@ -37,7 +37,7 @@ static void usage_ab(FILE *f)
           "                       (default: the wall time in ms)\n"
           "  --higher             the metric is a rate: higher is better\n"
           "  --factor F           the change that counts (default 1.05)\n"
-          "  --alpha A            the rank test's significance (default 0.05)\n"
+          "  --alpha A            the rank test's significance (default 0.01)\n"
           "  --timeout S          per run, in seconds (default 600)\n", f);
 }
 
@@ -48,7 +48,7 @@ static int ab_opts(int argc, char **argv, AbOpts *o)
         {"higher", no_argument, NULL, 'H'},       {"factor", required_argument, NULL, 'f'},
         {"alpha", required_argument, NULL, 'a'},  {"timeout", required_argument, NULL, 't'},
         {"help", no_argument, NULL, 'h'},         {NULL, 0, NULL, 0}};
-    *o = (AbOpts){10, 1.05, 0.05, 600, NULL, 0, {0}};
+    *o = (AbOpts){10, 1.05, 0.01, 600, NULL, 0, {0}};
     long n;
     int c;
     while ((c = getopt_long(argc, argv, "h", lo, NULL)) != -1) {
