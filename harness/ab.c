@@ -98,12 +98,7 @@ static int ab_command(const char *line, const char *side, HxCommand *c)
         return -1;
     }
     free(abs);
-    hx_strlist_push(&c->argv, "");
-    free(c->argv.v[--c->argv.n]);
-    c->argv.v[c->argv.n] = NULL;
-    hx_strlist_push(&c->env, "");
-    free(c->env.v[--c->env.n]);
-    c->env.v[c->env.n] = NULL;
+    hx_command_terminate(c);
     return 0;
 }
 

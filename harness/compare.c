@@ -137,15 +137,6 @@ static const HxGroup *match(const HxStudy *s, const HxStudy *gs, const HxGroup *
     return found;
 }
 
-/* Whether any row has a render_ms (raytrace's rows, not a command's). */
-static int has_render_ms(const HxCsv *csv)
-{
-    for (size_t r = 0; r < csv->nrows; r++)
-        if (*hx_csv_get(csv, r, "render_ms"))
-            return 1;
-    return 0;
-}
-
 typedef struct {
     double factor, alpha, min_ms;
     const char *unit;
@@ -574,7 +565,8 @@ int hx_cmd_compare(int argc, char **argv)
         hx_csv_free(&nw.csv);
         return 1;
     }
-    if (!metric && has_render_ms(&nw.csv) && has_render_ms(&base.csv)) {
+    /* raytrace's rows (a command study's have no render_ms) */
+    if (!metric && hx_csv_has_values(&nw.csv, "render_ms") && hx_csv_has_values(&base.csv, "render_ms")) {
         /* calibrated times where both studies have them (--calibrate) */
         int calibrated = has_calib(&nw.csv) && has_calib(&base.csv);
         metric = calibrated ? "render_ms/calib" : "render_ms";

@@ -80,11 +80,37 @@ int hx_column_index(const char *name)
     return -1;
 }
 
+char *hx_record_find(char *out)
+{
+    char *rec = NULL;
+    for (char *p = out; p && (p = strstr(p, "record: ")) != NULL; p++)
+        if (p == out || p[-1] == '\n')
+            rec = p;
+    return rec;
+}
+
+void hx_row_set(char **vals, const char *col, const char *v)
+{
+    int i = hx_column_index(col);
+    if (i < 0)
+        return;
+    free(vals[i]);
+    vals[i] = hx_strdup(v ? v : "");
+}
+
+int hx_csv_has_values(const HxCsv *csv, const char *col)
+{
+    for (size_t r = 0; r < csv->nrows; r++)
+        if (*hx_csv_get(csv, r, col))
+            return 1;
+    return 0;
+}
+
 int hx_record_to_row(const char *line, char **vals)
 {
     if (strncmp(line, "record: ", 8) != 0)
         return -1;
-    char *copy = hx_strdup(line + 8);
+    char *copy = hx_strndup(line + 8, strcspn(line + 8, "\n")); /* the record is one line */
     HxBuf extra = {0};
     char *save = NULL;
     int nkeys = 0;

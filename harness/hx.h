@@ -349,8 +349,15 @@ void hx_csv_format_row(HxBuf *b, const char *const *vals);
 int hx_csv_open_append(const char *path, int truncate, char *err, size_t errlen);
 /* Writes a whole row with one write() and fsync()s it. */
 int hx_csv_append_row(int fd, const char *const *vals);
-/* Parses "record: k=v ..." into the row values (malloc'd strings). */
+/* Parses "record: k=v ..." (up to the line's end) into the row values
+ * (malloc'd strings). */
 int hx_record_to_row(const char *line, char **vals);
+/* The last line of out that starts with "record: ", or NULL. */
+char *hx_record_find(char *out);
+/* vals[col] = a copy of v (NULL: empty); an unknown column is ignored. */
+void hx_row_set(char **vals, const char *col, const char *v);
+/* Whether any row of csv has col non-empty. */
+int hx_csv_has_values(const HxCsv *csv, const char *col);
 
 /* ---- statistics (stats.c) ---- */
 double hx_median(const double *x, size_t n);

@@ -282,8 +282,7 @@ void hx_build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, c
     int pinned = strcmp(r->v[HX_DIM_PIN], "none") != 0;
     if (cfg->prog) {
         program_command(cfg, topo, r, rundir, workdir, pinned, c);
-        null_terminate(&c->argv);
-        null_terminate(&c->env);
+        hx_command_terminate(c);
         return;
     }
     if (is_mpi && cfg->launcher == HX_LAUNCHER_SRUN)
@@ -302,6 +301,11 @@ void hx_build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, c
     raytrace_args(cfg, r, raytrace, image, c);
     if (strcmp(be, "openmp") == 0)
         openmp_env(topo, r, pinned, c);
+    hx_command_terminate(c);
+}
+
+void hx_command_terminate(HxCommand *c)
+{
     null_terminate(&c->argv);
     null_terminate(&c->env);
 }

@@ -97,6 +97,8 @@ void hx_resolve_scene_cache(HxConfig *cfg, const char *out_path);
  * command study). */
 void hx_build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, const char *raytrace,
                       const char *image, const char *rundir, const char *workdir, HxCommand *c);
+/* Ends argv and env with the NULL execvp and hx_run_child want. */
+void hx_command_terminate(HxCommand *c);
 void hx_command_free(HxCommand *c);
 /* "NAME=value ... argv..." on one line (--dry-run). */
 void hx_print_command(FILE *out, const HxCommand *c);

@@ -24,15 +24,6 @@
 
 /* ---- the command ---- */
 
-static void set(char **vals, const char *col, const char *v)
-{
-    int i = hx_column_index(col);
-    if (i < 0)
-        return;
-    free(vals[i]);
-    vals[i] = hx_strdup(v ? v : "");
-}
-
 static void setf(char **vals, const char *col, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 static void setf(char **vals, const char *col, const char *fmt, ...)
@@ -42,7 +33,7 @@ static void setf(char **vals, const char *col, const char *fmt, ...)
     va_start(ap, fmt);
     vsnprintf(buf, sizeof buf, fmt, ap);
     va_end(ap);
-    set(vals, col, buf);
+    hx_row_set(vals, col, buf);
 }
 
 static void usage_run(FILE *f)
@@ -169,37 +160,37 @@ static char **row_head(const Study *st, const HxRun *r)
     char **vals = calloc((size_t)hx_ncolumns, sizeof *vals);
     char utc[32];
     hx_utc_now(utc, sizeof utc);
-    set(vals, "study", st->cfg.study);
-    set(vals, "run_id", r->run_id);
+    hx_row_set(vals, "study", st->cfg.study);
+    hx_row_set(vals, "run_id", r->run_id);
     setf(vals, "repeat", "%d", r->repeat);
-    set(vals, "utc", utc);
-    set(vals, "git_commit", fp->git_commit);
-    set(vals, "host", fp->host);
-    set(vals, "cpu_model", fp->cpu_model);
+    hx_row_set(vals, "utc", utc);
+    hx_row_set(vals, "git_commit", fp->git_commit);
+    hx_row_set(vals, "host", fp->host);
+    hx_row_set(vals, "cpu_model", fp->cpu_model);
     setf(vals, "phys_cores", "%d", fp->phys_cores);
     setf(vals, "logical_cpus", "%d", fp->logical_cpus);
-    set(vals, "smt", fp->smt ? "on" : "off");
-    set(vals, "governor", fp->governor);
-    set(vals, "compiler", fp->compiler);
-    set(vals, "gpu_name", cuda ? fp->gpu_name : "-");
-    set(vals, "gpu_driver", cuda ? fp->gpu_driver : "-");
-    set(vals, "fingerprint", fp->fingerprint);
-    set(vals, "kernel", fp->kernel);
-    set(vals, "mpi_version", st->want_mpi ? fp->mpi_version : "-");
-    set(vals, "build_flags", fp->build_flags);
-    set(vals, "config_hash", st->chash);
+    hx_row_set(vals, "smt", fp->smt ? "on" : "off");
+    hx_row_set(vals, "governor", fp->governor);
+    hx_row_set(vals, "compiler", fp->compiler);
+    hx_row_set(vals, "gpu_name", cuda ? fp->gpu_name : "-");
+    hx_row_set(vals, "gpu_driver", cuda ? fp->gpu_driver : "-");
+    hx_row_set(vals, "fingerprint", fp->fingerprint);
+    hx_row_set(vals, "kernel", fp->kernel);
+    hx_row_set(vals, "mpi_version", st->want_mpi ? fp->mpi_version : "-");
+    hx_row_set(vals, "build_flags", fp->build_flags);
+    hx_row_set(vals, "config_hash", st->chash);
     for (int d = 0; d < HX_NDIM; d++)
-        set(vals, hx_dim_col[d], r->v[d]);
-    set(vals, "scene_path", r->scene_path);
+        hx_row_set(vals, hx_dim_col[d], r->v[d]);
+    hx_row_set(vals, "scene_path", r->scene_path);
     setf(vals, "workers", "%d", r->workers);
-    set(vals, "oversubscribed", r->oversubscribed ? "1" : "0");
-    set(vals, "baseline", st->cfg.baseline);
-    set(vals, "cores_planned", r->cores_planned);
+    hx_row_set(vals, "oversubscribed", r->oversubscribed ? "1" : "0");
+    hx_row_set(vals, "baseline", st->cfg.baseline);
+    hx_row_set(vals, "cores_planned", r->cores_planned);
     char *params = hx_run_params(&st->cfg, r);
-    set(vals, "program", st->cfg.prog ? st->cfg.prog->name : "raytrace");
-    set(vals, "params", params);
-    set(vals, "program_version", st->version ? st->version : "-");
-    set(vals, "metric_info", st->metric_info ? st->metric_info : "");
+    hx_row_set(vals, "program", st->cfg.prog ? st->cfg.prog->name : "raytrace");
+    hx_row_set(vals, "params", params);
+    hx_row_set(vals, "program_version", st->version ? st->version : "-");
+    hx_row_set(vals, "metric_info", st->metric_info ? st->metric_info : "");
     free(params);
     return vals;
 }
@@ -273,13 +264,9 @@ static const char *outcome(Study *st, const HxRun *r, const char *rundir, HxChil
     if (st->cfg.prog)
         return hx_program_status(&st->cfg, rundir, res, vals, detail);
     setf(vals, "exit_code", "%d", res->code);
-    /* the record is the last line starting with "record: " */
-    char *rec = NULL;
-    for (char *p = res->out.s; p && (p = strstr(p, "record: ")) != NULL; p++)
-        if (p == res->out.s || p[-1] == '\n')
-            rec = p;
-    if (rec && strchr(rec, '\n'))
-        *strchr(rec, '\n') = '\0';
+    char *rec = res->out.s ? hx_record_find(res->out.s) : NULL;
+    if (rec) /* one line: cachegrind's count goes after it */
+        rec[strcspn(rec, "\n")] = '\0';
     if (res->code != 0 || !rec) {
         *detail = error_detail(res);
         if (res->code == 1)
@@ -313,7 +300,7 @@ static void note_noise(Study *st, const HxRun *r, const HxCpuStat *before, const
         setf(vals, "steal_pct", "%.2f", n.steal_pct);
         setf(vals, "iowait_pct", "%.2f", n.iowait_pct);
     }
-    set(vals, "noise", n.busy && n.stolen ? "busy,stolen" : n.busy ? "busy" : n.stolen ? "stolen" : "");
+    hx_row_set(vals, "noise", n.busy && n.stolen ? "busy,stolen" : n.busy ? "busy" : n.stolen ? "stolen" : "");
     if (!r->warmup) {
         st->nbusy += n.busy;
         st->nstolen += n.stolen;
@@ -427,10 +414,10 @@ static int run_plan(Study *st)
             return 0;
         }
         const char *held = hx_pin_held(r->cores_planned, vals[hx_column_index("cores_actual")]);
-        set(vals, "pin_held", held);
+        hx_row_set(vals, "pin_held", held);
         st->npartial += !r->warmup && strcmp(status, "ok") == 0 && (!strcmp(held, "partial") || !strcmp(held, "no"));
-        set(vals, "status", status);
-        set(vals, "status_detail", detail ? detail : "");
+        hx_row_set(vals, "status", status);
+        hx_row_set(vals, "status_detail", detail ? detail : "");
         int rc = 0;
         if (!r->warmup && hx_csv_append_row(st->fd, (const char *const *)vals) != 0) {
             /* the study ends here: the rows before this one stay, whole */

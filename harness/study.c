@@ -215,11 +215,10 @@ int hx_study_load(const char *path, const char *metric, HxStudy *s, char *err, s
  * raytrace's rows, else a command study's first metric, else wall_ms. */
 static void default_metric(const HxCsv *csv, char *buf, size_t n)
 {
-    for (size_t r = 0; r < csv->nrows; r++)
-        if (*hx_csv_get(csv, r, "render_ms")) {
-            snprintf(buf, n, "render_ms");
-            return;
-        }
+    if (hx_csv_has_values(csv, "render_ms")) {
+        snprintf(buf, n, "render_ms");
+        return;
+    }
     for (size_t r = 0; r < csv->nrows; r++) {
         const char *mi = hx_csv_get(csv, r, "metric_info");
         if (*mi) {

@@ -62,13 +62,6 @@ char *hx_rundir(const char *workdir, size_t index)
     return b.s;
 }
 
-static void put(char **vals, const char *col, const char *v)
-{
-    int k = hx_column_index(col);
-    free(vals[k]);
-    vals[k] = hx_strdup(v);
-}
-
 /* The first line of stderr, else the exit status against the one
  * expected. */
 static char *failure_line(const HxChildResult *res, int expected)
@@ -89,20 +82,15 @@ const char *hx_program_status(const HxConfig *cfg, const char *rundir, HxChildRe
 {
     char num[16];
     snprintf(num, sizeof num, "%d", res->code);
-    put(vals, "exit_code", num);
-    /* a record line, if the program prints one, as raytrace's */
-    char *rec = NULL;
-    for (char *p = res->out.s; p && (p = strstr(p, "record: ")) != NULL; p++)
-        if (p == res->out.s || p[-1] == '\n')
-            rec = p;
-    if (rec) {
-        char *line = hx_strndup(rec, strcspn(rec, "\n"));
-        hx_record_to_row(line, vals);
-        free(line);
-    }
+    hx_row_set(vals, "exit_code", num);
+    /* a record line, if the program prints one, as raytrace's (stdout
+     * stays whole: metrics read it) */
+    char *rec = res->out.s ? hx_record_find(res->out.s) : NULL;
+    if (rec)
+        hx_record_to_row(rec, vals);
     int k = hx_column_index("cores_actual");
     if ((!vals[k] || !*vals[k]) && res->cores_seen)
-        put(vals, "cores_actual", res->cores_seen);
+        hx_row_set(vals, "cores_actual", res->cores_seen);
     if (res->code != cfg->prog->exit_code) {
         *detail = failure_line(res, cfg->prog->exit_code);
         return "error";
