@@ -438,9 +438,12 @@ static double calib_spread(const HxCsv *csv, char *where, size_t n)
         size_t idn = strcspn(id, "#");
         double lo = INFINITY, hi = 0, c;
         char num[32];
-        for (size_t k = 0; k < csv->nrows; k++) {
+        int first = 1; /* each configuration once, from its first row */
+        for (size_t k = 0; k < r && first; k++)
+            first = strncmp(hx_csv_get(csv, k, "run_id"), id, idn + 1) != 0;
+        for (size_t k = r; k < csv->nrows && first; k++) {
             const char *other = hx_csv_get(csv, k, "run_id");
-            if (strncmp(other, id, idn) != 0 || strcmp(hx_csv_get(csv, k, "status"), "ok") != 0 ||
+            if (strncmp(other, id, idn + 1) != 0 || strcmp(hx_csv_get(csv, k, "status"), "ok") != 0 ||
                 !hx_kv_get(hx_csv_get(csv, k, "extra"), "calib_ms", num, sizeof num) || hx_parse_double(num, &c) ||
                 !(c > 0))
                 continue;
