@@ -285,7 +285,7 @@ int hx_cmd_ceiling(int argc, char **argv)
     return rc;
 }
 
-int hx_ceiling_load(HxStudy *s, const char *file, const char *csv_path)
+int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *csv_path)
 {
     const char *fp = s->csv.nrows ? hx_csv_get(&s->csv, 0, "fingerprint") : "";
     HxBuf name = {0};
@@ -304,12 +304,12 @@ int hx_ceiling_load(HxStudy *s, const char *file, const char *csv_path)
         if (!cand[i] || (!file && !hx_file_exists(cand[i])))
             continue;
         if (hx_csv_read(cand[i], &c, err, sizeof err) != 0) {
-            fprintf(stderr, "harness table: --ceiling: %s\n", err);
+            fprintf(stderr, "%s: --ceiling: %s\n", who, err);
             rc = -1;
             break;
         }
         if (hx_csv_col(&c, "ratio_median") < 0) {
-            fprintf(stderr, "harness table: --ceiling: %s: not a ceiling file (no ratio_median column)\n", cand[i]);
+            fprintf(stderr, "%s: --ceiling: %s: not a ceiling file (no ratio_median column)\n", who, cand[i]);
             hx_csv_free(&c);
             rc = -1;
             break;

@@ -16,13 +16,18 @@
 
 static void usage_plot(FILE *f)
 {
-    fputs("usage: harness plot CSV -o PREFIX [--metric COLUMN]\n"
+    fputs("usage: harness plot CSV -o PREFIX [--metric COLUMN] [--ceiling FILE]\n"
           "Writes PREFIX-speedup, PREFIX-efficiency, PREFIX-blocks (when the study has\n"
           "CUDA block sizes) and PREFIX-scenes as .png and .svg, each with its .dat and .gp\n"
-          "beside it. Needs gnuplot (Debian gnuplot-nox); wrong-image runs are left out.\n"
+          "beside it; for a size (unit B, KiB ... GB, or maxrss_kib) PREFIX-size, the\n"
+          "median over workers, instead of speedup and efficiency. Needs gnuplot (Debian\n"
+          "gnuplot-nox); wrong-image runs are left out.\n"
           "  -o, --output PREFIX  path prefix, e.g. plots/quick\n"
           "  --metric COLUMN      a column or record key (default render_ms; a command\n"
           "                       study's first metric, else wall_ms)\n"
+          "  --ceiling FILE       the machine's ceiling (harness ceiling), drawn under the\n"
+          "                       ideal line (default ceiling-FINGERPRINT.csv beside the\n"
+          "                       CSV or in results/)\n"
           "  -h, --help           this text\n", f);
 }
 
@@ -151,6 +156,36 @@ void hx_plot_done(HxPlot *c)
     c->dir = NULL;
 }
 
+/* The next point of series i's line: the group of its series with the
+ * smallest swept value above last, or NULL; *at its index. */
+static const HxGroup *series_next(const HxStudy *s, size_t i, int last, size_t *at)
+{
+    const HxGroup *next = NULL;
+    for (size_t k = i; k < s->ng; k++) {
+        const HxGroup *g = &s->g[k];
+        if (!g->nt || strcmp(g->series_id, s->g[i].series_id) || g->axis <= last)
+            continue;
+        if (!next || g->axis < next->axis) {
+            next = g;
+            *at = k;
+        }
+    }
+    return next;
+}
+
+/* A series' line title: "SCENE SERIES", or "SERIES" in a command study. */
+static void series_title(HxStrList *titles, const HxGroup *g)
+{
+    char *lab = hx_series_label(g, 0);
+    HxBuf t = {0};
+    if (strcmp(g->scene, "-") != 0) /* a command study has no scene */
+        hx_buf_printf(&t, "%s ", g->scene);
+    hx_buf_put(&t, lab);
+    hx_strlist_push(titles, t.s);
+    hx_buf_free(&t);
+    free(lab);
+}
+
 /* speedup and efficiency against the same configuration at one worker */
 static void plot_scaling(HxPlot *c, const HxStudy *s, int efficiency)
 {
@@ -176,20 +211,8 @@ static void plot_scaling(HxPlot *c, const HxStudy *s, int efficiency)
             continue;
         /* points of this series in increasing order of its swept dimension */
         int printed = 0, last = 0;
-        for (;;) {
-            const HxGroup *next = NULL;
-            size_t nk = 0;
-            for (size_t k = i; k < s->ng; k++) {
-                const HxGroup *g = &s->g[k];
-                if (!g->nt || strcmp(g->series_id, s->g[i].series_id) || g->axis <= last)
-                    continue;
-                if (!next || g->axis < next->axis) {
-                    next = g;
-                    nk = k;
-                }
-            }
-            if (!next)
-                break;
+        size_t nk = 0;
+        for (const HxGroup *next; (next = series_next(s, i, last, &nk)) != NULL;) {
             done[nk] = 1;
             last = next->axis;
             if (next->axis > maxw)
@@ -209,18 +232,22 @@ static void plot_scaling(HxPlot *c, const HxStudy *s, int efficiency)
         }
         if (printed) {
             fprintf(dat, "\n\n");
-            char *lab = hx_series_label(&s->g[i], 0);
-            HxBuf t = {0};
-            if (strcmp(s->g[i].scene, "-") != 0) /* a command study has no scene */
-                hx_buf_printf(&t, "%s ", s->g[i].scene);
-            hx_buf_put(&t, lab);
-            hx_strlist_push(&titles, t.s);
-            hx_buf_free(&t);
-            free(lab);
+            series_title(&titles, &s->g[i]);
             nseries++;
         }
     }
     free(done);
+    /* the machine's ceiling (harness ceiling) as one more block: what
+     * independent copies keep at each worker count, 1 at one worker */
+    if (nseries > 0 && s->nceil > 0) {
+        fprintf(dat, "# ceiling\n1 0 1 1 1 1 1 1\n");
+        for (int k = 0; k < s->nceil; k++) {
+            double r = s->ceil_r[k], w = s->ceil_w[k];
+            fprintf(dat, "%d 0 %.6g %.6g %.6g %.6g %.6g %.6g\n", s->ceil_w[k], r * w, r, r * w, r * w, r, r);
+            yhi = fmax(yhi, efficiency ? r : r * w);
+        }
+        fprintf(dat, "\n\n");
+    }
     if (nseries == 0) {
         fprintf(stderr, "harness plot: no series with a one-worker run: %s plot left out\n", kind);
         fclose(dat);
@@ -246,10 +273,72 @@ static void plot_scaling(HxPlot *c, const HxStudy *s, int efficiency)
                 efficiency ? 7 : 5, efficiency ? 8 : 6);
         hx_plot_put(gp, "%s, \\\n     ", titles.v[k]);
     }
+    if (s->nceil > 0) {
+        hx_plot_file(gp, "%s", c->base, kind, "dat");
+        fprintf(gp, " index %d using 1:%d with linespoints dashtype 3 pt 1 lc rgb 'black' title "
+                    "'this machine''s ceiling (independent copies)', \\\n     ",
+                nseries, efficiency ? 4 : 3);
+    }
     fprintf(gp, "%s with lines dashtype 2 lc rgb 'gray40' title 'ideal'\n", efficiency ? "1" : "x");
     hx_plot_tail(gp, c, kind);
     hx_strlist_free(&titles);
     hx_plot_finish(c, kind, gp, dat);
+}
+
+/* a size (peak memory) against workers: the median with quartile bars, one
+ * line per scene and series; no speedup, since more memory is no slowdown */
+static void plot_size(HxPlot *c, const HxStudy *s)
+{
+    char *done = calloc(s->ng ? s->ng : 1, 1);
+    FILE *dat, *gp = hx_plot_open(c, "size", &dat);
+    if (!gp) {
+        c->failures++;
+        free(done);
+        return;
+    }
+    fprintf(dat, "# workers median q1 q3 (%s, %s); one block per series (gnuplot index)\n", s->metric, s->unit);
+    int nseries = 0, maxw = 1;
+    HxStrList titles = {0};
+    for (size_t i = 0; i < s->ng; i++) {
+        if (done[i] || !s->g[i].nt)
+            continue;
+        int last = 0;
+        size_t k = 0;
+        for (const HxGroup *g; (g = series_next(s, i, last, &k)) != NULL;) {
+            done[k] = 1;
+            last = g->axis;
+            maxw = g->axis > maxw ? g->axis : maxw;
+            fprintf(dat, "%d %.6g %.6g %.6g\n", g->axis, g->median, g->q1, g->q3);
+        }
+        fprintf(dat, "\n\n");
+        series_title(&titles, &s->g[i]);
+        nseries++;
+    }
+    free(done);
+    if (nseries == 0) {
+        fprintf(stderr, "harness plot: no ok runs of %s: size plot left out\n", s->metric);
+        fclose(dat);
+        fclose(gp);
+        return;
+    }
+    HxBuf t = {0};
+    hx_buf_printf(&t, "%s against workers (median; bars: quartiles)", s->metric);
+    hx_plot_head(gp, c, "size", t.s);
+    t.len = 0;
+    hx_buf_printf(&t, "%s (%s)", s->metric, s->unit);
+    hx_plot_put(gp, "set ylabel %s\n", t.s);
+    hx_buf_free(&t);
+    fprintf(gp, "set xlabel 'workers of the series (threads or ranks)'\n");
+    fprintf(gp, "set logscale x 2\nset xrange [0.8:%g]\nset yrange [0:*]\n", maxw * 1.5);
+    fprintf(gp, "plot ");
+    for (int k = 0; k < nseries; k++) {
+        hx_plot_file(gp, "%s", c->base, "size", "dat");
+        fprintf(gp, " index %d using 1:2:3:4 with yerrorlines pt 7 title ", k);
+        hx_plot_put(gp, k + 1 < nseries ? "%s, \\\n     " : "%s\n", titles.v[k]);
+    }
+    hx_plot_tail(gp, c, "size");
+    hx_strlist_free(&titles);
+    hx_plot_finish(c, "size", gp, dat);
 }
 
 /* time against CUDA block size, one line per scene and configuration */
@@ -389,13 +478,14 @@ int hx_cmd_plot(int argc, char **argv)
 {
     static const struct option lo[] = {
         {"output", required_argument, NULL, 'o'}, {"metric", required_argument, NULL, 'm'},
-        {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
-    const char *prefix = NULL, *metric = NULL;
+        {"ceiling", required_argument, NULL, 'c'}, {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
+    const char *prefix = NULL, *metric = NULL, *ceiling = NULL;
     int c;
     while ((c = getopt_long(argc, argv, "o:h", lo, NULL)) != -1) {
         switch (c) {
         case 'o': prefix = optarg; break;
         case 'm': metric = optarg; break;
+        case 'c': ceiling = optarg; break;
         case 'h': usage_plot(stdout); return 0;
         default: usage_plot(stderr); return 1;
         }
@@ -407,6 +497,10 @@ int hx_cmd_plot(int argc, char **argv)
     HxStudy s;
     if (hx_study_open("harness plot", argv[optind], metric, &s))
         return 1;
+    if (hx_ceiling_load(&s, "harness plot", ceiling, argv[optind]) != 0) {
+        hx_study_free(&s);
+        return 1;
+    }
     if (s.nwrong_rows)
         fprintf(stderr, "harness plot: warning: %zu wrong-image row(s) left out\n", s.nwrong_rows);
     HxPlot ctx;
@@ -414,8 +508,12 @@ int hx_cmd_plot(int argc, char **argv)
         hx_study_free(&s);
         return 1;
     }
-    plot_scaling(&ctx, &s, 0);
-    plot_scaling(&ctx, &s, 1);
+    if (s.size) { /* a size has no speedup: drawn as it is */
+        plot_size(&ctx, &s);
+    } else {
+        plot_scaling(&ctx, &s, 0);
+        plot_scaling(&ctx, &s, 1);
+    }
     plot_blocks(&ctx, &s);
     plot_scenes(&ctx, &s);
     hx_plot_done(&ctx);

@@ -92,7 +92,9 @@ static void usage_table(FILE *f)
           "series sweeps one dimension: threads for OpenMP, ranks for MPI, and in hybrid\n"
           "studies also threads at fixed ranks); the scenes x configurations cross table.\n"
           "Oversubscribed runs and runs whose pinning did not hold are marked and left\n"
-          "out of the fits. Schema of --format json: docs/harness.md.\n"
+          "out of the fits. A size (unit B, KiB ... GB, or maxrss_kib) has no speedup:\n"
+          "it is shown as its ratio to one worker, with no fit. Schema of --format\n"
+          "json: docs/harness.md.\n"
           "  --baseline KEY=VALUE  column=value selecting baseline (b)\n"
           "  --format md|csv|json  output format (default md)\n"
           "  --wide                every column (the default table fits 100 columns)\n"
@@ -109,17 +111,15 @@ typedef struct {
     const HxGroup *g, *a, *b;
     double spa, spa_lo, spa_hi, efa, kf, spb, efb;
     double ceil;         /* the machine's ceiling at these workers, NAN none */
+    double ratio;        /* a size: median / the one-worker median (a) */
     char notes[256];
 } ConfigStats;
 
-static void config_stats(const HxStudy *s, const HxGroup *g, const char *baseline, ConfigStats *c)
+/* Speedup and efficiency against both baselines: times and rates only. */
+static void scaling_stats(const HxStudy *s, const HxGroup *g, const char *baseline, ConfigStats *c)
 {
-    memset(c, 0, sizeof *c);
-    c->g = g;
-    c->a = hx_baseline_one_worker(s, g);
     c->b = hx_baseline_fastest(s, g, baseline);
     c->spa = c->a && g->nt ? hx_study_speedup(s, c->a->median, g->median) : NAN;
-    c->spa_lo = c->spa_hi = NAN;
     if (c->a && g->nt && c->a != g) {
         hx_bootstrap_ci(g->t, g->nt, c->a->t, c->a->nt, &c->spa_lo, &c->spa_hi);
         if (s->higher) { /* a rate's speedup is the inverse ratio */
@@ -135,6 +135,19 @@ static void config_stats(const HxStudy *s, const HxGroup *g, const char *baselin
     c->kf = g->axis > 1 && c->spa >= 1 ? hx_karp_flatt(c->spa, g->axis) : NAN;
     c->spb = c->b && g->nt ? hx_study_speedup(s, c->b->median, g->median) : NAN;
     c->efb = c->spb / g->workers;
+}
+
+/* A size (peak memory) has no speedup: it is shown against one worker, and
+ * notes about speedup (efficiency above 1, slower than 1 worker) stay out. */
+static void config_stats(const HxStudy *s, const HxGroup *g, const char *baseline, ConfigStats *c)
+{
+    memset(c, 0, sizeof *c);
+    c->g = g;
+    c->a = hx_baseline_one_worker(s, g);
+    c->spa = c->spa_lo = c->spa_hi = c->efa = c->kf = c->spb = c->efb = c->ceil = NAN;
+    c->ratio = c->a && g->nt ? g->median / c->a->median : NAN;
+    if (!s->size)
+        scaling_stats(s, g, baseline, c);
     HxBuf n = {0};
     if (g->ntimeout)
         hx_buf_printf(&n, "TLE %zu", g->ntimeout);
@@ -179,21 +192,84 @@ static void fmt_ci(char *b, size_t n, double v, double lo, double hi, int ms)
         snprintf(b, n, "%s [%s, %s]", a, l, h);
 }
 
+/* The headers that carry the metric's unit; a rate's best is its maximum. */
+typedef struct {
+    char med[48], min[40], iqr[40], t1[40], bt[40];
+} UnitHeads;
+
+static void unit_heads(const HxStudy *s, UnitHeads *h)
+{
+    const char *u = s->unit[0] && strcmp(s->unit, "1") != 0 ? s->unit : "";
+    snprintf(h->med, sizeof h->med, "median %s%s[CI]", u, *u ? " " : "");
+    snprintf(h->min, sizeof h->min, "%s %s", s->higher ? "max" : "min", u);
+    snprintf(h->iqr, sizeof h->iqr, "IQR %s", u);
+    snprintf(h->t1, sizeof h->t1, "%s %s", s->size ? "1 worker" : "T(1)", u);
+    snprintf(h->bt, sizeof h->bt, "base (b) %s", u);
+}
+
+/* The cells every metric's row has. */
+typedef struct {
+    char w[16], n[32], med[112], mn[32], iqr[32], out[16], t1[32];
+} Cells;
+
+static void common_cells(const HxStudy *s, const ConfigStats *c, Cells *k)
+{
+    const HxGroup *g = c->g;
+    snprintf(k->w, sizeof k->w, "%d", g->workers);
+    snprintf(k->n, sizeof k->n, "%zu/%zu", g->nok, g->nrows);
+    fmt_ci(k->med, sizeof k->med, g->median, g->ci_lo, g->ci_hi, 1);
+    double top = g->min;
+    for (size_t i = 0; s->higher && i < g->nt; i++)
+        top = i == 0 || g->t[i] > top ? g->t[i] : top;
+    fmt_ms(k->mn, sizeof k->mn, top);
+    fmt_ms(k->iqr, sizeof k->iqr, g->q3 - g->q1);
+    snprintf(k->out, sizeof k->out, "%d", g->noutliers);
+    fmt_ms(k->t1, sizeof k->t1, c->a ? c->a->median : NAN);
+}
+
+/* A size's rows: the median and its ratio to the same series at one worker. */
+static void table_sizes(Emit *e, const HxStudy *s, int wide)
+{
+    UnitHeads h;
+    unit_heads(s, &h);
+    const char *const narrow[] = {"scene", "configuration", "n", h.med, "x 1 worker", "notes"};
+    const char *const all[] = {"scene", "configuration", "workers", "n", h.med, h.min,
+                               h.iqr, "outliers", h.t1, "x 1 worker", "notes"};
+    if (wide)
+        emit_header(e, "Per configuration (CI: 95% bootstrap interval)", all, 11);
+    else
+        emit_header(e, "Per configuration (CI: 95% bootstrap interval; --wide: every column)", narrow, 6);
+    for (size_t i = 0; i < s->ng; i++) {
+        ConfigStats c;
+        config_stats(s, &s->g[i], NULL, &c);
+        Cells k;
+        common_cells(s, &c, &k);
+        char r[32];
+        fmt_num(r, sizeof r, "%.2f", c.ratio);
+        const char *notes = c.notes[0] ? c.notes : "-";
+        if (wide) {
+            const char *cells[11] = {c.g->scene, c.g->label, k.w, k.n, k.med, k.mn, k.iqr, k.out, k.t1, r, notes};
+            emit_row(e, cells, 11);
+        } else {
+            const char *cells[6] = {c.g->scene, c.g->label, k.n, k.med, r, notes};
+            emit_row(e, cells, 6);
+        }
+    }
+}
+
 static void table_configs(Emit *e, const HxStudy *s, const char *baseline, int wide)
 {
-    /* the metric's unit in the headers; a rate's best is its maximum */
-    char med_h[48], min_h[40], iqr_h[40], t1_h[40], bt_h[40];
-    const char *u = s->unit[0] && strcmp(s->unit, "1") != 0 ? s->unit : "";
-    snprintf(med_h, sizeof med_h, "median %s%s[CI]", u, *u ? " " : "");
-    snprintf(min_h, sizeof min_h, "%s %s", s->higher ? "max" : "min", u);
-    snprintf(iqr_h, sizeof iqr_h, "IQR %s", u);
-    snprintf(t1_h, sizeof t1_h, "T(1) %s", u);
-    snprintf(bt_h, sizeof bt_h, "base (b) %s", u);
-    const char *const narrow[] = {"scene", "configuration", "n", med_h, "speedup (a) [CI]",
+    if (s->size) {
+        table_sizes(e, s, wide);
+        return;
+    }
+    UnitHeads h;
+    unit_heads(s, &h);
+    const char *const narrow[] = {"scene", "configuration", "n", h.med, "speedup (a) [CI]",
                                   "eff. (a)", "speedup (b)", "notes"};
     const char *const all[] = {
-        "scene", "configuration", "workers", "n", med_h, min_h, iqr_h, "outliers",
-        t1_h, "speedup (a) [CI]", "efficiency (a)", "Karp-Flatt", bt_h, "base (b)",
+        "scene", "configuration", "workers", "n", h.med, h.min, h.iqr, "outliers",
+        h.t1, "speedup (a) [CI]", "efficiency (a)", "Karp-Flatt", h.bt, "base (b)",
         "speedup (b)", "efficiency (b)", "notes"};
     if (wide)
         emit_header(e, "Per configuration (CI: 95% bootstrap interval)", all, 17);
@@ -203,18 +279,9 @@ static void table_configs(Emit *e, const HxStudy *s, const char *baseline, int w
         ConfigStats c;
         config_stats(s, &s->g[i], baseline, &c);
         const HxGroup *g = c.g;
-        char w[16], n[32], med[112], mn[32], iqr[32], out[16], t1[32], sp[112], ef[48], kf[32], bt[32], sb[32],
-            eb[32];
-        snprintf(w, sizeof w, "%d", g->workers);
-        snprintf(n, sizeof n, "%zu/%zu", g->nok, g->nrows);
-        fmt_ci(med, sizeof med, g->median, g->ci_lo, g->ci_hi, 1);
-        double top = g->min;
-        for (size_t k = 0; s->higher && k < g->nt; k++)
-            top = k == 0 || g->t[k] > top ? g->t[k] : top;
-        fmt_ms(mn, sizeof mn, top);
-        fmt_ms(iqr, sizeof iqr, g->q3 - g->q1);
-        snprintf(out, sizeof out, "%d", g->noutliers);
-        fmt_ms(t1, sizeof t1, c.a ? c.a->median : NAN);
+        Cells k;
+        common_cells(s, &c, &k);
+        char sp[112], ef[48], kf[32], bt[32], sb[32], eb[32];
         fmt_ci(sp, sizeof sp, c.spa, c.spa_lo, c.spa_hi, 0);
         fmt_num(ef, sizeof ef, "%.3f", c.efa);
         if (isfinite(c.ceil) && isfinite(c.efa)) /* against what this machine allows */
@@ -225,11 +292,11 @@ static void table_configs(Emit *e, const HxStudy *s, const char *baseline, int w
         fmt_num(eb, sizeof eb, "%.3f", c.efb);
         const char *notes = c.notes[0] ? c.notes : "-";
         if (wide) {
-            const char *cells[17] = {g->scene, g->label, w, n, med, mn, iqr, out, t1, sp, ef, kf,
+            const char *cells[17] = {g->scene, g->label, k.w, k.n, k.med, k.mn, k.iqr, k.out, k.t1, sp, ef, kf,
                                      bt, c.b ? c.b->label : "-", sb, eb, notes};
             emit_row(e, cells, 17);
         } else {
-            const char *cells[8] = {g->scene, g->label, n, med, sp, ef, sb, notes};
+            const char *cells[8] = {g->scene, g->label, k.n, k.med, sp, ef, sb, notes};
             emit_row(e, cells, 8);
         }
     }
@@ -338,6 +405,11 @@ static void fits_free(Fit *fits, size_t n)
 
 static void table_fits(Emit *e, const HxStudy *s, int include_suspect)
 {
+    if (s->size) { /* a[KiB] + b[KiB]/p would be no law of anything */
+        if (!e->csv)
+            fprintf(e->out, "\nNo Amdahl fit: it applies to times and rates only, and %s is a size.\n", s->metric);
+        return;
+    }
     char ah[48], bh[48];
     const char *u = s->unit[0] ? s->unit : "-";
     /* a rate is fitted as 1/rate */
@@ -369,7 +441,9 @@ static void table_cross(Emit *e, const HxStudy *s)
     hdr[0] = "scene";
     for (size_t l = 0; l < nl; l++)
         hdr[l + 1] = s->labels.v[l];
-    emit_header(e, "Scenes x configurations (median ms; TLE = timed out)", hdr, (int)nl + 1);
+    char title[96];
+    snprintf(title, sizeof title, "Scenes x configurations (median %s; TLE = timed out)", s->size ? s->unit : "ms");
+    emit_header(e, title, hdr, (int)nl + 1);
     char **cells = hx_xmalloc((nl + 1) * sizeof *cells);
     for (size_t sc = 0; sc < s->scenes.n; sc++) {
         cells[0] = s->scenes.v[sc];
@@ -400,7 +474,22 @@ static void table_cross(Emit *e, const HxStudy *s)
 
 /* ---- --format json (schema: docs/harness.md, "JSON output") ---- */
 
-static void json_config(FILE *o, const ConfigStats *c)
+static void json_scaling(FILE *o, const ConfigStats *c)
+{
+    hx_json_num(o, "speedup_a", c->spa);
+    hx_json_pair(o, "speedup_a_ci95", c->spa_lo, c->spa_hi);
+    hx_json_num(o, "efficiency_a", c->efa);
+    hx_json_num(o, "ceiling", c->ceil);
+    hx_json_num(o, "karp_flatt", c->kf);
+    if (c->b)
+        hx_json_kstr(o, "baseline_b", c->b->label);
+    else
+        fputs(", \"baseline_b\": null", o);
+    hx_json_num(o, "speedup_b", c->spb);
+    hx_json_num(o, "efficiency_b", c->efb);
+}
+
+static void json_config(FILE *o, const ConfigStats *c, int size)
 {
     const HxGroup *g = c->g;
     fputs("{\"scene\": ", o);
@@ -415,17 +504,10 @@ static void json_config(FILE *o, const ConfigStats *c)
     hx_json_num(o, "min_ms", g->min);
     hx_json_num(o, "iqr_ms", g->q3 - g->q1);
     hx_json_num(o, "outliers", g->noutliers);
-    hx_json_num(o, "speedup_a", c->spa);
-    hx_json_pair(o, "speedup_a_ci95", c->spa_lo, c->spa_hi);
-    hx_json_num(o, "efficiency_a", c->efa);
-    hx_json_num(o, "ceiling", c->ceil);
-    hx_json_num(o, "karp_flatt", c->kf);
-    if (c->b)
-        hx_json_kstr(o, "baseline_b", c->b->label);
+    if (size) /* no speedup, efficiency or baseline (b) for a size */
+        hx_json_num(o, "ratio_to_one_worker", c->ratio);
     else
-        fputs(", \"baseline_b\": null", o);
-    hx_json_num(o, "speedup_b", c->spb);
-    hx_json_num(o, "efficiency_b", c->efb);
+        json_scaling(o, c);
     fprintf(o, ", \"suspect\": %s", g->suspect ? "true" : "false");
     hx_json_num(o, "timeouts", (double)g->ntimeout);
     hx_json_num(o, "wrong_image", (double)g->nwrong);
@@ -441,17 +523,19 @@ static void table_json(FILE *o, const HxStudy *s, const char *path, const char *
     hx_json_kstr(o, "csv", path);
     hx_json_kstr(o, "study", s->csv.nrows ? hx_csv_get(&s->csv, 0, "study") : "");
     hx_json_kstr(o, "metric", metric);
+    if (s->size)
+        fputs(", \"size\": true", o);
     hx_json_kstr(o, "baseline", baseline);
     fputs(",\n \"configurations\": [", o);
     for (size_t i = 0; i < s->ng; i++) {
         ConfigStats c;
         config_stats(s, &s->g[i], baseline, &c);
         fputs(i ? ",\n  " : "\n  ", o);
-        json_config(o, &c);
+        json_config(o, &c, s->size);
     }
     fputs("],\n \"fits\": [", o);
-    size_t n;
-    Fit *fits = collect_fits(s, include_suspect, &n);
+    size_t n = 0;
+    Fit *fits = s->size ? NULL : collect_fits(s, include_suspect, &n);
     for (size_t i = 0; i < n; i++) {
         const Fit *f = &fits[i];
         fputs(i ? ",\n  {\"scene\": " : "\n  {\"scene\": ", o);
@@ -506,7 +590,7 @@ int hx_cmd_table(int argc, char **argv)
     HxStudy s;
     if (hx_study_open("harness table", argv[optind], metric, &s))
         return 1;
-    if (hx_ceiling_load(&s, ceiling, argv[optind]) != 0) {
+    if (hx_ceiling_load(&s, "harness table", ceiling, argv[optind]) != 0) {
         hx_study_free(&s);
         return 1;
     }
@@ -525,11 +609,14 @@ int hx_cmd_table(int argc, char **argv)
         return 0;
     }
     Emit e = {stdout, strcmp(format, "csv") == 0, 0};
-    if (!e.csv)
-        printf("## Study %s (%s, metric %s%s, baseline (b): %s %s)\n",
-               s.csv.nrows ? hx_csv_get(&s.csv, 0, "study") : "", argv[optind], metric,
+    const char *study = s.csv.nrows ? hx_csv_get(&s.csv, 0, "study") : "";
+    if (!e.csv && s.size)
+        printf("## Study %s (%s, metric %s (%s), a size: shown against 1 worker, no speedup)\n", study,
+               argv[optind], metric, s.unit);
+    else if (!e.csv)
+        printf("## Study %s (%s, metric %s%s, baseline (b): %s %s)\n", study, argv[optind], metric,
                s.higher ? ", higher is better" : "", s.higher ? "best" : "fastest", baseline);
-    if (!e.csv && s.ceil_path)
+    if (!e.csv && s.ceil_path && !s.size)
         printf("Efficiency (a) also against this machine's ceiling from %s: \"0.750 (1.07 of 0.70)\" is 1.07 of "
                "the 0.70 that independent copies keep at that many workers.\n", s.ceil_path);
     table_configs(&e, &s, baseline, wide);

@@ -162,4 +162,19 @@ cd .. || exit 1
 "$H" history check --metric rate --db h.db --window 2 > hc.txt && { cat hc.txt; fail "history check missed the drop"; }
 grep -q "^STEP .*program=sh.* rate at commit $(git -C repo rev-parse --short HEAD) .*-50.0%" hc.txt ||
     { cat hc.txt; fail "no step at the third commit"; }
+
+echo "== 9. a size (peak memory) is shown against 1 worker: no speedup, no Amdahl fit"
+# 16 MiB more per thread: as a "time", T=2 would read as slower than 1 worker
+printf 'command: python3 -c %s {threads}\nthreads: 1 2\nrepeats: 3\npin: none\n' \
+    "'import sys; b = b\"x\" * (int(sys.argv[1]) << 24); print(len(b))'" > mem.conf
+"$H" run mem.conf -o mem.csv -q > run.out 2>&1 || { cat run.out; fail "memory study"; }
+"$H" table mem.csv --metric maxrss_kib > size.md || fail "table --metric maxrss_kib"
+grep -q 'metric maxrss_kib (KiB), a size' size.md && grep -q '| x 1 worker |' size.md &&
+    grep -q '^No Amdahl fit' size.md &&
+    ! grep -q 'slower than 1 worker\|speedup (a)\|Amdahl fit T' size.md || { cat size.md; fail "a size read as a time"; }
+r=$(grep '| python3 T=2 |' size.md | awk -F'|' '{print $6}')
+awk -v r="$r" 'BEGIN { exit !(r > 1.2 && r < 3) }' || { cat size.md; fail "T=2 against 1 worker: '$r'"; }
+"$H" table mem.csv --metric maxrss_kib --format json | python3 -c 'import json,sys
+c = json.load(sys.stdin)["configurations"]
+assert all("ratio_to_one_worker" in x and "speedup_a" not in x for x in c), c' || fail "table json of a size"
 echo "ok"
