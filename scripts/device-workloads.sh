@@ -23,7 +23,7 @@ H=build-wl/harness/harness
 W=${WORKERS:-1..16 *2}
 run_hpcc() { # N=5000 (a 200 MB matrix): with the reference BLAS about 1.5 minutes a run at 1 rank
     $H run configs/hpcc.conf -o "$OUT/hpcc.csv" --overwrite --set ranks="$W" --set n="${HPCC_N:-5000}" \
-        --set nb=128 --set repeats="${REPEATS:-2}" 2>&1 | tail -3
+        --set nb=128 --set repeats="${REPEATS:-2}" --set timeout="${HPCC_TIMEOUT:-5m}" 2>&1 | tail -3
     $H table "$OUT/hpcc.csv" --metric triad_gbs > "$OUT/hpcc-triad-table.md"
 }
 run_xz() { # 128 MiB, 32 blocks of 4 MiB: two per thread at 16 threads
