@@ -1,12 +1,13 @@
-/* ab.c: `harness ab 'COMMAND A' 'COMMAND B'`: two commands timed
- * interleaved, and compare's verdict on B against A.
+/* ab.c: `harness ab`: two commands, or two raytrace builds over a config's
+ * configurations, timed interleaved, and compare's verdict on B against A.
  *
- * Each command line is split into words as a config's `command:` is (no
+ * A command line is split into words as a config's `command:` is (no
  * shell: hyperfine's -N). A first, untimed round runs both and stops at a
  * failure, before any timing. Then N rounds run A and B back to back, the
  * first of each pair alternating, so that a slow phase of a shared machine
  * falls on both sides alike (the interleaving of Kalibera and Jones,
- * "Rigorous benchmarking in reasonable time", 2013). */
+ * "Rigorous benchmarking in reasonable time", 2013). `history check
+ * --confirm` re-measures a step through hx_ab_config. */
 #include "program.h"
 #include "run.h"
 
@@ -17,24 +18,43 @@
 #include <string.h>
 
 typedef struct {
-    int rounds;
-    double factor, alpha, timeout_s;
-    const char *metric; /* a regular expression over stdout; NULL: wall time */
+    HxAbRule rule;
+    const char *metric; /* commands: a regular expression over stdout; NULL: wall time */
     int higher;
     regex_t re;
+    const char *config; /* --config: two raytrace builds over its configurations */
+    const char *key;    /* --config: the record key (default render_ms) */
+    HxStrList set;
 } AbOpts;
+
+/* What one side's runs are read for: a record key, a regex, or wall ms. */
+typedef struct {
+    const char *key;
+    const regex_t *re;
+    const char *what;
+    const HxTopo *topo;
+    const HxRun *run;
+    double timeout_s;
+    char (*image)[2][32]; /* --config: each side's last image_fnv1a */
+} AbRead;
 
 static void usage_ab(FILE *f)
 {
     fputs("usage: harness ab 'COMMAND A' 'COMMAND B' [--rounds N] [--metric 'REGEX' [--higher]]\n"
-          "                  [--factor F] [--alpha A] [--timeout S]\n"
+          "       harness ab --config CONFIG RAYTRACE_A RAYTRACE_B [--metric KEY [--higher]]\n"
+          "                  [--set KEY=VALUE]...\n"
+          "       common: [--rounds N] [--factor F] [--alpha A] [--timeout S]\n"
           "Runs A and B alternately (A B, B A, ...) and judges B against A as compare does:\n"
           "REGRESSION, IMPROVEMENT, no change or INCONCLUSIVE. Exit 1 on a regression.\n"
           "  COMMAND              a program and its arguments, split at blanks ('...' and\n"
           "                       \"...\" keep blanks), run without a shell\n"
+          "  --config CONFIG      every configuration of a raytrace config, run (pinned as\n"
+          "                       `harness run` pins it) by two raytrace builds; one\n"
+          "                       verdict per configuration\n"
           "  --rounds N           timed rounds (default 10; 4 or more for the rank test)\n"
           "  --metric 'REGEX'     the number in REGEX's first group, last match on stdout\n"
-          "                       (default: the wall time in ms)\n"
+          "                       (default: the wall time in ms); with --config a record\n"
+          "                       key (default render_ms)\n"
           "  --higher             the metric is a rate: higher is better\n"
           "  --factor F           the change that counts (default 1.05)\n"
           "  --alpha A            the rank test's significance (default 0.01)\n"
@@ -47,21 +67,25 @@ static int ab_opts(int argc, char **argv, AbOpts *o)
         {"rounds", required_argument, NULL, 'r'}, {"metric", required_argument, NULL, 'm'},
         {"higher", no_argument, NULL, 'H'},       {"factor", required_argument, NULL, 'f'},
         {"alpha", required_argument, NULL, 'a'},  {"timeout", required_argument, NULL, 't'},
+        {"config", required_argument, NULL, 'c'}, {"set", required_argument, NULL, 's'},
         {"help", no_argument, NULL, 'h'},         {NULL, 0, NULL, 0}};
-    *o = (AbOpts){10, 1.05, 0.01, 600, NULL, 0, {0}};
+    memset(o, 0, sizeof *o);
+    o->rule = (HxAbRule){10, 1.05, 0.01, 600};
     long n;
     int c;
     while ((c = getopt_long(argc, argv, "h", lo, NULL)) != -1) {
         const char *bad = NULL;
         switch (c) {
-        case 'r': bad = hx_parse_int(optarg, 1, 100000, &n) ? "expected an integer >= 1" : NULL; o->rounds = (int)n; break;
+        case 'r': bad = hx_parse_int(optarg, 1, 100000, &n) ? "expected an integer >= 1" : NULL; o->rule.rounds = (int)n; break;
         case 'm': o->metric = optarg; break;
         case 'H': o->higher = 1; break;
-        case 'f': bad = hx_parse_double(optarg, &o->factor) || o->factor <= 1 ? "expected a number > 1" : NULL; break;
+        case 'c': o->config = optarg; break;
+        case 's': hx_strlist_push(&o->set, optarg); break;
+        case 'f': bad = hx_parse_double(optarg, &o->rule.factor) || o->rule.factor <= 1 ? "expected a number > 1" : NULL; break;
         case 'a':
-            bad = hx_parse_double(optarg, &o->alpha) || o->alpha <= 0 || o->alpha >= 1 ? "expected 0 < A < 1" : NULL;
+            bad = hx_parse_double(optarg, &o->rule.alpha) || o->rule.alpha <= 0 || o->rule.alpha >= 1 ? "expected 0 < A < 1" : NULL;
             break;
-        case 't': bad = hx_parse_double(optarg, &o->timeout_s) || o->timeout_s <= 0 ? "expected seconds > 0" : NULL; break;
+        case 't': bad = hx_parse_double(optarg, &o->rule.timeout_s) || o->rule.timeout_s <= 0 ? "expected seconds > 0" : NULL; break;
         case 'h': usage_ab(stdout); return 0;
         default: usage_ab(stderr); return 1;
         }
@@ -72,10 +96,22 @@ static int ab_opts(int argc, char **argv, AbOpts *o)
         }
     }
     if (argc - optind != 2) {
-        fprintf(stderr, "harness ab: expected two commands, 'COMMAND A' 'COMMAND B' (see --help)\n");
+        fprintf(stderr, o->config ? "harness ab: expected two raytrace builds, RAYTRACE_A RAYTRACE_B (see --help)\n"
+                                  : "harness ab: expected two commands, 'COMMAND A' 'COMMAND B' (see --help)\n");
         return 1;
     }
-    if (o->metric && regcomp(&o->re, o->metric, REG_EXTENDED | REG_NEWLINE) != 0) {
+    if (o->set.n && !o->config) {
+        fprintf(stderr, "harness ab: --set applies to --config only\n");
+        return 1;
+    }
+    if (o->config) {
+        o->key = o->metric ? o->metric : "render_ms";
+        o->metric = NULL;
+        if (!*o->key || strchr(o->key, '/') || strchr(o->key, '=') || hx_has_ctrl(o->key)) {
+            hx_put_clean_line(stderr, "harness ab: --metric: '%s' is not a record key (e.g. render_ms)", o->key);
+            return 1;
+        }
+    } else if (o->metric && regcomp(&o->re, o->metric, REG_EXTENDED | REG_NEWLINE) != 0) {
         fprintf(stderr, "harness ab: --metric: '%s' is not a regular expression\n", o->metric);
         return 1;
     }
@@ -102,13 +138,46 @@ static int ab_command(const char *line, const char *side, HxCommand *c)
     return 0;
 }
 
-/* One run: its value (wall ms or the metric) in *v; 0, or -1 with why. */
-static int ab_run(const HxCommand *c, const AbOpts *o, double *v, int *busy, char *why, size_t n)
+/* The value read from a finished run; 0, or -1 with why. */
+static int ab_value(const HxChildResult *res, const AbRead *rd, int side, double *v, char *why, size_t n)
+{
+    char num[64];
+    *v = res->wall_ms;
+    if (rd->re && hx_match_number(rd->re, res->out.s ? res->out.s : "", v, num, sizeof num) != 0) {
+        snprintf(why, n, "--metric: no number on its stdout");
+        return -1;
+    }
+    if (!rd->key)
+        return 0;
+    char *rec = res->out.s ? hx_record_find(res->out.s) : NULL;
+    if (rec)
+        rec[strcspn(rec, "\n")] = '\0';
+    const char *w = rec ? rec + 8 : NULL; /* after "record: " */
+    size_t kl = strlen(rd->key);
+    while (w && *w && !(strncmp(w, rd->key, kl) == 0 && w[kl] == '=')) {
+        w += strcspn(w, " ");
+        w += *w == ' ';
+    }
+    if (w && *w)
+        snprintf(num, sizeof num, "%.*s", (int)strcspn(w + kl + 1, " "), w + kl + 1);
+    const char *h = rec ? strstr(rec, " image_fnv1a=") : NULL;
+    if (rd->image && h)
+        snprintf((*rd->image)[side], sizeof (*rd->image)[side], "%.*s", (int)strcspn(h + 13, " "), h + 13);
+    if (!w || !*w || hx_parse_double(num, v) != 0) {
+        snprintf(why, n, "no %s in its record line", rd->key);
+        return -1;
+    }
+    return 0;
+}
+
+/* One run: its value in *v, *busy whether the machine was busy or stolen;
+ * 0, or -1 with why. */
+static int ab_run(const HxCommand *c, const AbRead *rd, int side, double *v, int *busy, char *why, size_t n)
 {
     HxChildResult res;
     HxCpuStat a, b;
     hx_cpu_stat(&a);
-    int rc = hx_run_child(c, NULL, NULL, o->timeout_s, &res);
+    int rc = hx_run_child(c, rd->topo, rd->run, rd->timeout_s, &res);
     hx_cpu_stat(&b);
     hx_reap_strays();
     if (rc != 0 || res.timed_out || !res.exited || res.code != 0) {
@@ -121,17 +190,12 @@ static int ab_run(const HxCommand *c, const AbOpts *o, double *v, int *busy, cha
         return -1;
     }
     HxNoise noise;
-    hx_noise(&a, &b, res.wall_ms, res.user_ms + res.sys_ms, (int)sysconf(_SC_NPROCESSORS_ONLN), 1, &noise);
+    int workers = rd->run ? rd->run->workers : 1;
+    hx_noise(&a, &b, res.wall_ms, res.user_ms + res.sys_ms, (int)sysconf(_SC_NPROCESSORS_ONLN), workers, &noise);
     *busy = noise.busy || noise.stolen;
-    *v = res.wall_ms;
-    char num[64];
-    if (o->metric && hx_match_number(&o->re, res.out.s ? res.out.s : "", v, num, sizeof num) != 0) {
-        snprintf(why, n, "--metric '%s': no number on its stdout", o->metric);
-        hx_child_result_free(&res);
-        return -1;
-    }
+    rc = ab_value(&res, rd, side, v, why, n);
     hx_child_result_free(&res);
-    return 0;
+    return rc;
 }
 
 /* The summary of one side's samples. */
@@ -146,55 +210,199 @@ static void ab_side(const char *name, const char *line, double *x, size_t n, siz
     hx_put_clean_line(stdout, "   %s", line);
 }
 
-int hx_cmd_ab(int argc, char **argv)
+/* Both sides measured and judged: an untimed first round, then the rounds
+ * alternating. 0 or 1 (a regression), or -1 (a run failed, said). */
+static int ab_pair(const HxCommand c[2], const AbRead *rd, const HxAbRule *rule, int higher, const char *label,
+                   const char *const line[2], const char **verdict, const char **header)
 {
-    AbOpts o;
-    int orc = ab_opts(argc, argv, &o);
-    if (orc >= 0)
-        return orc;
-    const char *line[2] = {argv[optind], argv[optind + 1]}, *name[2] = {"A", "B"};
+    static const char *const name[2] = {"A", "B"};
+    size_t nr = (size_t)rule->rounds, busy[2] = {0, 0};
+    double *x[2] = {hx_xmalloc(nr * sizeof(double)), hx_xmalloc(nr * sizeof(double))}, v;
+    char why[512];
+    int rc = 0, b;
+    for (int k = 0; k < 2 && rc == 0; k++)
+        if (ab_run(&c[k], rd, k, &v, &b, why, sizeof why) != 0) {
+            hx_put_clean_line(stderr, "harness ab: %s%scommand %s failed in the first, untimed round: %s", label,
+                              *label ? ": " : "", name[k], why);
+            rc = -1;
+        }
+    if (rc == 0 && header && *header) { /* once, and only when both commands work */
+        fputs(*header, stdout);
+        fflush(stdout);
+        *header = NULL;
+    }
+    for (size_t r = 0; r < nr && rc == 0 && !hx_stop_signal(); r++)
+        for (int j = 0; j < 2 && rc == 0; j++) {
+            int k = (int)(r % 2) ^ j; /* A B, then B A, ... */
+            if (ab_run(&c[k], rd, k, &x[k][r], &b, why, sizeof why) != 0) {
+                hx_put_clean_line(stderr, "harness ab: %s%scommand %s failed in round %zu: %s", label,
+                                  *label ? ": " : "", name[k], r + 1, why);
+                rc = -1;
+            }
+            busy[k] += (size_t)b;
+        }
+    if (rc == 0 && !hx_stop_signal()) {
+        ab_side("A", line[0], x[0], nr, busy[0], rd->what);
+        ab_side("B", line[1], x[1], nr, busy[1], rd->what);
+        rc = hx_judge_samples(*label ? label : "B against A", x[1], nr, x[0], nr, rule->factor, rule->alpha, higher,
+                              rd->key ? (strstr(rd->key, "_ms") ? "ms" : "") : rd->re ? "" : "ms", verdict);
+    }
+    free(x[0]);
+    free(x[1]);
+    return rc;
+}
+
+static void tally(HxAbTally *t, const char *verdict)
+{
+    t->compared++;
+    if (strcmp(verdict, "REGRESSION") == 0)
+        t->regressions++;
+    else if (strcmp(verdict, "IMPROVEMENT") == 0)
+        t->improvements++;
+    else if (strcmp(verdict, "INCONCLUSIVE") == 0)
+        t->inconclusive++;
+}
+
+/* One configuration of the plan with both builds. 0, or -1 (said). */
+static int ab_one(const HxConfig *cfg, const HxTopo *t, const HxRun *r, const char *const rt[2], const char *key,
+                  int higher, const HxAbRule *rule, HxAbTally *tal, const char **header)
+{
+    char tmp[] = "/tmp/harness-ab-XXXXXX";
+    if (!mkdtemp(tmp)) {
+        perror("harness ab: /tmp");
+        return -1;
+    }
+    HxCommand c[2];
+    HxBuf img[2] = {{0}, {0}};
+    for (int k = 0; k < 2; k++) {
+        hx_buf_printf(&img[k], "%s/%c.ppm", tmp, 'a' + k);
+        hx_build_command(cfg, t, r, rt[k], img[k].s, tmp, NULL, &c[k]);
+    }
+    char lab[512];
+    hx_config_label(lab, sizeof lab, r->config_id);
+    char image[2][32] = {"", ""};
+    AbRead rd = {key, NULL, key, t, r, cfg->timeout_s, &image};
+    const char *verdict = NULL;
+    int rc = ab_pair(c, &rd, rule, higher, lab, rt, &verdict, header);
+    if (rc >= 0) {
+        tally(tal, verdict);
+        /* raytrace's CPU backends render bit for bit alike: a change of
+         * image is a change of work, whatever the time says */
+        int same = strcmp(image[0], image[1]) == 0;
+        tal->images_differ += !same;
+        printf("   images: %s (image_fnv1a A %s, B %s)\n", same ? "identical" : "DIFFER", *image[0] ? image[0] : "-",
+               *image[1] ? image[1] : "-");
+    }
+    for (int k = 0; k < 2; k++) {
+        unlink(img[k].s);
+        hx_buf_printf(&img[k], ".rankfile");
+        unlink(img[k].s);
+        hx_buf_free(&img[k]);
+        hx_command_free(&c[k]);
+    }
+    rmdir(tmp);
+    return rc < 0 ? -1 : 0;
+}
+
+int hx_ab_config(const char *config, const HxStrList *set, const char *const rt[2], const char *only, const char *key,
+                 int higher, const HxAbRule *rule, HxAbTally *tal, const char *header)
+{
+    HxConfig cfg;
+    memset(tal, 0, sizeof *tal);
+    if (hx_config_open_set(config, set, &cfg) != 0)
+        return -1;
+    if (cfg.prog) {
+        fprintf(stderr, "harness ab: %s: a command study; --config compares two raytrace builds (give two commands "
+                        "instead)\n", config);
+        hx_config_free(&cfg);
+        return -1;
+    }
+    free(cfg.scene_cache); /* each build parses: caches of two builds need not agree */
+    cfg.scene_cache = hx_strdup("off");
+    HxPlan plan;
+    HxTopo t;
+    hx_expand(&cfg, &plan);
+    hx_topo_load(&t);
+    hx_plan_cores(&t, &cfg, &plan);
+    int rc = 0, seen = 0;
+    for (size_t i = 0; i < plan.n && rc == 0 && !hx_stop_signal(); i++) {
+        const HxRun *r = &plan.runs[i];
+        if (r->repeat != 0 || r->refused || (only && strcmp(r->config_id, only) != 0))
+            continue;
+        seen = 1;
+        rc = ab_one(&cfg, &t, r, rt, key, higher, rule, tal, &header);
+    }
+    if (rc == 0 && !seen) {
+        hx_put_clean_line(stderr, "harness ab: %s: %s", config,
+                          only ? "no configuration of it is the one asked for" : "plans no run");
+        rc = -1;
+    }
+    hx_plan_free(&plan);
+    hx_topo_free(&t);
+    hx_config_free(&cfg);
+    return rc;
+}
+
+static int ab_commands(const AbOpts *o, const char *const line[2])
+{
     HxCommand c[2];
     int made[2] = {ab_command(line[0], "A", &c[0]) == 0, 0};
     made[1] = made[0] && ab_command(line[1], "B", &c[1]) == 0;
     int rc = made[0] && made[1] ? 0 : 1;
-    hx_install_stop_handlers();
-    double *x[2] = {hx_xmalloc((size_t)o.rounds * sizeof(double)), hx_xmalloc((size_t)o.rounds * sizeof(double))};
-    size_t busy[2] = {0, 0};
-    char why[512];
-    double v;
-    int b;
-    /* round 0: both must work before anything is timed */
-    for (int k = 0; k < 2 && rc == 0; k++)
-        if (ab_run(&c[k], &o, &v, &b, why, sizeof why) != 0) {
-            hx_put_clean_line(stderr, "harness ab: command %s failed in the first, untimed round: %s", name[k], why);
-            rc = 1;
-        }
-    for (int r = 0; r < o.rounds && rc == 0 && !hx_stop_signal(); r++)
-        for (int j = 0; j < 2 && rc == 0; j++) {
-            int k = (r % 2) ^ j; /* A B, then B A, ... */
-            if (ab_run(&c[k], &o, &x[k][r], &b, why, sizeof why) != 0) {
-                hx_put_clean_line(stderr, "harness ab: command %s failed in round %d: %s", name[k], r + 1, why);
-                rc = 1;
-            }
-            busy[k] += b;
-        }
-    if (rc == 0 && hx_stop_signal())
-        rc = 128 + hx_stop_signal();
     if (rc == 0) {
-        const char *what = o.metric ? "metric" : "wall ms", *verdict;
-        printf("harness ab: %d rounds, A and B alternating first (factor %.3g, alpha %.3g)\n", o.rounds, o.factor,
-               o.alpha);
-        ab_side("A", line[0], x[0], (size_t)o.rounds, busy[0], what);
-        ab_side("B", line[1], x[1], (size_t)o.rounds, busy[1], what);
-        rc = hx_judge_samples("B against A", x[1], (size_t)o.rounds, x[0], (size_t)o.rounds, o.factor, o.alpha,
-                              o.higher, o.metric ? "" : "ms", &verdict);
+        char head[256];
+        const char *header = head;
+        snprintf(head, sizeof head, "harness ab: %d rounds, A and B alternating first (factor %.3g, alpha %.3g)\n",
+                 o->rule.rounds, o->rule.factor, o->rule.alpha);
+        AbRead rd = {NULL, o->metric ? &o->re : NULL, o->metric ? "metric" : "wall ms", NULL, NULL, o->rule.timeout_s,
+                     NULL};
+        const char *verdict;
+        rc = ab_pair(c, &rd, &o->rule, o->higher, "", line, &verdict, &header);
+        rc = rc < 0 ? 1 : rc;
     }
-    for (int k = 0; k < 2; k++) {
+    for (int k = 0; k < 2; k++)
         if (made[k])
             hx_command_free(&c[k]);
-        free(x[k]);
+    return rc;
+}
+
+int hx_cmd_ab(int argc, char **argv)
+{
+    AbOpts o;
+    int rc = ab_opts(argc, argv, &o);
+    if (rc >= 0) {
+        hx_strlist_free(&o.set);
+        return rc;
     }
+    const char *const line[2] = {argv[optind], argv[optind + 1]};
+    hx_install_stop_handlers();
+    if (!o.config) {
+        rc = ab_commands(&o, line);
+    } else {
+        HxAbTally t;
+        char *rt[2] = {hx_which(line[0]), hx_which(line[1])};
+        for (int k = 0; k < 2; k++)
+            if (!rt[k])
+                hx_put_clean_line(stderr, "harness ab: raytrace %c: '%s' not found or not executable", 'A' + k,
+                                  line[k]);
+        HxBuf head = {0};
+        hx_buf_printf(&head, "harness ab: %s, %d rounds per configuration, A and B alternating first (metric %s, "
+                      "factor %.3g, alpha %.3g)\n", o.config, o.rule.rounds, o.key, o.rule.factor, o.rule.alpha);
+        rc = rt[0] && rt[1] ? hx_ab_config(o.config, &o.set, (const char *const *)rt, NULL, o.key, o.higher, &o.rule, &t,
+                                           head.s)
+                            : -1;
+        hx_buf_free(&head);
+        if (rc == 0)
+            printf("harness ab: %d configuration(s): %d regression(s), %d improvement(s), %d inconclusive; images "
+                   "differ in %d\n", t.compared, t.regressions, t.improvements, t.inconclusive, t.images_differ);
+        rc = rc != 0 ? 1 : t.regressions > 0;
+        free(rt[0]);
+        free(rt[1]);
+    }
+    if (hx_stop_signal())
+        rc = 128 + hx_stop_signal();
     if (o.metric)
         regfree(&o.re);
+    hx_strlist_free(&o.set);
     return rc;
 }

@@ -118,23 +118,6 @@ static int config_matches(const char *config, const HxStrList *want)
     return 1;
 }
 
-/* The configuration without its unset values ("key=-"), for people. */
-static void config_label(char *dst, size_t n, const char *config)
-{
-    size_t m = 0;
-    const char *w = config;
-    while (*w && m + 1 < n) {
-        size_t len = strcspn(w, " ");
-        int unset = len >= 2 && w[len - 1] == '-' && w[len - 2] == '=';
-        if (!unset && len > 0) {
-            m += (size_t)snprintf(dst + m, n - m, "%s%.*s", m ? " " : "", (int)len, w);
-            m = m < n ? m : n - 1;
-        }
-        w += len + (w[len] == ' ');
-    }
-    dst[m] = '\0';
-}
-
 /* The metric's two keys: "COL" (den NULL) or "COL/calib" (den calib_ms). */
 static int metric_keys(const char *metric, char *num, size_t n, const char **den)
 {
@@ -294,12 +277,32 @@ static int no_step(const Series *s, const StepRule *rule, const char *lab)
     return 1;
 }
 
-static int check_series(const Series *s, const StepRule *rule, const char *metric, int higher, int *unsure)
+/* A step of series s at point k re-measured (cf: NULL, not asked): 1 when
+ * it counts (confirmed, exact values, or not asked), else 0. */
+static int step_confirmed(const Series *s, size_t k, double p, int slower, const char *metric, int higher,
+                          HxConfirm *cf)
+{
+    if (!cf)
+        return 1;
+    if (p == 0.0) { /* exact values, e.g. instruction counts: no noise to rule out */
+        printf("  CONFIRMED: exact values, the same at every run of each side\n");
+        return 1;
+    }
+    char key[64];
+    const char *den;
+    metric_keys(metric, key, sizeof key, &den); /* render_ms/calib: render_ms, interleaved */
+    const char *settings = strchr(s->fingerprint, ' ');
+    return hx_confirm_step(cf, s->config, settings ? settings + 1 : "", s->p[k - 1].sha, s->p[k].sha, key, higher,
+                           slower);
+}
+
+static int check_series(const Series *s, const StepRule *rule, const char *metric, int higher, int *unsure,
+                        HxConfirm *cf, int *unconfirmed)
 {
     int slow = 0, steps = 0;
     size_t best = 0;
     char lab[512];
-    config_label(lab, sizeof lab, s->config);
+    hx_config_label(lab, sizeof lab, s->config);
     double best_p = 2.0, best_r = 1.0;
     for (size_t k = 1; k <= s->np; k++) {
         double p = 2.0, r = NAN;
@@ -317,7 +320,10 @@ static int check_series(const Series *s, const StepRule *rule, const char *metri
             continue;
         hx_put_clean_line(stdout, "STEP %s [%s]: %s at commit %s (after %s): %+.1f%%, p=%.2g", lab, s->fingerprint,
                metric, s->p[best].sha, s->p[best - 1].sha, 100.0 * (best_r - 1.0), best_p);
-        slow += higher ? best_r < 1.0 : best_r > 1.0; /* a rate's slowdown is a drop */
+        int slower = higher ? best_r < 1.0 : best_r > 1.0; /* a rate's slowdown is a drop */
+        int counts = step_confirmed(s, best, best_p, slower, metric, higher, cf);
+        slow += slower && counts;
+        *unconfirmed += cf && !counts;
         steps++;
         best_p = 2.0;
     }
@@ -383,7 +389,7 @@ static void write_history_dat(FILE *dat, const SeriesSet *ss, const HxStrList *o
     fprintf(dat, "# x median min max commit (one block per series: configuration [machine])\n");
     for (size_t i = 0; i < ss->n; i++) {
         char cfg[400], raw[512], lab[512];
-        config_label(cfg, sizeof cfg, ss->s[i].config);
+        hx_config_label(cfg, sizeof cfg, ss->s[i].config);
         const char *hash = strchr(ss->s[i].fingerprint, ' ');
         snprintf(raw, sizeof raw, "%s [%.8s/%.6s]", cfg, ss->s[i].fingerprint, hash ? hash + 1 : "");
         hx_plot_clean_label(lab, sizeof lab, raw);
@@ -450,6 +456,7 @@ static void usage_history(FILE *f)
           "       harness history plot METRIC -o PREFIX [FILTERS] [--db DB]\n"
           "       harness history check [--metric METRIC] [FILTERS] [--window N] [--alpha A]\n"
           "                             [--threshold T] [--db DB]\n"
+          "                             [--confirm CONFIG [--rounds N] [--builder B] [--build-dir D]]\n"
           "Performance across commits, in SQLite (docs/harness.md, \"History\").\n"
           "  add      stores every row of each study CSV with its commit, machine fingerprint\n"
           "           and config hash; a CSV stored before is skipped; rows of a dirty tree\n"
@@ -461,6 +468,10 @@ static void usage_history(FILE *f)
           "  check    the commit where a series stepped: medians of the N commits before and\n"
           "           from it differ by more than T and Mann-Whitney p < A (exact values:\n"
           "           any change over T); exit 1 when a series got slower\n"
+          "  --confirm CONFIG   re-measure each step: build both commits (B COMMIT DIR/COMMIT,\n"
+          "                     default B scripts/build-commit.sh, D build-confirm) and run\n"
+          "                     the step's configuration of CONFIG with both, interleaved over\n"
+          "                     N rounds (default 10); exit 1 only for a confirmed slowdown\n"
           "  --db DB            the database (default " HX_HISTORY_DEFAULT_DB ")\n"
           "  --metric M         check's metric (default render_ms)\n"
           "  FILTERS            --scene S --backend B --accel A --resolution WxH --threads N\n"
@@ -476,6 +487,7 @@ typedef struct {
     int allow_dirty;
     HxStrList want;
     StepRule rule;
+    HxConfirm confirm; /* confirm.config NULL: steps are not re-measured */
 } HistOpts;
 
 static int filter_opt(HistOpts *o, const char *key, const char *v)
@@ -509,6 +521,8 @@ static int parse_history_opts(int argc, char **argv, HistOpts *o)
         {"backend", required_argument, NULL, 2}, {"accel", required_argument, NULL, 3},
         {"resolution", required_argument, NULL, 4}, {"threads", required_argument, NULL, 5},
         {"ranks", required_argument, NULL, 6}, {"block", required_argument, NULL, 7},
+        {"confirm", required_argument, NULL, 'c'}, {"builder", required_argument, NULL, 'b'},
+        {"build-dir", required_argument, NULL, 'B'}, {"rounds", required_argument, NULL, 'r'},
         {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
     static const char *const fkey[] = {"", "scene", "backend", "accel", "resolution", "threads", "ranks", "block"};
     double w;
@@ -524,6 +538,10 @@ static int parse_history_opts(int argc, char **argv, HistOpts *o)
         case 'w': bad = history_number("window", optarg, 1, 1000, &w); o->rule.window = (int)w; break;
         case 'a': bad = history_number("alpha", optarg, 1e-12, 1, &o->rule.alpha); break;
         case 't': bad = history_number("threshold", optarg, 0, 100, &o->rule.threshold); break;
+        case 'c': o->confirm.config = optarg; break;
+        case 'b': o->confirm.builder = optarg; break;
+        case 'B': o->confirm.dir = optarg; break;
+        case 'r': bad = history_number("rounds", optarg, 4, 10000, &w); o->confirm.rule.rounds = (int)w; break;
         case 'h': usage_history(stdout); return 1;
         default:
             if (c >= 1 && c <= 7)
@@ -567,11 +585,17 @@ static int history_series_cmd(const char *sub, HistOpts *o, int argc, char **arg
     if (is_plot) {
         rc = history_plot(&ss, metric, o->prefix);
     } else {
-        int slow = 0, unsure = 0;
+        int slow = 0, unsure = 0, unconfirmed = 0;
+        HxConfirm *cf = o->confirm.config ? &o->confirm : NULL;
+        if (cf)
+            cf->rule.factor = 1.0 + o->rule.threshold;
         for (size_t i = 0; i < ss.n; i++)
-            slow += check_series(&ss.s[i], &o->rule, metric, higher, &unsure);
-        printf("history check: %zu series, %d slowdown step(s), %d inconclusive (window %d commits, p < %g, "
-               "change > %g%%)\n", ss.n, slow, unsure, o->rule.window, o->rule.alpha, 100.0 * o->rule.threshold);
+            slow += check_series(&ss.s[i], &o->rule, metric, higher, &unsure, cf, &unconfirmed);
+        printf("history check: %zu series, %d %sslowdown step(s), %d inconclusive (window %d commits, p < %g, "
+               "change > %g%%)\n", ss.n, slow, cf ? "confirmed " : "", unsure, o->rule.window, o->rule.alpha,
+               100.0 * o->rule.threshold);
+        if (cf)
+            printf("history check: %d step(s) unconfirmed (not failing the check)\n", unconfirmed);
         rc = slow ? 1 : 0;
     }
     series_free(&ss);
@@ -586,7 +610,9 @@ int hx_cmd_history(int argc, char **argv)
     }
     const char *sub = argv[1];
     HistOpts o = {.db = HX_HISTORY_DEFAULT_DB, .metric = "render_ms",
-                  .rule = {.window = 5, .alpha = 0.01, .threshold = 0.05}};
+                  .rule = {.window = 5, .alpha = 0.01, .threshold = 0.05},
+                  .confirm = {.builder = "scripts/build-commit.sh", .dir = "build-confirm",
+                              .rule = {.rounds = 10, .factor = 1.05, .alpha = 0.01, .timeout_s = 600}}};
     int prc = parse_history_opts(argc - 1, argv + 1, &o);
     int rc = 1;
     argc--;
@@ -610,6 +636,7 @@ int hx_cmd_history(int argc, char **argv)
     else
         fprintf(stderr, "harness history: unknown command '%s' (add, show, plot, check)\n", sub);
     hx_strlist_free(&o.want);
+    hx_confirm_free(&o.confirm);
     return rc;
 }
 

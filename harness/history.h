@@ -4,6 +4,7 @@
 #define HX_HISTORY_H
 
 #include "hx.h"
+#include "run.h"
 
 #include "config.h"
 
@@ -18,5 +19,23 @@ int hx_db_exec(sqlite3 *db, const char *path, const char *sql);
 /* A prepared statement, or NULL with the reason on stderr. */
 sqlite3_stmt *hx_db_prep(sqlite3 *db, const char *path, const char *sql);
 #endif
+
+/* ---- a step re-measured before it counts (confirm.c) ---- */
+typedef struct HxConfirm {
+    const char *config;  /* the study config whose configurations the series are */
+    const char *builder; /* BUILDER COMMIT DIR prints the raytrace built of COMMIT */
+    const char *dir;     /* builds go to DIR/COMMIT */
+    HxAbRule rule;
+    HxStrList built, failed;
+} HxConfirm;
+/* The step of configuration config_id (settings: the series' config_hash)
+ * from commit before to commit at, in record key key, re-measured: both
+ * commits built, the configuration run with both builds interleaved. A
+ * line "  CONFIRMED: ..." or "  unconfirmed: WHY" on stdout. 1 when the
+ * re-measurement shows the same change (slower: a regression, else an
+ * improvement), else 0. */
+int hx_confirm_step(HxConfirm *c, const char *config_id, const char *settings, const char *before, const char *at,
+                    const char *key, int higher, int slower);
+void hx_confirm_free(HxConfirm *c);
 
 #endif

@@ -62,6 +62,8 @@ int hx_run_argv(char *const argv[], const char *dir, char *out, size_t n, int qu
 /* The value of key in "k1=v1;k2=v2" (sep '=') copied into out, which is
  * returned; NULL when the key is not there. */
 const char *hx_kv_get(const char *list, const char *key, char *out, size_t n);
+/* A config_id without its unset values ("key=-"), for people. */
+void hx_config_label(char *dst, size_t n, const char *config);
 const char *hx_kv_get_sep(const char *list, const char *key, char sep, char *out, size_t n);
 /* Appends s to b as a gnuplot single-quoted string: gnuplot does no
  * substitution there (no backquote command, no @macro), ' is doubled, and
@@ -467,6 +469,8 @@ typedef struct {
     char metric[96];     /* the metric read: as asked, else the study's default */
     char unit[24];       /* its unit ("ms", "GB/s", ...; "" unknown) */
     int higher;          /* 1: higher is better (a rate), 0: lower (a time) */
+    int size;            /* 1: a size (unit B, KiB, ..., GB, or maxrss_kib):
+                          * shown against 1 worker, no speedup or fit */
     int nceil;           /* the machine's ceiling (harness ceiling): */
     int *ceil_w;         /* at ceil_w[i] workers, each keeps ceil_r[i] */
     double *ceil_r;      /* of a lone worker's speed */
@@ -476,7 +480,8 @@ typedef struct {
 /* The analysis of s->csv, already read (everything else in s zero); on
  * failure s->csv is freed. hx_study_load is hx_csv_read and this. metric
  * NULL: the study's default (render_ms for raytrace, a command study's
- * first metric, else wall_ms), in s->metric with its unit and direction. */
+ * first metric, else wall_ms), in s->metric with its unit, direction and
+ * whether it is a size. */
 int hx_study_build(const char *path, const char *metric, HxStudy *s, char *err, size_t errlen);
 int hx_study_load(const char *path, const char *metric, HxStudy *s,
                   char *err, size_t errlen);
@@ -491,7 +496,7 @@ int hx_study_better(const HxStudy *s, double a, double b);
 /* The ceiling of the study's machine (ceiling.c): FILE, else
  * ceiling-FINGERPRINT.csv beside the CSV or in results/. 0 when one was
  * read (or none is there and none was asked for), -1 with a line said. */
-int hx_ceiling_load(HxStudy *s, const char *file, const char *csv_path);
+int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *csv_path);
 /* Its ratio at workers, NAN when not measured. */
 double hx_ceiling_at(const HxStudy *s, int workers);
 /* Speedup baselines of a group: (a) same series at one worker, (b) the

@@ -49,6 +49,24 @@ int hx_run_child(const struct HxCommand *c, const HxTopo *topo, const HxRun *run
                  HxChildResult *res);
 void hx_child_result_free(HxChildResult *res);
 
+/* ---- interleaved A/B (ab.c) ---- */
+typedef struct {
+    int rounds;
+    double factor, alpha, timeout_s;
+} HxAbRule;
+typedef struct {
+    int compared, regressions, improvements, inconclusive;
+    int images_differ; /* configurations whose last images of A and B differ */
+} HxAbTally;
+/* harness ab --config: each configuration of config (only its config_id
+ * `only` when not NULL) run with raytrace builds rt[0] (A) and rt[1] (B),
+ * interleaved, the record key's verdict of B against A printed and
+ * counted in *tal; header (or NULL) printed once both builds have run. 0,
+ * or -1 (said) when the config is bad, a run failed or no configuration
+ * matched. */
+int hx_ab_config(const char *config, const HxStrList *set, const char *const rt[2], const char *only, const char *key,
+                 int higher, const HxAbRule *rule, HxAbTally *tal, const char *header);
+
 /* ---- what else the machine did during a run (noise.c) ---- */
 typedef struct {
     unsigned long long busy, idle, iowait, steal; /* clock ticks, all CPUs */

@@ -459,3 +459,20 @@ char *hx_which(const char *name)
     }
     return NULL;
 }
+
+/* The configuration without its unset values ("key=-"), for people. */
+void hx_config_label(char *dst, size_t n, const char *config)
+{
+    size_t m = 0;
+    const char *w = config;
+    while (*w && m + 1 < n) {
+        size_t len = strcspn(w, " ");
+        int unset = len >= 2 && w[len - 1] == '-' && w[len - 2] == '=';
+        if (!unset && len > 0) {
+            m += (size_t)snprintf(dst + m, n - m, "%s%.*s", m ? " " : "", (int)len, w);
+            m = m < n ? m : n - 1;
+        }
+        w += len + (w[len] == ' ');
+    }
+    dst[m] = '\0';
+}

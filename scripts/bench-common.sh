@@ -1,5 +1,5 @@
-# bench-common.sh - sourced by the CPU benchmarks (bench-embree.sh,
-# cpu-ab.sh): their shared options and scene lookup.
+# bench-common.sh - sourced by scripts/bench-embree.sh: its options, scene
+# lookup and interleaved table (raytrace builds: harness ab --config).
 #
 # bench_opts ARG...: takes --rounds N and --cpu C (into $rounds and $cpu,
 # whose defaults the caller sets) from anywhere in the arguments and leaves

@@ -7,9 +7,9 @@
 #   1. exact: every work counter and image hash of configs/ci-instructions.conf
 #      and ci-instructions-none.conf equal, and the instructions executed
 #      (cachegrind) at most 3% more;
-#   2. times: configs/ci.conf run in N (default 10) interleaved rounds (base, new, base,
-#      ...), render_ms/calib compared by `harness compare` at factor 1.25
-#      (render_ms where the calibration itself varied more than that).
+#   2. times: each configuration of configs/ci.conf run N (default 10) times
+#      by each build, interleaved with the first of each pair alternating
+#      (`harness ab --config`), render_ms judged at factor 1.25.
 # Prints which baseline it used and when that was refreshed; exit 1 on a
 # regression. --base/--new take prebuilt binaries (scripts/ci-perf-eval.sh).
 set -euo pipefail
@@ -51,19 +51,8 @@ for side in base new; do
 done
 "$h" compare --metric instructions --factor 1.03 "$out/new-instructions.csv" "$out/base-instructions.csv" || fail=1
 
-# 2. times, interleaved so that a slow phase of the machine hits both sides
-for r in $(seq 1 "$rounds"); do
-    for side in base new; do
-        bin=$base; [ $side = new ] && bin=$new
-        "$h" run configs/ci.conf --raytrace "$bin" -o "$out/$side-r$r.csv" --overwrite -q
-    done
-done
-for side in base new; do
-    head -n 1 "$out/$side-r1.csv" > "$out/$side-times.csv"
-    for r in $(seq 1 "$rounds"); do tail -n +2 "$out/$side-r$r.csv" >> "$out/$side-times.csv"; done
-done
-# render_ms/calib, unless the calibration varied more than the factor (then
-# compare says so and judges render_ms)
-"$h" compare --factor 1.25 "$out/new-times.csv" "$out/base-times.csv" || fail=1
+# 2. times: harness ab runs each configuration with both builds, the first
+# of each pair alternating, so that a slow phase of the machine hits both
+"$h" ab --config configs/ci.conf "$base" "$new" --rounds "$rounds" --factor 1.25 | tee "$out/ab.txt" || fail=1
 if [ $fail -eq 0 ]; then echo "ci-perf-check: ok"; else echo "ci-perf-check: REGRESSION"; fi
 exit $fail
