@@ -1,11 +1,14 @@
 /* confirm.c: `history check --confirm CONFIG`: a step found in stored
  * history is re-measured before it counts. Stored runs of two commits were
  * made at different times, perhaps one of them on a busy machine, so a
- * step between them may be the machine's. Both commits are built (the
- * builder, scripts/build-commit.sh) and the step's configuration is run
- * with both builds interleaved (hx_ab_config, as `harness ab --config`).
- * The step is confirmed when that finds the same change; otherwise, or
- * when a commit cannot be built, it stays unconfirmed. */
+ * step between them may be the machine's, and noise in the windows may put
+ * a real step at a neighbour. The commits at the two ends of the step's
+ * windows are built (the builder, scripts/build-commit.sh) and the step's
+ * configuration is run with both builds interleaved (hx_ab_config, as
+ * `harness ab --config`). Only when that shows a change is it confirmed,
+ * and then bisected to its commit with the same re-measurement (asv's
+ * `find` and git bisect do the same over commits). A commit that cannot be
+ * built leaves the step unconfirmed. */
 #include "history.h"
 #include "run.h"
 
@@ -62,45 +65,82 @@ static char *build(HxConfirm *c, const char *sha, char *why, size_t n)
     return path;
 }
 
-int hx_confirm_step(HxConfirm *c, const char *config_id, const char *settings, const char *before, const char *at,
-                    const char *key, int higher, int slower)
+enum { WORSE = 1, BETTER = -1, SAME = 0, UNSURE = 3, FAILED = -2 };
+
+/* The change from commit a to commit b in configuration config_id, re-measured
+ * interleaved: WORSE, BETTER, SAME (no change), or FAILED (why). An
+ * inconclusive verdict is measured again with twice the rounds, and UNSURE
+ * if it stays so. */
+static int change(HxConfirm *c, const char *config_id, const char *a, const char *b, const char *key, int higher,
+                  char *why, size_t n)
+{
+    char *rt[2] = {build(c, a, why, n), NULL};
+    if (rt[0])
+        rt[1] = build(c, b, why, n);
+    int r = rt[0] && rt[1] ? UNSURE : FAILED;
+    HxAbRule rule = c->rule;
+    for (int tries = 0; r == UNSURE && tries < 2; tries++, rule.rounds *= 2) {
+        HxAbTally t;
+        printf("  re-measuring %s against %s, %d rounds:\n", b, a, rule.rounds);
+        fflush(stdout);
+        if (hx_ab_config(c->config, NULL, (const char *const *)rt, config_id, key, higher, &rule, &t, NULL) != 0) {
+            snprintf(why, n, "the re-measurement failed (above)");
+            r = FAILED;
+        } else {
+            r = t.regressions ? WORSE : t.improvements ? BETTER : t.inconclusive ? UNSURE : SAME;
+        }
+    }
+    free(rt[0]);
+    free(rt[1]);
+    return r;
+}
+
+int hx_confirm_step(HxConfirm *c, const char *config_id, const char *settings, const char *const *commits, size_t lo,
+                    size_t k, size_t hi, const char *key, int higher)
 {
     char why[1024] = "";
-    char *rt[2] = {NULL, NULL};
     HxConfig cfg;
     char hash[20] = "";
     if (hx_config_open(c->config, &cfg) == 0) {
         hx_settings_hash(&cfg, hash);
         hx_config_free(&cfg);
     }
+    int dir = FAILED, n = 1;
     if (!*hash)
         snprintf(why, sizeof why, "%s could not be read (above)", c->config);
     else if (settings && *settings && strcmp(settings, hash) != 0)
         snprintf(why, sizeof why, "%s's settings (config_hash %s) are not the series' (%s): not the work measured",
                  c->config, hash, settings);
-    else if ((rt[0] = build(c, before, why, sizeof why)) != NULL)
-        rt[1] = build(c, at, why, sizeof why);
-    int confirmed = 0;
-    if (rt[0] && rt[1]) {
-        HxAbTally t;
-        fflush(stdout);
-        if (hx_ab_config(c->config, NULL, (const char *const *)rt, config_id, key, higher, &c->rule, &t, NULL) != 0)
-            snprintf(why, sizeof why, "the re-measurement failed (above)");
-        else if (slower ? t.regressions : t.improvements)
-            confirmed = 1;
-        else
-            snprintf(why, sizeof why, "the interleaved re-measurement of %s against %s does not show it (%s)", at,
-                     before, t.inconclusive ? "inconclusive" : t.regressions + t.improvements ? "the opposite change"
-                                                                                           : "no change");
-    }
-    if (confirmed)
-        hx_put_clean_line(stdout, "  CONFIRMED: %s against %s, %d interleaved rounds on this machine", at, before,
-                          c->rule.rounds);
-    else
+    else /* across the two windows: did anything change at all? */
+        dir = change(c, config_id, commits[lo], commits[hi], key, higher, why, sizeof why);
+    if (dir == SAME || dir == UNSURE)
+        snprintf(why, sizeof why, "re-measured interleaved, %s against %s (the windows' ends) shows %s", commits[hi],
+                 commits[lo], dir == SAME ? "no change" : "nothing conclusive");
+    if (dir != WORSE && dir != BETTER) {
         hx_put_clean_line(stdout, "  unconfirmed: %s", why);
-    free(rt[0]);
-    free(rt[1]);
-    return confirmed;
+        return 0;
+    }
+    /* it did: bisect for the commit, one step assumed, as git bisect does;
+     * the stored runs may have put it at a neighbour */
+    size_t a = lo, b = hi;
+    int d = dir;
+    while (b - a > 1 && d != UNSURE && d != FAILED) {
+        size_t m = a + (b - a) / 2;
+        d = change(c, config_id, commits[a], commits[m], key, higher, why, sizeof why);
+        n++;
+        if (d == dir)
+            b = m;
+        else if (d == SAME || d == -dir) /* not yet changed at m */
+            a = m;
+    }
+    const char *what = dir == WORSE ? "a slowdown" : "an improvement";
+    if (b - a > 1) /* a re-measurement on the way failed or stayed inconclusive */
+        hx_put_clean_line(stdout, "  CONFIRMED: %s between commits %s and %s (bisection stopped: %s), %d interleaved "
+                          "re-measurement(s)", what, commits[a], commits[b], d == UNSURE ? "inconclusive" : why, n);
+    else
+        hx_put_clean_line(stdout, "  CONFIRMED: %s at commit %s (after %s)%s, %d interleaved re-measurement(s)", what,
+                          commits[b], commits[a], b == k ? "" : ", not where the stored runs put it", n);
+    return dir == WORSE ? 1 : 2;
 }
 
 void hx_confirm_free(HxConfirm *c)

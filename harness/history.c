@@ -277,23 +277,29 @@ static int no_step(const Series *s, const StepRule *rule, const char *lab)
     return 1;
 }
 
-/* A step of series s at point k re-measured (cf: NULL, not asked): 1 when
- * it counts (confirmed, exact values, or not asked), else 0. */
-static int step_confirmed(const Series *s, size_t k, double p, int slower, const char *metric, int higher,
-                          HxConfirm *cf)
+/* A step of series s at point k re-measured (cf: NULL, not asked): 1 for
+ * a slowdown that counts (confirmed, exact values, or not asked), else 0. */
+static int step_confirmed(const Series *s, size_t k, int window, double p, int slower, const char *metric, int higher,
+                          HxConfirm *cf, int *unconfirmed)
 {
     if (!cf)
-        return 1;
+        return slower;
     if (p == 0.0) { /* exact values, e.g. instruction counts: no noise to rule out */
         printf("  CONFIRMED: exact values, the same at every run of each side\n");
-        return 1;
+        return slower;
     }
     char key[64];
     const char *den;
     metric_keys(metric, key, sizeof key, &den); /* render_ms/calib: render_ms, interleaved */
     const char *settings = strchr(s->fingerprint, ' ');
-    return hx_confirm_step(cf, s->config, settings ? settings + 1 : "", s->p[k - 1].sha, s->p[k].sha, key, higher,
-                           slower);
+    const char **commits = hx_xmalloc(s->np * sizeof *commits);
+    for (size_t i = 0; i < s->np; i++)
+        commits[i] = s->p[i].sha;
+    size_t w = (size_t)window, lo = k > w ? k - w : 0, hi = k + w - 1 < s->np ? k + w - 1 : s->np - 1;
+    int r = hx_confirm_step(cf, s->config, settings ? settings + 1 : "", commits, lo, k, hi, key, higher);
+    free(commits);
+    *unconfirmed += r == 0;
+    return r == 1;
 }
 
 static int check_series(const Series *s, const StepRule *rule, const char *metric, int higher, int *unsure,
@@ -321,9 +327,7 @@ static int check_series(const Series *s, const StepRule *rule, const char *metri
         hx_put_clean_line(stdout, "STEP %s [%s]: %s at commit %s (after %s): %+.1f%%, p=%.2g", lab, s->fingerprint,
                metric, s->p[best].sha, s->p[best - 1].sha, 100.0 * (best_r - 1.0), best_p);
         int slower = higher ? best_r < 1.0 : best_r > 1.0; /* a rate's slowdown is a drop */
-        int counts = step_confirmed(s, best, best_p, slower, metric, higher, cf);
-        slow += slower && counts;
-        *unconfirmed += cf && !counts;
+        slow += step_confirmed(s, best, rule->window, best_p, slower, metric, higher, cf, unconfirmed);
         steps++;
         best_p = 2.0;
     }

@@ -28,14 +28,15 @@ typedef struct HxConfirm {
     HxAbRule rule;
     HxStrList built, failed;
 } HxConfirm;
-/* The step of configuration config_id (settings: the series' config_hash)
- * from commit before to commit at, in record key key, re-measured: both
- * commits built, the configuration run with both builds interleaved. A
- * line "  CONFIRMED: ..." or "  unconfirmed: WHY" on stdout. 1 when the
- * re-measurement shows the same change (slower: a regression, else an
- * improvement), else 0. */
-int hx_confirm_step(HxConfirm *c, const char *config_id, const char *settings, const char *before, const char *at,
-                    const char *key, int higher, int slower);
+/* A step of configuration config_id (settings: the series' config_hash)
+ * found at commits[k], its windows commits[lo..hi], in record key key,
+ * re-measured: the ends of the windows built and run interleaved, and a
+ * change there bisected to its commit. Lines "  re-measuring ...", then
+ * "  CONFIRMED: ..." or "  unconfirmed: WHY" on stdout. 1 for a confirmed
+ * slowdown (worse by the metric's direction), 2 for a confirmed
+ * improvement, 0 unconfirmed. */
+int hx_confirm_step(HxConfirm *c, const char *config_id, const char *settings, const char *const *commits, size_t lo,
+                    size_t k, size_t hi, const char *key, int higher);
 void hx_confirm_free(HxConfirm *c);
 
 #endif
