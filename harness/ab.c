@@ -213,7 +213,7 @@ static void ab_side(const char *name, const char *line, double *x, size_t n, siz
 /* Both sides measured and judged: an untimed first round, then the rounds
  * alternating. 0 or 1 (a regression), or -1 (a run failed, said). */
 static int ab_pair(const HxCommand c[2], const AbRead *rd, const HxAbRule *rule, int higher, const char *label,
-                   const char *const line[2], const char **verdict, const char **header)
+                   const char *const line[2], const char **verdict, const char **header, double cost[3])
 {
     static const char *const name[2] = {"A", "B"};
     size_t nr = (size_t)rule->rounds, busy[2] = {0, 0};
@@ -246,6 +246,12 @@ static int ab_pair(const HxCommand c[2], const AbRead *rd, const HxAbRule *rule,
         ab_side("B", line[1], x[1], nr, busy[1], rd->what);
         rc = hx_judge_samples(*label ? label : "B against A", x[1], nr, x[0], nr, rule->factor, rule->alpha, higher,
                               rd->key ? (strstr(rd->key, "_ms") ? "ms" : "") : rd->re ? "" : "ms", verdict);
+        /* B's cost against A's (a rate's inverse ratio): median and 95% interval */
+        double m0 = hx_median(x[0], nr), m1 = hx_median(x[1], nr), lo, hi;
+        hx_bootstrap_ci(x[0], nr, x[1], nr, &lo, &hi);
+        cost[0] = higher ? m0 / m1 : m1 / m0;
+        cost[1] = higher ? 1.0 / hi : lo;
+        cost[2] = higher ? 1.0 / lo : hi;
     }
     free(x[0]);
     free(x[1]);
@@ -283,7 +289,7 @@ static int ab_one(const HxConfig *cfg, const HxTopo *t, const HxRun *r, const ch
     char image[2][32] = {"", ""};
     AbRead rd = {key, NULL, key, t, r, cfg->timeout_s, &image};
     const char *verdict = NULL;
-    int rc = ab_pair(c, &rd, rule, higher, lab, rt, &verdict, header);
+    int rc = ab_pair(c, &rd, rule, higher, lab, rt, &verdict, header, tal->cost);
     if (rc >= 0) {
         tally(tal, verdict);
         /* raytrace's CPU backends render bit for bit alike: a change of
@@ -357,7 +363,8 @@ static int ab_commands(const AbOpts *o, const char *const line[2])
         AbRead rd = {NULL, o->metric ? &o->re : NULL, o->metric ? "metric" : "wall ms", NULL, NULL, o->rule.timeout_s,
                      NULL};
         const char *verdict;
-        rc = ab_pair(c, &rd, &o->rule, o->higher, "", line, &verdict, &header);
+        double cost[3];
+        rc = ab_pair(c, &rd, &o->rule, o->higher, "", line, &verdict, &header, cost);
         rc = rc < 0 ? 1 : rc;
     }
     for (int k = 0; k < 2; k++)

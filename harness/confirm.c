@@ -12,6 +12,7 @@
 #include "history.h"
 #include "run.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -67,12 +68,14 @@ static char *build(HxConfirm *c, const char *sha, char *why, size_t n)
 
 enum { WORSE = 1, BETTER = -1, SAME = 0, UNSURE = 3, FAILED = -2 };
 
-/* The change from commit a to commit b in configuration config_id, re-measured
- * interleaved: WORSE, BETTER, SAME (no change), or FAILED (why). An
- * inconclusive verdict is measured again with twice the rounds, and UNSURE
- * if it stays so. */
+/* Commit b against commit a in configuration config_id, re-measured
+ * interleaved. With mid 0, the verdict at the rule's factor: WORSE, BETTER,
+ * SAME (no change) or UNSURE. With mid (the geometric middle of a change
+ * already confirmed), which side of it b's cost lies on: WORSE above it,
+ * SAME below, UNSURE when the interval straddles it. UNSURE is measured
+ * again with twice the rounds; FAILED (why) when a build or run failed. */
 static int change(HxConfirm *c, const char *config_id, const char *a, const char *b, const char *key, int higher,
-                  char *why, size_t n)
+                  double mid, double *cost, char *why, size_t n)
 {
     char *rt[2] = {build(c, a, why, n), NULL};
     if (rt[0])
@@ -86,9 +89,14 @@ static int change(HxConfirm *c, const char *config_id, const char *a, const char
         if (hx_ab_config(c->config, NULL, (const char *const *)rt, config_id, key, higher, &rule, &t, NULL) != 0) {
             snprintf(why, n, "the re-measurement failed (above)");
             r = FAILED;
+        } else if (mid > 0) {
+            int up = mid > 1; /* the change is a slowdown */
+            r = (up ? t.cost[1] > mid : t.cost[2] < mid) ? WORSE : (up ? t.cost[2] < mid : t.cost[1] > mid) ? SAME
+                                                                                                          : UNSURE;
         } else {
             r = t.regressions ? WORSE : t.improvements ? BETTER : t.inconclusive ? UNSURE : SAME;
         }
+        *cost = t.cost[0];
     }
     free(rt[0]);
     free(rt[1]);
@@ -96,7 +104,7 @@ static int change(HxConfirm *c, const char *config_id, const char *a, const char
 }
 
 int hx_confirm_step(HxConfirm *c, const char *config_id, const char *settings, const char *const *commits, size_t lo,
-                    size_t k, size_t hi, const char *key, int higher)
+                    size_t k, size_t hi, const char *key, int higher, size_t *at)
 {
     char why[1024] = "";
     HxConfig cfg;
@@ -106,13 +114,14 @@ int hx_confirm_step(HxConfirm *c, const char *config_id, const char *settings, c
         hx_config_free(&cfg);
     }
     int dir = FAILED, n = 1;
+    double cost = NAN, mcost;
     if (!*hash)
         snprintf(why, sizeof why, "%s could not be read (above)", c->config);
     else if (settings && *settings && strcmp(settings, hash) != 0)
         snprintf(why, sizeof why, "%s's settings (config_hash %s) are not the series' (%s): not the work measured",
                  c->config, hash, settings);
     else /* across the two windows: did anything change at all? */
-        dir = change(c, config_id, commits[lo], commits[hi], key, higher, why, sizeof why);
+        dir = change(c, config_id, commits[lo], commits[hi], key, higher, 0, &cost, why, sizeof why);
     if (dir == SAME || dir == UNSURE)
         snprintf(why, sizeof why, "re-measured interleaved, %s against %s (the windows' ends) shows %s", commits[hi],
                  commits[lo], dir == SAME ? "no change" : "nothing conclusive");
@@ -120,26 +129,31 @@ int hx_confirm_step(HxConfirm *c, const char *config_id, const char *settings, c
         hx_put_clean_line(stdout, "  unconfirmed: %s", why);
         return 0;
     }
-    /* it did: bisect for the commit, one step assumed, as git bisect does;
-     * the stored runs may have put it at a neighbour */
+    /* it did: bisect for the commit, one step assumed, as git bisect does
+     * (the stored runs may have put it at a neighbour); a commit belongs
+     * to the after side when its cost against the start is past the
+     * change's geometric middle */
     size_t a = lo, b = hi;
-    int d = dir;
-    while (b - a > 1 && d != UNSURE && d != FAILED) {
+    int d = WORSE;
+    while (b - a > 1 && (d == WORSE || d == SAME)) {
         size_t m = a + (b - a) / 2;
-        d = change(c, config_id, commits[a], commits[m], key, higher, why, sizeof why);
+        d = change(c, config_id, commits[a], commits[m], key, higher, sqrt(cost), &mcost, why, sizeof why);
         n++;
-        if (d == dir)
+        if (d == WORSE)
             b = m;
-        else if (d == SAME || d == -dir) /* not yet changed at m */
+        else if (d == SAME)
             a = m;
     }
     const char *what = dir == WORSE ? "a slowdown" : "an improvement";
-    if (b - a > 1) /* a re-measurement on the way failed or stayed inconclusive */
-        hx_put_clean_line(stdout, "  CONFIRMED: %s between commits %s and %s (bisection stopped: %s), %d interleaved "
-                          "re-measurement(s)", what, commits[a], commits[b], d == UNSURE ? "inconclusive" : why, n);
+    if (b - a > 1) /* a re-measurement on the way failed or stayed in between */
+        hx_put_clean_line(stdout, "  CONFIRMED: %s of %.3fx between commits %s and %s (bisection stopped: %s), %d "
+                          "interleaved re-measurement(s)", what, cost, commits[a], commits[b],
+                          d == UNSURE ? "inconclusive" : why, n);
     else
-        hx_put_clean_line(stdout, "  CONFIRMED: %s at commit %s (after %s)%s, %d interleaved re-measurement(s)", what,
-                          commits[b], commits[a], b == k ? "" : ", not where the stored runs put it", n);
+        hx_put_clean_line(stdout, "  CONFIRMED: %s of %.3fx at commit %s (after %s)%s, %d interleaved "
+                          "re-measurement(s)", what, cost, commits[b], commits[a],
+                          b == k ? "" : ", not where the stored runs put it", n);
+    *at = b;
     return dir == WORSE ? 1 : 2;
 }
 

@@ -280,7 +280,7 @@ static int no_step(const Series *s, const StepRule *rule, const char *lab)
 /* A step of series s at point k re-measured (cf: NULL, not asked): 1 for
  * a slowdown that counts (confirmed, exact values, or not asked), else 0. */
 static int step_confirmed(const Series *s, size_t k, int window, double p, int slower, const char *metric, int higher,
-                          HxConfirm *cf, int *unconfirmed)
+                          HxConfirm *cf, int *unconfirmed, size_t *last)
 {
     if (!cf)
         return slower;
@@ -296,9 +296,16 @@ static int step_confirmed(const Series *s, size_t k, int window, double p, int s
     for (size_t i = 0; i < s->np; i++)
         commits[i] = s->p[i].sha;
     size_t w = (size_t)window, lo = k > w ? k - w : 0, hi = k + w - 1 < s->np ? k + w - 1 : s->np - 1;
-    int r = hx_confirm_step(cf, s->config, settings ? settings + 1 : "", commits, lo, k, hi, key, higher);
+    size_t at = 0;
+    int r = hx_confirm_step(cf, s->config, settings ? settings + 1 : "", commits, lo, k, hi, key, higher, &at);
     free(commits);
     *unconfirmed += r == 0;
+    if (r != 0 && at == *last) { /* two stored steps, one change: counted once */
+        printf("  (the step confirmed above)\n");
+        return 0;
+    }
+    if (r != 0)
+        *last = at;
     return r == 1;
 }
 
@@ -306,7 +313,7 @@ static int check_series(const Series *s, const StepRule *rule, const char *metri
                         HxConfirm *cf, int *unconfirmed)
 {
     int slow = 0, steps = 0;
-    size_t best = 0;
+    size_t best = 0, last = (size_t)-1;
     char lab[512];
     hx_config_label(lab, sizeof lab, s->config);
     double best_p = 2.0, best_r = 1.0;
@@ -327,7 +334,7 @@ static int check_series(const Series *s, const StepRule *rule, const char *metri
         hx_put_clean_line(stdout, "STEP %s [%s]: %s at commit %s (after %s): %+.1f%%, p=%.2g", lab, s->fingerprint,
                metric, s->p[best].sha, s->p[best - 1].sha, 100.0 * (best_r - 1.0), best_p);
         int slower = higher ? best_r < 1.0 : best_r > 1.0; /* a rate's slowdown is a drop */
-        slow += step_confirmed(s, best, rule->window, best_p, slower, metric, higher, cf, unconfirmed);
+        slow += step_confirmed(s, best, rule->window, best_p, slower, metric, higher, cf, unconfirmed, &last);
         steps++;
         best_p = 2.0;
     }

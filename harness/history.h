@@ -34,9 +34,10 @@ typedef struct HxConfirm {
  * change there bisected to its commit. Lines "  re-measuring ...", then
  * "  CONFIRMED: ..." or "  unconfirmed: WHY" on stdout. 1 for a confirmed
  * slowdown (worse by the metric's direction), 2 for a confirmed
- * improvement, 0 unconfirmed. */
+ * improvement (*at: the index of its commit, or of the last commit of the
+ * range where bisection stopped), 0 unconfirmed. */
 int hx_confirm_step(HxConfirm *c, const char *config_id, const char *settings, const char *const *commits, size_t lo,
-                    size_t k, size_t hi, const char *key, int higher);
+                    size_t k, size_t hi, const char *key, int higher, size_t *at);
 void hx_confirm_free(HxConfirm *c);
 
 #endif

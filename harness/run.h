@@ -57,6 +57,7 @@ typedef struct {
 typedef struct {
     int compared, regressions, improvements, inconclusive;
     int images_differ; /* configurations whose last images of A and B differ */
+    double cost[3];    /* the last configuration's B/A cost (a rate inverted): median, 95% interval */
 } HxAbTally;
 /* harness ab --config: each configuration of config (only its config_id
  * `only` when not NULL) run with raytrace builds rt[0] (A) and rt[1] (B),

@@ -72,7 +72,7 @@ grep -q "0 confirmed slowdown step(s)" machine.out && grep -q "1 step(s) unconfi
 touch slow-from-5
 "$H" "${confirm[@]}" > code.out && { cat code.out; fail "a step the build made passed the check"; }
 # the windows' ends (1 and 8), then bisected: 1-4 no change, 1-6 and 1-5 slower
-grep -q "^  CONFIRMED: a slowdown at commit c0ffee05 (after c0ffee04), 4 interleaved re-measurement(s)" code.out ||
+grep -q "^  CONFIRMED: a slowdown of [0-9.]*x at commit c0ffee05 (after c0ffee04), 4 interleaved re-measurement(s)" code.out ||
     { cat code.out; fail "not CONFIRMED at c0ffee05"; }
 grep -q "1 confirmed slowdown step(s)" code.out || { cat code.out; fail "confirmed: summary"; }
 
