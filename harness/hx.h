@@ -87,6 +87,9 @@ static inline int hx_is_ctrl(unsigned char c)
  * terminal escape, a newline that would fake a line) as '?', and with md
  * a '|' as "\|", so that a Markdown table cell does not end early. */
 void hx_fput_clean(FILE *o, const char *s, int md);
+/* Text from a CSV into an HTML page: & < > " ' as entities, control
+ * characters as blanks: never markup. */
+void hx_html_put(FILE *o, const char *s);
 /* printf of one line cleaned so, then a newline. */
 void hx_put_clean_line(FILE *o, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 /* 1 when s holds a control character. */
@@ -412,6 +415,7 @@ int hx_judge_samples(const char *label, double *nw, size_t nn, double *base, siz
 /* ---- commands ---- */
 int hx_cmd_run(int argc, char **argv);
 int hx_cmd_table(int argc, char **argv);
+int hx_cmd_report(int argc, char **argv);
 int hx_cmd_plot(int argc, char **argv);
 int hx_cmd_compare(int argc, char **argv);
 int hx_cmd_topo(int argc, char **argv);
@@ -499,6 +503,8 @@ int hx_study_better(const HxStudy *s, double a, double b);
 int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *csv_path);
 /* Its ratio at workers, NAN when not measured. */
 double hx_ceiling_at(const HxStudy *s, int workers);
+/* table's per-configuration, fit and cross tables as HTML (harness report). */
+void hx_table_html(FILE *out, const HxStudy *s, const char *baseline);
 /* Speedup baselines of a group: (a) same series at one worker, (b) the
  * fastest group of the same scene matching KEY=VALUE. NULL if none. */
 const HxGroup *hx_baseline_one_worker(const HxStudy *s, const HxGroup *g);

@@ -14,6 +14,7 @@ static void usage(FILE *f)
           "  run CONFIG [-o FILE.csv]   execute a study (--dry-run, --resume)\n"
           "  table CSV                  statistics, speedups, Amdahl fit, cross table\n"
           "  plot CSV -o PREFIX         gnuplot PNG + SVG (scripts and data kept)\n"
+          "  report CSV... -o DIR       one self-contained HTML page: tables, plots, provenance\n"
           "  compare NEW.csv BASE.csv   regression check (exit 1 on regression)\n"
           "  ab 'COMMAND A' 'COMMAND B' the two commands interleaved, and the verdict\n"
           "  ceiling CONFIG             the machine's own ceiling for the study's efficiency\n"
@@ -45,7 +46,7 @@ int main(int argc, char **argv)
     } cmds[] = {{"run", hx_cmd_run}, {"table", hx_cmd_table}, {"plot", hx_cmd_plot},
                 {"compare", hx_cmd_compare}, {"topo", hx_cmd_topo},
                 {"slurm", hx_cmd_slurm}, {"history", hx_cmd_history}, {"ab", hx_cmd_ab},
-                {"ceiling", hx_cmd_ceiling}};
+                {"ceiling", hx_cmd_ceiling}, {"report", hx_cmd_report}};
     for (size_t i = 0; i < sizeof cmds / sizeof cmds[0]; i++)
         if (strcmp(cmd, cmds[i].name) == 0)
             return cmds[i].fn(argc - 1, argv + 1);

@@ -248,8 +248,9 @@ static void plot_scaling(HxPlot *c, const HxStudy *s, int efficiency)
         }
         fprintf(dat, "\n\n");
     }
-    if (nseries == 0) {
-        fprintf(stderr, "harness plot: no series with a one-worker run: %s plot left out\n", kind);
+    if (nseries == 0 || maxw < 2) {
+        fprintf(stderr, "harness plot: %s: %s plot left out\n",
+                nseries ? "no worker count swept" : "no series with a one-worker run", kind);
         fclose(dat);
         fclose(gp);
         hx_strlist_free(&titles);

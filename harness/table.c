@@ -17,10 +17,28 @@ typedef struct {
     FILE *out;
     int csv;
     int ncol;
+    int html, open; /* harness report: HTML tables; one is open */
 } Emit;
+
+static void emit_end(Emit *e)
+{
+    if (e->html && e->open)
+        fputs("</tbody></table>\n", e->out);
+    e->open = 0;
+}
 
 static void emit_row(Emit *e, const char *const *cells, int n)
 {
+    if (e->html) {
+        fputs("<tr>", e->out);
+        for (int i = 0; i < n; i++) {
+            fputs("<td>", e->out);
+            hx_html_put(e->out, cells[i]);
+            fputs("</td>", e->out);
+        }
+        fputs("</tr>\n", e->out);
+        return;
+    }
     if (e->csv) {
         HxBuf b = {0};
         for (int i = 0; i < n; i++) {
@@ -46,6 +64,20 @@ static void emit_row(Emit *e, const char *const *cells, int n)
 static void emit_header(Emit *e, const char *title, const char *const *cells, int n)
 {
     e->ncol = n;
+    if (e->html) {
+        emit_end(e);
+        fputs("<h3>", e->out);
+        hx_html_put(e->out, title);
+        fputs("</h3>\n<table><thead><tr>", e->out);
+        for (int i = 0; i < n; i++) {
+            fputs("<th>", e->out);
+            hx_html_put(e->out, cells[i]);
+            fputs("</th>", e->out);
+        }
+        fputs("</tr></thead><tbody>\n", e->out);
+        e->open = 1;
+        return;
+    }
     if (e->csv)
         fprintf(e->out, "# %s\n", title);
     else
@@ -406,8 +438,14 @@ static void fits_free(Fit *fits, size_t n)
 static void table_fits(Emit *e, const HxStudy *s, int include_suspect)
 {
     if (s->size) { /* a[KiB] + b[KiB]/p would be no law of anything */
-        if (!e->csv)
+        emit_end(e);
+        if (e->html) {
+            fputs("<p>No Amdahl fit: it applies to times and rates only, and ", e->out);
+            hx_html_put(e->out, s->metric);
+            fputs(" is a size.</p>\n", e->out);
+        } else if (!e->csv) {
             fprintf(e->out, "\nNo Amdahl fit: it applies to times and rates only, and %s is a size.\n", s->metric);
+        }
         return;
     }
     char ah[48], bh[48];
@@ -554,6 +592,16 @@ static void table_json(FILE *o, const HxStudy *s, const char *path, const char *
     fputs("]}\n", o);
 }
 
+void hx_table_html(FILE *out, const HxStudy *s, const char *baseline)
+{
+    Emit e = {out, 0, 0, 1, 0};
+    table_configs(&e, s, baseline, 0);
+    table_fits(&e, s, 0);
+    if (s->scenes.n > 1 || (s->scenes.n == 1 && strcmp(s->scenes.v[0], "-") != 0))
+        table_cross(&e, s);
+    emit_end(&e);
+}
+
 int hx_cmd_table(int argc, char **argv)
 {
     static const struct option lo[] = {
@@ -608,7 +656,7 @@ int hx_cmd_table(int argc, char **argv)
         hx_study_free(&s);
         return 0;
     }
-    Emit e = {stdout, strcmp(format, "csv") == 0, 0};
+    Emit e = {stdout, strcmp(format, "csv") == 0, 0, 0, 0};
     const char *study = s.csv.nrows ? hx_csv_get(&s.csv, 0, "study") : "";
     if (!e.csv && s.size)
         printf("## Study %s (%s, metric %s (%s), a size: shown against 1 worker, no speedup)\n", study,

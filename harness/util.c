@@ -476,3 +476,17 @@ void hx_config_label(char *dst, size_t n, const char *config)
     }
     dst[m] = '\0';
 }
+
+void hx_html_put(FILE *o, const char *s)
+{
+    for (const unsigned char *p = (const unsigned char *)(s ? s : ""); *p; p++) {
+        switch (*p) {
+        case '&': fputs("&amp;", o); break;
+        case '<': fputs("&lt;", o); break;
+        case '>': fputs("&gt;", o); break;
+        case '"': fputs("&quot;", o); break;
+        case '\'': fputs("&#39;", o); break;
+        default: fputc(hx_is_ctrl(*p) ? ' ' : *p, o);
+        }
+    }
+}

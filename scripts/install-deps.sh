@@ -15,13 +15,14 @@
 # memory) and binutils (strings).
 # hpcc (HPC Challenge) and xz-utils are the third-party workloads of the
 # command studies configs/hpcc.conf and configs/xz.conf; stress-ng is the
-# noisy neighbour of the noise tests.
+# noisy neighbour of the noise tests; chromium opens `harness report`'s
+# pages in the report test, headless.
 set -euo pipefail
 pkgs=(meson ninja-build gcc pkg-config libpng-dev libhwloc-dev hwloc
       libopenmpi-dev openmpi-bin gnuplot-nox libxxhash-dev libassimp-dev assimp-testmodels
       libembree-dev slurm-wlm slurm-client munge libpmix2 libsqlite3-dev valgrind
       procps python3 git time binutils
-      hpcc xz-utils stress-ng)
+      hpcc xz-utils stress-ng chromium)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
