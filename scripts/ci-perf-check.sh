@@ -9,7 +9,7 @@
 #      (cachegrind) at most 3% more;
 #   2. times: each configuration of configs/ci.conf run N (default 10) times
 #      by each build, interleaved with the first of each pair alternating
-#      (`harness ab --config`), render_ms judged at factor 1.25.
+#      (`harness ab --config`), render_ms judged at factor 1.05.
 # Prints which baseline it used and when that was refreshed; exit 1 on a
 # regression. --base/--new take prebuilt binaries (scripts/ci-perf-eval.sh).
 set -euo pipefail
@@ -53,6 +53,8 @@ done
 
 # 2. times: harness ab runs each configuration with both builds, the first
 # of each pair alternating, so that a slow phase of the machine hits both
-"$h" ab --config configs/ci.conf "$base" "$new" --rounds "$rounds" --factor 1.25 | tee "$out/ab.txt" || fail=1
+# (factor 1.05, ab's default: 0 false regressions in 200 verdicts on unchanged
+# code, quiet and under stress-ng, docs/harness.md "Verdicts measured")
+"$h" ab --config configs/ci.conf "$base" "$new" --rounds "$rounds" | tee "$out/ab.txt" || fail=1
 if [ $fail -eq 0 ]; then echo "ci-perf-check: ok"; else echo "ci-perf-check: REGRESSION"; fi
 exit $fail

@@ -13,7 +13,9 @@
 # and, quiet only, the instruction metric: configs/ci-instructions.conf under
 # cachegrind with each build, `compare --metric instructions --factor 1.03`,
 # TRIALS times. Verdicts are counted per configuration (2 per trial; the CI
-# check's per run). Prints the Markdown table; logs in $OUT.
+# check's per run). NEIGHBOURS (default "none stress-ng") and PATHS
+# (default "ab ci-ab compare ci") pick a part. Prints the Markdown table;
+# logs in $OUT.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 trials=${1:-50} ci_trials=${2:-10}
@@ -49,7 +51,9 @@ row() { # PATH BUILD NEIGHBOUR TRIALS FILE
 }
 echo "| path | build | neighbour | trials | REGRESSION | IMPROVEMENT | no change | INCONCLUSIVE |" | tee "$out/table.md"
 echo "|---|---|---|---|---|---|---|---|" | tee -a "$out/table.md"
-for neighbour in none stress-ng; do
+paths=" ${PATHS:-ab ci-ab compare ci} "
+has() { [[ "$paths" == *" $1 "* ]]; }
+for neighbour in ${NEIGHBOURS:-none stress-ng}; do
     if [ "$neighbour" = stress-ng ]; then
         stress-ng --cpu "$(nproc)" --timeout 7200s --quiet &
         spid=$!
@@ -60,17 +64,20 @@ for neighbour in none stress-ng; do
         tag="$neighbour-${b%\%}"
         : > "$out/ab-$tag.log"; : > "$out/ci-ab-$tag.log"; : > "$out/compare-$tag.log"
         for t in $(seq 1 "$trials"); do
-            "$h" ab --config configs/ci.conf "$head" "$bin" --rounds 10 >> "$out/ab-$tag.log" 2>&1 || true
-            "$h" ab --config configs/ci.conf "$head" "$bin" --rounds 10 --factor 1.25 >> "$out/ci-ab-$tag.log" 2>&1 || true
-            "$h" run configs/ci.conf --raytrace "$head" -o "$out/base.csv" --overwrite -q --set repeats=5 2> /dev/null || true
-            "$h" run configs/ci.conf --raytrace "$bin" -o "$out/new.csv" --overwrite -q --set repeats=5 2> /dev/null || true
-            "$h" compare --metric render_ms --factor 1.05 "$out/new.csv" "$out/base.csv" >> "$out/compare-$tag.log" 2>&1 || true
+            ! has ab || "$h" ab --config configs/ci.conf "$head" "$bin" --rounds 10 >> "$out/ab-$tag.log" 2>&1 || true
+            ! has ci-ab || "$h" ab --config configs/ci.conf "$head" "$bin" --rounds 10 --factor 1.25 \
+                >> "$out/ci-ab-$tag.log" 2>&1 || true
+            if has compare; then
+                "$h" run configs/ci.conf --raytrace "$head" -o "$out/base.csv" --overwrite -q --set repeats=5 2> /dev/null || true
+                "$h" run configs/ci.conf --raytrace "$bin" -o "$out/new.csv" --overwrite -q --set repeats=5 2> /dev/null || true
+                "$h" compare --metric render_ms --factor 1.05 "$out/new.csv" "$out/base.csv" >> "$out/compare-$tag.log" 2>&1 || true
+            fi
             echo "verdict-campaign: $tag trial $t of $trials" >&2
         done
-        row "harness ab" "$b" "$neighbour" "$trials" "$out/ab-$tag.log"
-        row "CI check, times (ab, factor 1.25)" "$b" "$neighbour" "$trials" "$out/ci-ab-$tag.log"
-        row "compare, two studies" "$b" "$neighbour" "$trials" "$out/compare-$tag.log"
-        if [ "$b" != 10% ]; then
+        ! has ab || row "harness ab" "$b" "$neighbour" "$trials" "$out/ab-$tag.log"
+        ! has ci-ab || row "CI check, times (ab, factor 1.25)" "$b" "$neighbour" "$trials" "$out/ci-ab-$tag.log"
+        ! has compare || row "compare, two studies" "$b" "$neighbour" "$trials" "$out/compare-$tag.log"
+        if [ "$b" != 10% ] && has ci; then
             : > "$out/ci-$tag.log"
             for t in $(seq 1 "$ci_trials"); do
                 if scripts/ci-perf-check.sh --base "$head" --new "$bin" --rounds 10 > "$out/ci-one.log" 2>&1; then
@@ -83,7 +90,7 @@ for neighbour in none stress-ng; do
             row "CI check (whole run)" "$b" "$neighbour" "$ci_trials" "$out/ci-$tag.log"
         fi
     done
-    if [ "$neighbour" = none ]; then
+    if [ "$neighbour" = none ] && has ab; then
         : > "$out/ir.log"
         for t in $(seq 1 "$trials"); do
             "$h" run configs/ci-instructions.conf --raytrace "$head" -o "$out/ir-base.csv" --overwrite -q 2> /dev/null || true
