@@ -149,21 +149,10 @@ static int ab_value(const HxChildResult *res, const AbRead *rd, int side, double
     }
     if (!rd->key)
         return 0;
-    char *rec = res->out.s ? hx_record_find(res->out.s) : NULL;
-    if (rec)
-        rec[strcspn(rec, "\n")] = '\0';
-    const char *w = rec ? rec + 8 : NULL; /* after "record: " */
-    size_t kl = strlen(rd->key);
-    while (w && *w && !(strncmp(w, rd->key, kl) == 0 && w[kl] == '=')) {
-        w += strcspn(w, " ");
-        w += *w == ' ';
-    }
-    if (w && *w)
-        snprintf(num, sizeof num, "%.*s", (int)strcspn(w + kl + 1, " "), w + kl + 1);
-    const char *h = rec ? strstr(rec, " image_fnv1a=") : NULL;
-    if (rd->image && h)
-        snprintf((*rd->image)[side], sizeof (*rd->image)[side], "%.*s", (int)strcspn(h + 13, " "), h + 13);
-    if (!w || !*w || hx_parse_double(num, v) != 0) {
+    const char *rec = res->out.s ? hx_record_find(res->out.s) : NULL;
+    if (rec && rd->image)
+        hx_record_get(rec, "image_fnv1a", (*rd->image)[side], sizeof (*rd->image)[side]);
+    if (!rec || !hx_record_get(rec, rd->key, num, sizeof num) || hx_parse_double(num, v) != 0) {
         snprintf(why, n, "no %s in its record line", rd->key);
         return -1;
     }
@@ -181,10 +170,11 @@ static int ab_run(const HxCommand *c, const AbRead *rd, int side, double *v, int
     hx_cpu_stat(&b);
     hx_reap_strays();
     if (rc != 0 || res.timed_out || !res.exited || res.code != 0) {
-        const char *e = res.err.s ? res.err.s : "";
+        int el;
+        const char *e = hx_first_line(res.err.s, &el);
         snprintf(why, n, "%s%s%.*s", rc ? "could not start" : res.timed_out ? "timed out" : !res.exited ? "killed by a signal"
-                 : "failed", *e ? ": " : "", (int)strcspn(e, "\n"), e);
-        if (rc == 0 && res.exited && res.code != 0 && !*e)
+                 : "failed", el ? ": " : "", el, e);
+        if (rc == 0 && res.exited && res.code != 0 && !el)
             snprintf(why, n, "exited with status %d", res.code);
         hx_child_result_free(&res);
         return -1;

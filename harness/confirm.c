@@ -51,8 +51,13 @@ static char *build(HxConfirm *c, const char *sha, char *why, size_t n)
         path = hx_strdup(last ? last + 1 : out);
     }
     if (!path || access(path, X_OK) != 0) {
-        const char *e = res.err.s && *res.err.s ? res.err.s : "no raytrace path on its output";
-        snprintf(why, n, "commit %s could not be built: %.*s", sha, (int)strcspn(e, "\n"), rc ? "builder not started" : e);
+        int el;
+        const char *e = hx_first_line(res.err.s, &el);
+        if (rc || !el) {
+            e = rc ? "builder not started" : "no raytrace path on its output";
+            el = (int)strlen(e);
+        }
+        snprintf(why, n, "commit %s could not be built: %.*s", sha, el, e);
         hx_strlist_push(&c->failed, sha);
         free(path);
         path = NULL;
@@ -108,11 +113,11 @@ int hx_confirm_step(HxConfirm *c, const char *config_id, const char *settings, c
 {
     char why[1024] = "";
     HxConfig cfg;
-    char hash[20] = "";
-    if (hx_config_open(c->config, &cfg) == 0) {
-        hx_settings_hash(&cfg, hash);
+    if (!*c->hash && hx_config_open(c->config, &cfg) == 0) {
+        hx_settings_hash(&cfg, c->hash);
         hx_config_free(&cfg);
     }
+    const char *hash = c->hash;
     int dir = FAILED, n = 1;
     double cost = NAN, mcost;
     if (!*hash)

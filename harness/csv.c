@@ -106,26 +106,53 @@ int hx_csv_has_values(const HxCsv *csv, const char *col)
     return 0;
 }
 
+/* The record's next key=value word (the record is one line of them) into
+ * *key and its value; NULL at the end. Words that are not k=v are skipped
+ * rather than failing the run. Cuts copy, as strtok_r. */
+static char *record_next(char *copy, char **save, char **val)
+{
+    for (char *tok = strtok_r(copy, " \t\r\n", save); tok; tok = strtok_r(NULL, " \t\r\n", save)) {
+        char *eq = strchr(tok, '=');
+        if (eq && eq != tok) {
+            *eq = '\0';
+            *val = eq + 1;
+            return tok;
+        }
+    }
+    return NULL;
+}
+
+const char *hx_record_get(const char *line, const char *key, char *out, size_t n)
+{
+    if (strncmp(line, "record: ", 8) != 0)
+        return NULL;
+    char *copy = hx_strndup(line + 8, strcspn(line + 8, "\n")), *save = NULL, *val, *first = copy;
+    const char *found = NULL;
+    for (char *tok; !found && (tok = record_next(first, &save, &val)) != NULL; first = NULL)
+        if (strcmp(tok, key) == 0) {
+            snprintf(out, n, "%s", val);
+            found = out;
+        }
+    free(copy);
+    return found;
+}
+
 int hx_record_to_row(const char *line, char **vals)
 {
     if (strncmp(line, "record: ", 8) != 0)
         return -1;
     char *copy = hx_strndup(line + 8, strcspn(line + 8, "\n")); /* the record is one line */
     HxBuf extra = {0};
-    char *save = NULL;
+    char *save = NULL, *val, *first = copy;
     int nkeys = 0;
-    for (char *tok = strtok_r(copy, " \t\r\n", &save); tok; tok = strtok_r(NULL, " \t\r\n", &save)) {
-        char *eq = strchr(tok, '=');
-        if (!eq || eq == tok)
-            continue; /* not k=v: ignore rather than fail the run */
-        *eq = '\0';
+    for (char *tok; (tok = record_next(first, &save, &val)) != NULL; first = NULL) {
         const char *col = hx_record_column(tok);
         int idx = col ? hx_column_index(col) : -1;
         if (idx >= 0) {
             free(vals[idx]);
-            vals[idx] = hx_strdup(eq + 1);
+            vals[idx] = hx_strdup(val);
         } else {
-            hx_buf_printf(&extra, "%s%s=%s", extra.len ? ";" : "", tok, eq + 1);
+            hx_buf_printf(&extra, "%s%s=%s", extra.len ? ";" : "", tok, val);
         }
         nkeys++;
     }

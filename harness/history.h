@@ -27,6 +27,7 @@ typedef struct HxConfirm {
     const char *dir;     /* builds go to DIR/COMMIT */
     HxAbRule rule;
     HxStrList built, failed;
+    char hash[20]; /* config's settings hash, read at the first step ("": not yet) */
 } HxConfirm;
 /* A step of configuration config_id (settings: the series' config_hash)
  * found at commits[k], its windows commits[lo..hi], in record key key,

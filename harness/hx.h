@@ -87,6 +87,9 @@ static inline int hx_is_ctrl(unsigned char c)
  * terminal escape, a newline that would fake a line) as '?', and with md
  * a '|' as "\|", so that a Markdown table cell does not end early. */
 void hx_fput_clean(FILE *o, const char *s, int md);
+/* The first line of s that is not blank (a child's stderr: what went
+ * wrong), its length in *n (0: none). */
+const char *hx_first_line(const char *s, int *n);
 /* Text from a CSV into an HTML page: & < > " ' as entities, control
  * characters as blanks: never markup. */
 void hx_html_put(FILE *o, const char *s);
@@ -357,6 +360,9 @@ int hx_csv_append_row(int fd, const char *const *vals);
 /* Parses "record: k=v ..." (up to the line's end) into the row values
  * (malloc'd strings). */
 int hx_record_to_row(const char *line, char **vals);
+/* The value of key in the record line ("record: k=v ..."), into out; NULL
+ * when the line has no such key. */
+const char *hx_record_get(const char *line, const char *key, char *out, size_t n);
 /* The last line of out that starts with "record: ", or NULL. */
 char *hx_record_find(char *out);
 /* vals[col] = a copy of v (NULL: empty); an unknown column is ignored. */

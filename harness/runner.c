@@ -205,13 +205,11 @@ static void row_free(char **vals)
 /* The first line of the child's stderr, or what stands in for it. */
 static char *error_detail(const HxChildResult *res)
 {
-    const char *e = res->err.s ? res->err.s : "";
-    while (*e == '\n' || *e == ' ')
-        e++;
-    size_t n = strcspn(e, "\n");
+    int n;
+    const char *e = hx_first_line(res->err.s, &n);
     HxBuf b = {0};
     if (n)
-        hx_buf_putn(&b, e, n);
+        hx_buf_putn(&b, e, (size_t)n);
     else if (res->code != 0)
         hx_buf_printf(&b, "exit %d, nothing on stderr", res->code);
     else

@@ -477,6 +477,13 @@ void hx_config_label(char *dst, size_t n, const char *config)
     dst[m] = '\0';
 }
 
+const char *hx_first_line(const char *s, int *n)
+{
+    s = s ? s + strspn(s, " \n") : "";
+    *n = (int)strcspn(s, "\n");
+    return s;
+}
+
 void hx_html_put(FILE *o, const char *s)
 {
     for (const unsigned char *p = (const unsigned char *)(s ? s : ""); *p; p++) {

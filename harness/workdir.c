@@ -66,12 +66,11 @@ char *hx_rundir(const char *workdir, size_t index)
  * expected. */
 static char *failure_line(const HxChildResult *res, int expected)
 {
-    const char *e = res->err.s ? res->err.s : "";
-    e += strspn(e, " \n");
-    size_t n = strcspn(e, "\n");
+    int n;
+    const char *e = hx_first_line(res->err.s, &n);
     HxBuf b = {0};
     if (n)
-        hx_buf_printf(&b, "exit %d (expected %d): %.*s", res->code, expected, (int)n, e);
+        hx_buf_printf(&b, "exit %d (expected %d): %.*s", res->code, expected, n, e);
     else
         hx_buf_printf(&b, "exit %d (expected %d), nothing on stderr", res->code, expected);
     return b.s;
