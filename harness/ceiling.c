@@ -27,7 +27,6 @@ static pid_t spawn(const HxCommand *c, const HxTopo *t, int core)
     pid_t pid = fork();
     if (pid != 0)
         return pid;
-    setpgid(0, 0);
     int null = open("/dev/null", O_RDWR);
     for (int fd = 0; fd < 3 && null >= 0; fd++)
         dup2(null, fd);
@@ -35,12 +34,7 @@ static pid_t spawn(const HxCommand *c, const HxTopo *t, int core)
     memset(&one, 0, sizeof one);
     one.ncores = 1;
     one.cores = &core;
-    if ((c->dir && chdir(c->dir) != 0) || hx_bind_child(t, &one) != 0)
-        _exit(126);
-    for (size_t i = 0; c->env.v && c->env.v[i]; i += 2)
-        setenv(c->env.v[i], c->env.v[i + 1], 1);
-    execvp(c->argv.v[0], c->argv.v);
-    _exit(127);
+    hx_child_exec(c, t, &one, 1);
 }
 
 /* Runs n copies at once on cores[0..n-1]; each one's wall ms into ms.

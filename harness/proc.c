@@ -147,15 +147,37 @@ static void kill_group(pid_t pgid, double grace_ms, pid_t child, int *reaped, in
         *reaped = 1;
 }
 
-/* The child's side of the fork: own process group, default signals, pipes,
- * binding, environment, exec. Does not return. */
-static void exec_child(const HxCommand *cmd, const HxTopo *topo, const HxRun *run, const int po[2],
-                       const int pe[2])
+/* The child's side once its descriptors are set: own process group,
+ * default signals, the run's folder, binding, environment, exec. A study's
+ * run whose binding fails goes on unpinned (its row says pin_held=no);
+ * with strict (harness ceiling, which must measure pinned copies) it ends
+ * with 126. Does not return. */
+_Noreturn void hx_child_exec(const HxCommand *cmd, const HxTopo *topo, const HxRun *run, int strict)
 {
-    char *const *argv = cmd->argv.v, *const *env_add = cmd->env.v;
     setpgid(0, 0);
     signal(SIGINT, SIG_DFL);
     signal(SIGTERM, SIG_DFL);
+    if (cmd->dir && chdir(cmd->dir) != 0) {
+        fprintf(stderr, "cannot enter the run's folder %s: %s\n", cmd->dir, strerror(errno));
+        _exit(127);
+    }
+    if ((cmd->bind || strict) && hx_bind_child(topo, run) != 0) {
+        fprintf(stderr, "harness: %s: binding to cores %s failed: %s\n", strict ? "error" : "warning",
+                run->cores_planned ? run->cores_planned : "-", strerror(errno));
+        if (strict)
+            _exit(126);
+    }
+    for (int i = 0; cmd->env.v && cmd->env.v[i]; i += 2)
+        setenv(cmd->env.v[i], cmd->env.v[i + 1], 1);
+    execvp(cmd->argv.v[0], cmd->argv.v);
+    fprintf(stderr, "cannot execute %s: %s\n", cmd->argv.v[0], strerror(errno));
+    _exit(127);
+}
+
+/* The child's side of the fork: stdin from /dev/null, the pipes. */
+static void exec_child(const HxCommand *cmd, const HxTopo *topo, const HxRun *run, const int po[2],
+                       const int pe[2])
+{
     int devnull = open("/dev/null", O_RDONLY);
     if (devnull >= 0) {
         dup2(devnull, 0);
@@ -168,18 +190,7 @@ static void exec_child(const HxCommand *cmd, const HxTopo *topo, const HxRun *ru
     close(po[1]);
     close(pe[0]);
     close(pe[1]);
-    if (cmd->dir && chdir(cmd->dir) != 0) {
-        fprintf(stderr, "cannot enter the run's folder %s: %s\n", cmd->dir, strerror(errno));
-        _exit(127);
-    }
-    if (cmd->bind && hx_bind_child(topo, run) != 0)
-        fprintf(stderr, "harness: warning: binding to cores %s failed: %s\n",
-                run->cores_planned, strerror(errno));
-    for (int i = 0; env_add && env_add[i]; i += 2)
-        setenv(env_add[i], env_add[i + 1], 1);
-    execvp(argv[0], argv);
-    fprintf(stderr, "cannot execute %s: %s\n", argv[0], strerror(errno));
-    _exit(127);
+    hx_child_exec(cmd, topo, run, 0);
 }
 
 /* A started child, as the parent follows it. */

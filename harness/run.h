@@ -48,6 +48,10 @@ struct HxCommand;
 int hx_run_child(const struct HxCommand *c, const HxTopo *topo, const HxRun *run, double timeout_s,
                  HxChildResult *res);
 void hx_child_result_free(HxChildResult *res);
+/* The child's side of a fork once its descriptors are set: own process
+ * group, folder, binding to run's cores (when c->bind, or strict: then a
+ * failed binding exits 126, else it warns), environment, exec. */
+_Noreturn void hx_child_exec(const struct HxCommand *c, const HxTopo *topo, const HxRun *run, int strict);
 
 /* ---- interleaved A/B (ab.c) ---- */
 typedef struct {
