@@ -20,7 +20,7 @@ set -u
 RT=$(realpath "$2") SRC=$(realpath "$3")
 test_setup confirm "$1" "$1"
 if "$H" history show --db none.db 2>&1 | grep -q "no SQLite"; then
-    echo "SKIP: this harness was built without SQLite (libsqlite3-dev)"; exit 77
+    fail "this harness was built without SQLite (scripts/install-deps.sh installs libsqlite3-dev)"
 fi
 cp "$SRC/scenes/glass.txt" .
 printf 'study: c\nscene_dir: .\nscenes: glass\nbackend: serial\nresolution: 96x72\nrepeats: 3\npin: close\nraytrace: %s\n' \
@@ -65,7 +65,8 @@ EOF
 chmod +x builder.sh
 confirm=(history check --db h.db --window 4 --confirm c.conf --builder ./builder.sh --build-dir bd --rounds 10)
 "$H" "${confirm[@]}" > machine.out || { cat machine.out; fail "a step the build did not make failed the check"; }
-grep -q "^  unconfirmed: re-measured interleaved, c0ffee08 against c0ffee01 (the windows' ends) shows no change" machine.out ||
+# on a busy machine the same builds may measure as inconclusive: unconfirmed either way
+grep -qE "^  unconfirmed: re-measured interleaved, c0ffee08 against c0ffee01 \(the windows' ends\) shows (no change|nothing conclusive)" machine.out ||
     { cat machine.out; fail "no 'unconfirmed' line"; }
 grep -q "0 confirmed slowdown step(s)" machine.out && grep -q "1 step(s) unconfirmed" machine.out ||
     { cat machine.out; fail "unconfirmed: summary"; }

@@ -1,8 +1,8 @@
 #!/bin/sh
 # End-to-end: runs configs/quick.conf for real with the built raytrace, then
 # checks the CSV rows, `harness table`, `harness compare` against itself and
-# that gnuplot made non-empty PNG (and SVG) files. Exit 77 (skip) only when
-# gnuplot is missing, after the parts that do not need it have run.
+# that gnuplot made non-empty PNG (and SVG) files. A missing gnuplot fails
+# it (scripts/install-deps.sh installs gnuplot-nox).
 # usage: test-e2e.sh HARNESS RAYTRACE SOURCE_ROOT
 set -u
 . "$(dirname "$0")/common.sh" # need_pgrep, pids_matching
@@ -80,7 +80,7 @@ if "$RT" -q --cache "$T/probe" -r 8x6 -o "$T/p.ppm" scenes/demo.txt > /dev/null 
     "$H" run "$T/nocache.conf" --raytrace "$RT" -o "$T/nocache.csv" -q 2> /dev/null || fail "scene_cache: off failed"
     [ "$(grep -c 'cache=off' "$T/nocache.csv")" -eq 2 ] || fail "scene_cache: off still passed --cache"
 fi
-command -v gnuplot > /dev/null || { echo "gnuplot missing: plot check skipped"; exit 77; }
+command -v gnuplot > /dev/null || fail "gnuplot missing (scripts/install-deps.sh installs gnuplot-nox)"
 "$H" plot "$T/quick.csv" -o "$T/quick" || fail "plot failed"
 for k in speedup efficiency scenes; do
   for ext in png svg gp dat; do
