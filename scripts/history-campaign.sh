@@ -3,7 +3,8 @@
 # commit that made a step? (docs/harness.md, "Verdicts measured"). In a
 # clone of this repository (DIR, default /tmp/history-campaign), twenty
 # commits on top of HEAD: 6 empty (3, 6, 9, 12, 15, 18), one that plants a
-# 10% slowdown in the build (14: every tenth pixel traced twice), the rest
+# slowdown in the build (14: every tenth pixel traced twice, 10%; with
+# PLANT="2 3", every second pixel three more times, 2.5x), the rest
 # one line of text each. Each commit is built (one worktree, incremental)
 # and measured with configs/ci.conf (5 repeats) into a history database,
 # with stress-ng busy on every CPU while commits 6 to 9 are measured. Then
@@ -13,6 +14,7 @@
 set -euo pipefail
 src=$(cd "$(dirname "$0")/.." && pwd)
 dir=${1:-/tmp/history-campaign}
+read -r plant_every plant_times <<< "${PLANT:-10 1}"
 h=$src/build/harness/harness
 command -v stress-ng > /dev/null || { echo "history-campaign: stress-ng missing (scripts/install-deps.sh)" >&2; exit 1; }
 [ -x "$h" ] || { echo "history-campaign: build first ($h)" >&2; exit 1; }
@@ -28,9 +30,9 @@ for k in $(seq 1 20); do
     3 | 6 | 9 | 12 | 15 | 18) git commit -q --allow-empty -m "empty commit $k" ;;
     14)
         # the plant, as a real change of the build would make it
-        sed -i "s|^m_dep = cc.find_library('m', required : false)|add_project_arguments('-DRT_PLANT_EVERY=10', '-DRT_PLANT_TIMES=1', language : ['c'])\n&|" meson.build
-        grep -q "DRT_PLANT_EVERY=10'" meson.build || { echo "history-campaign: the plant did not apply" >&2; exit 1; }
-        git commit -q -am "commit $k: every tenth pixel traced twice" ;;
+        sed -i "s|^m_dep = cc.find_library('m', required : false)|add_project_arguments('-DRT_PLANT_EVERY=$plant_every', '-DRT_PLANT_TIMES=$plant_times', language : ['c'])\n&|" meson.build
+        grep -q "DRT_PLANT_EVERY=$plant_every'" meson.build || { echo "history-campaign: the plant did not apply" >&2; exit 1; }
+        git commit -q -am "commit $k: every ${plant_every}th pixel traced $plant_times more time(s)" ;;
     *)
         echo "line $k" >> campaign.txt
         git add campaign.txt
@@ -59,7 +61,7 @@ for k in $(seq 1 20); do
     echo "history-campaign: commit $k ($sha)$([ "$k" -ge 6 ] && [ "$k" -le 9 ] && echo ', stress-ng')" >&2
 done
 echo "commits: ${shas[*]} (empty: 3 6 9 12 15 18 = ${shas[2]} ${shas[5]} ${shas[8]} ${shas[11]} ${shas[14]} ${shas[17]};" \
-     "planted: 14 = ${shas[13]}; stress-ng: 6-9)"
+     "planted (every $plant_every, $plant_times more): 14 = ${shas[13]}; stress-ng: 6-9)"
 "$h" history check --db "$dir/history.db" --metric render_ms --confirm configs/ci.conf --build-dir "$dir/confirm" \
     > "$dir/check.txt" 2> "$dir/check.err" || true
 cat "$dir/check.txt"
