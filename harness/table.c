@@ -3,11 +3,13 @@
  *
  * The groups, their statistics and the correctness gate re-applied from the
  * CSV alone come from the study model (study.c): a fast wrong image never
- * enters a table. */
-#include "hx.h"
+ * enters a table. The default Markdown, laid out to fit 100 columns, is
+ * table_md.c's; HTML, CSV, --wide and JSON are here. */
+#include "table_md.h"
 
 #include <getopt.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -18,6 +20,7 @@ typedef struct {
     int csv;
     int ncol;
     int html, open; /* harness report: HTML tables; one is open */
+    int compact;    /* the default Markdown: fits HX_MD_WIDTH (table_md.c) */
 } Emit;
 
 static void emit_end(Emit *e)
@@ -91,7 +94,7 @@ static void emit_header(Emit *e, const char *title, const char *const *cells, in
     }
 }
 
-static void fmt_ms(char *b, size_t n, double v)
+void tab_fmt_ms(char *b, size_t n, double v)
 {
     if (isnan(v))
         snprintf(b, n, "-");
@@ -105,7 +108,7 @@ static void fmt_ms(char *b, size_t n, double v)
         snprintf(b, n, "%.3f", v);
 }
 
-static void fmt_num(char *b, size_t n, const char *f, double v)
+void tab_fmt_num(char *b, size_t n, const char *f, double v)
 {
     if (isnan(v) || isinf(v))
         snprintf(b, n, "-");
@@ -138,15 +141,6 @@ static void usage_table(FILE *f)
           "  -h, --help            this text\n", f);
 }
 
-/* What one configuration's row says, computed once for every format. */
-typedef struct {
-    const HxGroup *g, *a, *b;
-    double spa, spa_lo, spa_hi, efa, kf, spb, efb;
-    double ceil;         /* the machine's ceiling at these workers, NAN none */
-    double ratio;        /* a size: median / the one-worker median (a) */
-    char notes[256];
-} ConfigStats;
-
 /* Speedup and efficiency against both baselines: times and rates only. */
 static void scaling_stats(const HxStudy *s, const HxGroup *g, const char *baseline, ConfigStats *c)
 {
@@ -169,9 +163,53 @@ static void scaling_stats(const HxStudy *s, const HxGroup *g, const char *baseli
     c->efb = c->spb / g->workers;
 }
 
+/* Appends one code (printf-style) to b and its bit to *used. */
+static void __attribute__((format(printf, 4, 5))) add_code(HxBuf *b, unsigned *used, int bit, const char *fmt, ...)
+{
+    char v[64];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(v, sizeof v, fmt, ap);
+    va_end(ap);
+    hx_buf_printf(b, "%s%s", b->len ? " " : "", v);
+    *used |= 1u << bit;
+}
+
+/* The notes again as codes, for the default Markdown (legend: table_md.c):
+ * the same conditions in the same order. */
+static void note_codes(ConfigStats *c)
+{
+    const HxGroup *g = c->g;
+    HxBuf b = {0};
+    if (g->ntimeout)
+        add_code(&b, &c->used, NC_TLE, "T%zu", g->ntimeout);
+    if (g->nwrong)
+        add_code(&b, &c->used, NC_WRONG, "W%zu", g->nwrong);
+    if (g->nerror) /* a status from the CSV: cut, --wide has it whole */
+        add_code(&b, &c->used, NC_FAIL, "%.12s:%zu", g->first_status, g->nerror);
+    if (g->suspect) {
+        int over = strcmp(g->suspect_why, "oversubscribed") == 0;
+        add_code(&b, &c->used, over ? NC_OVER : NC_UNPIN, "%s", over ? "OS" : "NP");
+    }
+    if (g->npartial)
+        add_code(&b, &c->used, NC_PARTIAL, "P%zu/%zu", g->npartial, g->nrows);
+    if (g->nbusy)
+        add_code(&b, &c->used, NC_BUSY, "B%zu/%zu", g->nbusy, g->nrows);
+    if (g->nstolen)
+        add_code(&b, &c->used, NC_STEAL, "CS%zu/%zu", g->nstolen, g->nrows);
+    if (c->efa > 1.0 && g->axis > 1)
+        add_code(&b, &c->used, NC_EFF, ">1");
+    if (g->noutliers)
+        add_code(&b, &c->used, NC_OUT, "O%d", g->noutliers);
+    if (c->spa < 1 && g->axis > 1)
+        add_code(&b, &c->used, NC_SLOW, "<1");
+    snprintf(c->codes, sizeof c->codes, "%s", b.s ? b.s : "");
+    hx_buf_free(&b);
+}
+
 /* A size (peak memory) has no speedup: it is shown against one worker, and
  * notes about speedup (efficiency above 1, slower than 1 worker) stay out. */
-static void config_stats(const HxStudy *s, const HxGroup *g, const char *baseline, ConfigStats *c)
+void tab_config_stats(const HxStudy *s, const HxGroup *g, const char *baseline, ConfigStats *c)
 {
     memset(c, 0, sizeof *c);
     c->g = g;
@@ -204,32 +242,29 @@ static void config_stats(const HxStudy *s, const HxGroup *g, const char *baselin
         hx_buf_printf(&n, "%sslower than 1 worker", n.len ? ", " : "");
     snprintf(c->notes, sizeof c->notes, "%s", n.s ? n.s : "");
     hx_buf_free(&n);
+    note_codes(c);
 }
 
-static void fmt_ci(char *b, size_t n, double v, double lo, double hi, int ms)
+/* compact: "v [lo,hi]", the default Markdown's */
+static void fmt_ci(char *b, size_t n, double v, double lo, double hi, int ms, int compact)
 {
     char a[32], l[32], h[32];
     if (ms) {
-        fmt_ms(a, sizeof a, v);
-        fmt_ms(l, sizeof l, lo);
-        fmt_ms(h, sizeof h, hi);
+        tab_fmt_ms(a, sizeof a, v);
+        tab_fmt_ms(l, sizeof l, lo);
+        tab_fmt_ms(h, sizeof h, hi);
     } else {
-        fmt_num(a, sizeof a, "%.2f", v);
-        fmt_num(l, sizeof l, "%.2f", lo);
-        fmt_num(h, sizeof h, "%.2f", hi);
+        tab_fmt_num(a, sizeof a, "%.2f", v);
+        tab_fmt_num(l, sizeof l, "%.2f", lo);
+        tab_fmt_num(h, sizeof h, "%.2f", hi);
     }
     if (isnan(lo))
         snprintf(b, n, "%s", a);
     else
-        snprintf(b, n, "%s [%s, %s]", a, l, h);
+        snprintf(b, n, compact ? "%s [%s,%s]" : "%s [%s, %s]", a, l, h);
 }
 
-/* The headers that carry the metric's unit; a rate's best is its maximum. */
-typedef struct {
-    char med[48], min[40], iqr[40], t1[40], bt[40];
-} UnitHeads;
-
-static void unit_heads(const HxStudy *s, UnitHeads *h)
+void tab_unit_heads(const HxStudy *s, UnitHeads *h)
 {
     const char *u = s->unit[0] && strcmp(s->unit, "1") != 0 ? s->unit : "";
     snprintf(h->med, sizeof h->med, "median %s%s[CI]", u, *u ? " " : "");
@@ -239,31 +274,27 @@ static void unit_heads(const HxStudy *s, UnitHeads *h)
     snprintf(h->bt, sizeof h->bt, "base (b) %s", u);
 }
 
-/* The cells every metric's row has. */
-typedef struct {
-    char w[16], n[32], med[112], mn[32], iqr[32], out[16], t1[32];
-} Cells;
-
-static void common_cells(const HxStudy *s, const ConfigStats *c, Cells *k)
+void tab_common_cells(const HxStudy *s, const ConfigStats *c, Cells *k)
 {
     const HxGroup *g = c->g;
     snprintf(k->w, sizeof k->w, "%d", g->workers);
     snprintf(k->n, sizeof k->n, "%zu/%zu", g->nok, g->nrows);
-    fmt_ci(k->med, sizeof k->med, g->median, g->ci_lo, g->ci_hi, 1);
+    fmt_ci(k->med, sizeof k->med, g->median, g->ci_lo, g->ci_hi, 1, 0);
+    fmt_ci(k->medc, sizeof k->medc, g->median, g->ci_lo, g->ci_hi, 1, 1);
     double top = g->min;
     for (size_t i = 0; s->higher && i < g->nt; i++)
         top = i == 0 || g->t[i] > top ? g->t[i] : top;
-    fmt_ms(k->mn, sizeof k->mn, top);
-    fmt_ms(k->iqr, sizeof k->iqr, g->q3 - g->q1);
+    tab_fmt_ms(k->mn, sizeof k->mn, top);
+    tab_fmt_ms(k->iqr, sizeof k->iqr, g->q3 - g->q1);
     snprintf(k->out, sizeof k->out, "%d", g->noutliers);
-    fmt_ms(k->t1, sizeof k->t1, c->a ? c->a->median : NAN);
+    tab_fmt_ms(k->t1, sizeof k->t1, c->a ? c->a->median : NAN);
 }
 
 /* A size's rows: the median and its ratio to the same series at one worker. */
 static void table_sizes(Emit *e, const HxStudy *s, int wide)
 {
     UnitHeads h;
-    unit_heads(s, &h);
+    tab_unit_heads(s, &h);
     const char *const narrow[] = {"scene", "configuration", "n", h.med, "x 1 worker", "notes"};
     const char *const all[] = {"scene", "configuration", "workers", "n", h.med, h.min,
                                h.iqr, "outliers", h.t1, "x 1 worker", "notes"};
@@ -273,11 +304,11 @@ static void table_sizes(Emit *e, const HxStudy *s, int wide)
         emit_header(e, "Per configuration (CI: 95% bootstrap interval; --wide: every column)", narrow, 6);
     for (size_t i = 0; i < s->ng; i++) {
         ConfigStats c;
-        config_stats(s, &s->g[i], NULL, &c);
+        tab_config_stats(s, &s->g[i], NULL, &c);
         Cells k;
-        common_cells(s, &c, &k);
+        tab_common_cells(s, &c, &k);
         char r[32];
-        fmt_num(r, sizeof r, "%.2f", c.ratio);
+        tab_fmt_num(r, sizeof r, "%.2f", c.ratio);
         const char *notes = c.notes[0] ? c.notes : "-";
         if (wide) {
             const char *cells[11] = {c.g->scene, c.g->label, k.w, k.n, k.med, k.mn, k.iqr, k.out, k.t1, r, notes};
@@ -289,14 +320,33 @@ static void table_sizes(Emit *e, const HxStudy *s, int wide)
     }
 }
 
+void tab_speed_cells(const ConfigStats *c, SpeedCells *p)
+{
+    fmt_ci(p->sp, sizeof p->sp, c->spa, c->spa_lo, c->spa_hi, 0, 0);
+    fmt_ci(p->spc, sizeof p->spc, c->spa, c->spa_lo, c->spa_hi, 0, 1);
+    tab_fmt_num(p->sps, sizeof p->sps, "%.2f", c->spa);
+    tab_fmt_num(p->efs, sizeof p->efs, "%.3f", c->efa);
+    snprintf(p->ef, sizeof p->ef, "%s", p->efs);
+    if (isfinite(c->ceil) && isfinite(c->efa)) /* against what this machine allows */
+        snprintf(p->ef, sizeof p->ef, "%.3f (%.2f of %.2f)", c->efa, c->efa / c->ceil, c->ceil);
+    tab_fmt_num(p->kf, sizeof p->kf, "%.3f", c->kf);
+    tab_fmt_ms(p->bt, sizeof p->bt, c->b ? c->b->median : NAN);
+    tab_fmt_num(p->sb, sizeof p->sb, "%.2f", c->spb);
+    tab_fmt_num(p->eb, sizeof p->eb, "%.3f", c->efb);
+}
+
 static void table_configs(Emit *e, const HxStudy *s, const char *baseline, int wide)
 {
+    if (e->compact) {
+        hx_md_configs(e->out, s, baseline);
+        return;
+    }
     if (s->size) {
         table_sizes(e, s, wide);
         return;
     }
     UnitHeads h;
-    unit_heads(s, &h);
+    tab_unit_heads(s, &h);
     const char *const narrow[] = {"scene", "configuration", "n", h.med, "speedup (a) [CI]",
                                   "eff. (a)", "speedup (b)", "notes"};
     const char *const all[] = {
@@ -309,26 +359,19 @@ static void table_configs(Emit *e, const HxStudy *s, const char *baseline, int w
         emit_header(e, "Per configuration (CI: 95% bootstrap interval; --wide: every column)", narrow, 8);
     for (size_t i = 0; i < s->ng; i++) {
         ConfigStats c;
-        config_stats(s, &s->g[i], baseline, &c);
+        tab_config_stats(s, &s->g[i], baseline, &c);
         const HxGroup *g = c.g;
         Cells k;
-        common_cells(s, &c, &k);
-        char sp[112], ef[48], kf[32], bt[32], sb[32], eb[32];
-        fmt_ci(sp, sizeof sp, c.spa, c.spa_lo, c.spa_hi, 0);
-        fmt_num(ef, sizeof ef, "%.3f", c.efa);
-        if (isfinite(c.ceil) && isfinite(c.efa)) /* against what this machine allows */
-            snprintf(ef, sizeof ef, "%.3f (%.2f of %.2f)", c.efa, c.efa / c.ceil, c.ceil);
-        fmt_num(kf, sizeof kf, "%.3f", c.kf);
-        fmt_ms(bt, sizeof bt, c.b ? c.b->median : NAN);
-        fmt_num(sb, sizeof sb, "%.2f", c.spb);
-        fmt_num(eb, sizeof eb, "%.3f", c.efb);
+        tab_common_cells(s, &c, &k);
+        SpeedCells p;
+        tab_speed_cells(&c, &p);
         const char *notes = c.notes[0] ? c.notes : "-";
         if (wide) {
-            const char *cells[17] = {g->scene, g->label, k.w, k.n, k.med, k.mn, k.iqr, k.out, k.t1, sp, ef, kf,
-                                     bt, c.b ? c.b->label : "-", sb, eb, notes};
+            const char *cells[17] = {g->scene, g->label, k.w, k.n, k.med, k.mn, k.iqr, k.out, k.t1, p.sp, p.ef, p.kf,
+                                     p.bt, c.b ? c.b->label : "-", p.sb, p.eb, notes};
             emit_row(e, cells, 17);
         } else {
-            const char *cells[8] = {g->scene, g->label, k.n, k.med, sp, ef, sb, notes};
+            const char *cells[8] = {g->scene, g->label, k.n, k.med, p.sp, p.ef, p.sb, notes};
             emit_row(e, cells, 8);
         }
     }
@@ -338,14 +381,31 @@ static void table_configs(Emit *e, const HxStudy *s, const char *baseline, int w
  * threads). Suspect points are left out unless asked; the note says so, and
  * marks a fit whose serial fraction is outside [0, 1] or less than its
  * standard error from zero width. */
-typedef struct {
-    HxAmdahl f;
-    size_t np, left_out;
-    int distinct;
-    char note[128];
-    const char *scene, *sweep;
-    char *series; /* malloc'd */
-} Fit;
+
+/* The fit's note, in words and as codes (the default Markdown's). */
+static void fit_notes(Fit *out)
+{
+    const HxAmdahl *f = &out->f;
+    HxBuf n = {0}, c = {0};
+    if (f->ok && (f->serial_fraction < 0 || f->serial_fraction > 1)) {
+        hx_buf_printf(&n, "implausible: serial fraction outside [0, 1]");
+        add_code(&c, &out->used, FC_IMPL, "I");
+    } else if (f->ok && f->has_se && f->se_serial_fraction > fabs(f->serial_fraction)) {
+        hx_buf_printf(&n, "uncertain: std. error above the value");
+        add_code(&c, &out->used, FC_UNCERTAIN, "U");
+    }
+    if (out->left_out) {
+        hx_buf_printf(&n, "%s%s%zu suspect sample(s) left out", n.len ? "; " : "",
+                      f->ok ? "" : "no fit: too few points once ", out->left_out);
+        if (!f->ok)
+            add_code(&c, &out->used, FC_NOFIT, "no fit");
+        add_code(&c, &out->used, FC_LEFT, "L%zu", out->left_out);
+    }
+    snprintf(out->note, sizeof out->note, "%s", n.s ? n.s : "-");
+    snprintf(out->code, sizeof out->code, "%s", c.s ? c.s : "-");
+    hx_buf_free(&n);
+    hx_buf_free(&c);
+}
 
 static void fit_series(const HxStudy *s, size_t i, int second, int include_suspect, char *done, Fit *out)
 {
@@ -385,22 +445,12 @@ static void fit_series(const HxStudy *s, size_t i, int second, int include_suspe
         out->f.a = out->f.b = out->f.serial_fraction = NAN;
     free(p);
     free(t);
-    const HxAmdahl *f = &out->f;
-    HxBuf n = {0};
-    if (f->ok && (f->serial_fraction < 0 || f->serial_fraction > 1))
-        hx_buf_printf(&n, "implausible: serial fraction outside [0, 1]");
-    else if (f->ok && f->has_se && f->se_serial_fraction > fabs(f->serial_fraction))
-        hx_buf_printf(&n, "uncertain: std. error above the value");
-    if (out->left_out)
-        hx_buf_printf(&n, "%s%s%zu suspect sample(s) left out", n.len ? "; " : "",
-                      f->ok ? "" : "no fit: too few points once ", out->left_out);
-    snprintf(out->note, sizeof out->note, "%s", n.s ? n.s : "-");
-    hx_buf_free(&n);
+    fit_notes(out);
 }
 
 /* Every series' fit, the series over the swept dimension first, then the
- * hybrid series over threads; *n of them, malloc'd (fits_free). */
-static Fit *collect_fits(const HxStudy *s, int include_suspect, size_t *n)
+ * hybrid series over threads; *n of them, malloc'd (tab_fits_free). */
+Fit *tab_collect_fits(const HxStudy *s, int include_suspect, size_t *n)
 {
     Fit *fits = NULL;
     size_t cap = 0;
@@ -428,7 +478,7 @@ static Fit *collect_fits(const HxStudy *s, int include_suspect, size_t *n)
     return fits;
 }
 
-static void fits_free(Fit *fits, size_t n)
+void tab_fits_free(Fit *fits, size_t n)
 {
     for (size_t i = 0; i < n; i++)
         free(fits[i].series);
@@ -444,8 +494,16 @@ static void table_fits(Emit *e, const HxStudy *s, int include_suspect)
             hx_html_put(e->out, s->metric);
             fputs(" is a size.</p>\n", e->out);
         } else if (!e->csv) {
-            fprintf(e->out, "\nNo Amdahl fit: it applies to times and rates only, and %s is a size.\n", s->metric);
+            HxBuf b = {0};
+            hx_buf_printf(&b, "No Amdahl fit: it applies to times and rates only, and %s is a size.", s->metric);
+            fputc('\n', e->out);
+            hx_md_para(e->out, b.s);
+            hx_buf_free(&b);
         }
+        return;
+    }
+    if (e->compact) {
+        hx_md_fits(e->out, s, include_suspect);
         return;
     }
     char ah[48], bh[48];
@@ -455,25 +513,41 @@ static void table_fits(Emit *e, const HxStudy *s, int include_suspect)
     snprintf(bh, sizeof bh, s->higher ? "b (1/%s)" : "b %s", u);
     const char *const h[] = {"scene", "series", "sweep", "points", "serial fraction", "std. error", ah, bh, "note"};
     size_t n;
-    Fit *fits = collect_fits(s, include_suspect, &n);
+    Fit *fits = tab_collect_fits(s, include_suspect, &n);
     if (n)
         emit_header(e, "Amdahl fit T(p) = a + b/p per series (least squares over all samples)", h, 9);
     for (size_t i = 0; i < n; i++) {
         const Fit *f = &fits[i];
         char pts[16], fs[32], se[32], as[32], bs[32];
         snprintf(pts, sizeof pts, "%zu", f->np);
-        fmt_num(fs, sizeof fs, "%.4f", f->f.serial_fraction);
-        fmt_num(se, sizeof se, "%.4f", f->f.has_se ? f->f.se_serial_fraction : NAN);
-        fmt_ms(as, sizeof as, f->f.a);
-        fmt_ms(bs, sizeof bs, f->f.b);
+        tab_fmt_num(fs, sizeof fs, "%.4f", f->f.serial_fraction);
+        tab_fmt_num(se, sizeof se, "%.4f", f->f.has_se ? f->f.se_serial_fraction : NAN);
+        tab_fmt_ms(as, sizeof as, f->f.a);
+        tab_fmt_ms(bs, sizeof bs, f->f.b);
         const char *cells[9] = {f->scene, f->series, f->sweep, pts, fs, se, as, bs, f->note};
         emit_row(e, cells, 9);
     }
-    fits_free(fits, n);
+    tab_fits_free(fits, n);
+}
+
+void tab_cross_cell(const HxGroup *g, char *b, size_t n)
+{
+    if (g->nt)
+        tab_fmt_ms(b, n, g->median);
+    else if (g->ntimeout)
+        snprintf(b, n, "TLE");
+    else if (g->nwrong)
+        snprintf(b, n, "wrong-image");
+    else if (g->first_status)
+        snprintf(b, n, "%s", g->first_status);
 }
 
 static void table_cross(Emit *e, const HxStudy *s)
 {
+    if (e->compact) {
+        hx_md_cross_study(e->out, s);
+        return;
+    }
     size_t nl = s->labels.n;
     const char **hdr = hx_xmalloc((nl + 1) * sizeof *hdr);
     hdr[0] = "scene";
@@ -490,16 +564,8 @@ static void table_cross(Emit *e, const HxStudy *s)
             snprintf(cells[l + 1], 32, "-");
             for (size_t i = 0; i < s->ng; i++) {
                 const HxGroup *g = &s->g[i];
-                if (strcmp(g->scene, s->scenes.v[sc]) || strcmp(g->label, s->labels.v[l]))
-                    continue;
-                if (g->nt)
-                    fmt_ms(cells[l + 1], 32, g->median);
-                else if (g->ntimeout)
-                    snprintf(cells[l + 1], 32, "TLE");
-                else if (g->nwrong)
-                    snprintf(cells[l + 1], 32, "wrong-image");
-                else if (g->first_status)
-                    snprintf(cells[l + 1], 32, "%s", g->first_status);
+                if (strcmp(g->scene, s->scenes.v[sc]) == 0 && strcmp(g->label, s->labels.v[l]) == 0)
+                    tab_cross_cell(g, cells[l + 1], 32);
             }
         }
         emit_row(e, (const char *const *)cells, (int)nl + 1);
@@ -567,13 +633,13 @@ static void table_json(FILE *o, const HxStudy *s, const char *path, const char *
     fputs(",\n \"configurations\": [", o);
     for (size_t i = 0; i < s->ng; i++) {
         ConfigStats c;
-        config_stats(s, &s->g[i], baseline, &c);
+        tab_config_stats(s, &s->g[i], baseline, &c);
         fputs(i ? ",\n  " : "\n  ", o);
         json_config(o, &c, s->size);
     }
     fputs("],\n \"fits\": [", o);
     size_t n = 0;
-    Fit *fits = s->size ? NULL : collect_fits(s, include_suspect, &n);
+    Fit *fits = s->size ? NULL : tab_collect_fits(s, include_suspect, &n);
     for (size_t i = 0; i < n; i++) {
         const Fit *f = &fits[i];
         fputs(i ? ",\n  {\"scene\": " : "\n  {\"scene\": ", o);
@@ -588,18 +654,49 @@ static void table_json(FILE *o, const HxStudy *s, const char *path, const char *
         hx_json_kstr(o, "note", f->note);
         fputs("}", o);
     }
-    fits_free(fits, n);
+    tab_fits_free(fits, n);
     fputs("]}\n", o);
 }
 
 void hx_table_html(FILE *out, const HxStudy *s, const char *baseline)
 {
-    Emit e = {out, 0, 0, 1, 0};
+    Emit e = {out, 0, 0, 1, 0, 0};
     table_configs(&e, s, baseline, 0);
     table_fits(&e, s, 0);
     if (s->scenes.n > 1 || (s->scenes.n == 1 && strcmp(s->scenes.v[0], "-") != 0))
         table_cross(&e, s);
     emit_end(&e);
+}
+
+/* The study, its CSV, metric and baselines: lines wrapped to fit (the
+ * phrase "metric NAME" starts a line, for whoever looks for it). */
+static void study_head(const HxStudy *s, const char *path, const char *baseline, int compact)
+{
+    HxBuf b = {0};
+    hx_buf_printf(&b, "## Study %s", s->csv.nrows ? hx_csv_get(&s->csv, 0, "study") : "");
+    hx_md_para(stdout, b.s);
+    b.len = 0;
+    putchar('\n');
+    hx_buf_printf(&b, "From %s;", path);
+    hx_md_para(stdout, b.s);
+    b.len = 0;
+    if (s->size)
+        hx_buf_printf(&b, "metric %s (%s), a size: shown against 1 worker, no speedup", s->metric, s->unit);
+    else
+        hx_buf_printf(&b, "metric %s%s, baseline (b): %s %s", s->metric, s->higher ? ", higher is better" : "",
+                      s->higher ? "best" : "fastest", baseline);
+    hx_md_para(stdout, b.s);
+    if (s->ceil_path && !s->size) {
+        b.len = 0;
+        hx_buf_printf(&b, "Efficiency (a) also against this machine's ceiling from %s: \"0.750 (1.07 of 0.70)\" is "
+                      "1.07 of the 0.70 that independent copies keep at that many workers.", s->ceil_path);
+        hx_md_para(stdout, b.s);
+    }
+    unsigned keys = 0;
+    for (size_t i = 0; compact && i < s->labels.n; i++)
+        free(hx_md_label(s->labels.v[i], &keys));
+    hx_md_keys_legend(stdout, keys);
+    hx_buf_free(&b);
 }
 
 int hx_cmd_table(int argc, char **argv)
@@ -656,17 +753,10 @@ int hx_cmd_table(int argc, char **argv)
         hx_study_free(&s);
         return 0;
     }
-    Emit e = {stdout, strcmp(format, "csv") == 0, 0, 0, 0};
-    const char *study = s.csv.nrows ? hx_csv_get(&s.csv, 0, "study") : "";
-    if (!e.csv && s.size)
-        printf("## Study %s (%s, metric %s (%s), a size: shown against 1 worker, no speedup)\n", study,
-               argv[optind], metric, s.unit);
-    else if (!e.csv)
-        printf("## Study %s (%s, metric %s%s, baseline (b): %s %s)\n", study, argv[optind], metric,
-               s.higher ? ", higher is better" : "", s.higher ? "best" : "fastest", baseline);
-    if (!e.csv && s.ceil_path && !s.size)
-        printf("Efficiency (a) also against this machine's ceiling from %s: \"0.750 (1.07 of 0.70)\" is 1.07 of "
-               "the 0.70 that independent copies keep at that many workers.\n", s.ceil_path);
+    Emit e = {stdout, strcmp(format, "csv") == 0, 0, 0, 0, 0};
+    e.compact = !e.csv && !wide;
+    if (!e.csv)
+        study_head(&s, argv[optind], baseline, e.compact);
     table_configs(&e, &s, baseline, wide);
     table_fits(&e, &s, include_suspect);
     if (s.scenes.n > 1 || (s.scenes.n == 1 && strcmp(s.scenes.v[0], "-") != 0)) /* not a command study's */
