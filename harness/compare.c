@@ -13,6 +13,7 @@
  *    and a loaded run of the same code differed by 1.5x with p = 0.095).
  * A 2x slowdown passes both rules; scheduler noise on a quiet machine (a few
  * percent, occasionally one slow repeat) passes neither. */
+#include "compare.h"
 #include "hx.h"
 
 #include <getopt.h>
@@ -27,7 +28,7 @@ static const char *const counters[] = {"width", "height", "rays", "primary_rays"
 static void usage_compare(FILE *f)
 {
     fputs("usage: harness compare NEW.csv BASE.csv [--factor F] [--alpha A] [--metric COL]\n"
-          "                       [--min-ms MS] [--format text|json]\n"
+          "                       [--min-ms MS] [--format text|json|md] [--report URL]\n"
           "Flags regressions of NEW against BASE per configuration and exits 1 if any\n"
           "(an option left unset matches the default the renderer reports):\n"
           "  - any change of a work counter (rays, node_visits, prim_tests, ...) or of the\n"
@@ -41,7 +42,9 @@ static void usage_compare(FILE *f)
           "  --metric COL  time column, or COL/calib (default: render_ms/calib where both\n"
           "                studies ran with --calibrate, else render_ms)\n"
           "  --min-ms MS   base medians below MS are too short to judge (default 0.5)\n"
-          "  --format F    text (default) or json (schema: docs/harness.md)\n"
+          "  --format F    text (default), json (schema: docs/harness.md) or md (a summary\n"
+          "                for a pull-request comment, one screen long)\n"
+          "  --report URL  with md: a link to the full report\n"
           "  -h, --help    this text\n", f);
 }
 
@@ -137,44 +140,24 @@ static const HxGroup *match(const HxStudy *s, const HxStudy *gs, const HxGroup *
     return found;
 }
 
-typedef struct {
-    double factor, alpha, min_ms;
-    const char *unit;
-    int fp_differs;
-    int higher;      /* the metric is a rate: higher is better */
-} Rule;
-
-/* One configuration's verdict: REGRESSION, IMPROVEMENT, no change,
- * INCONCLUSIVE (the samples cannot tell), or new. */
-typedef struct {
-    const char *verdict, *scene, *label;
-    char *reason;
-    double base_median, new_median, ratio, p, min_ratio;
-    double ci_lo, ci_hi, mde; /* the ratio's 95% interval, the smallest detectable change */
-    long need;                /* repeats a side that would resolve the factor */
-    size_t n_new, n_base;
-} Verdict;
-
-typedef struct {
-    Verdict *v;
-    size_t n, cap;
-    int compared, regressions, improvements, inconclusive;
-} Verdicts;
-
-static Verdict *push_verdict(Verdicts *vs, const HxGroup *g, const char *verdict, const char *reason,
-                             const HxGroup *other)
+/* note: the whole reason (CMP_NOTE); NULL for the time rule, whose
+ * caller fills in the numbers and the kind. */
+static CmpVerdict *push_verdict(CmpVerdicts *vs, const HxGroup *g, const char *verdict, const char *note,
+                                const HxGroup *other)
 {
     if (vs->n == vs->cap) {
         vs->cap = vs->cap ? 2 * vs->cap : 16;
         vs->v = hx_xrealloc(vs->v, vs->cap * sizeof *vs->v);
     }
-    Verdict *v = &vs->v[vs->n++];
+    CmpVerdict *v = &vs->v[vs->n++];
     memset(v, 0, sizeof *v);
     v->verdict = verdict;
     v->scene = g->scene;
     v->label = g->label;
-    v->reason = hx_strdup(reason);
+    v->kind = CMP_NOTE;
+    v->note = note ? hx_strdup(note) : NULL;
     v->base_median = v->new_median = v->ratio = v->p = v->min_ratio = v->ci_lo = v->ci_hi = v->mde = NAN;
+    v->raw_base = v->raw_new = NAN;
     /* g is BASE's group, other NEW's; a "new" verdict has only NEW's */
     v->n_base = strcmp(verdict, "new") == 0 ? 0 : g->nt;
     v->n_new = strcmp(verdict, "new") == 0 ? g->nt : other ? other->nt : 0;
@@ -184,16 +167,16 @@ static Verdict *push_verdict(Verdicts *vs, const HxGroup *g, const char *verdict
     return v;
 }
 
-static void verdicts_free(Verdicts *vs)
+static void verdicts_free(CmpVerdicts *vs)
 {
     for (size_t i = 0; i < vs->n; i++)
-        free(vs->v[i].reason);
+        free(vs->v[i].note);
     free(vs->v);
 }
 
 /* Exact counters: any change, or two values in NEW, is a regression. */
 static int counters_changed(const HxStudy *nw, const HxStudy *base, const HxGroup *n, const HxGroup *b,
-                            Verdicts *vs)
+                            CmpVerdicts *vs)
 {
     int bad = 0;
     /* GPU images match within a tolerance, not bit for bit (the gate's rule) */
@@ -244,7 +227,7 @@ typedef struct {
     long need;
 } Resolution;
 
-static Resolution resolution(const HxGroup *n, const HxGroup *b, const Rule *rule)
+static Resolution resolution(const HxGroup *n, const HxGroup *b, const CmpRule *rule)
 {
     Resolution r = {NAN, NAN, NAN, 0};
     hx_bootstrap_ci(b->t, b->nt, n->t, n->nt, &r.lo, &r.hi);
@@ -262,7 +245,7 @@ static Resolution resolution(const HxGroup *n, const HxGroup *b, const Rule *rul
     return r;
 }
 
-static void judge_time(const HxGroup *n, const HxGroup *b, const Rule *rule, Verdicts *vs)
+static void judge_time(const HxGroup *n, const HxGroup *b, const CmpRule *rule, CmpVerdicts *vs)
 {
     /* ratio and rmin as costs, above 1 worse, whatever the direction */
     double ratio = n->median / b->median, rmin = best_sample(n, rule->higher) / best_sample(b, rule->higher);
@@ -270,48 +253,32 @@ static void judge_time(const HxGroup *n, const HxGroup *b, const Rule *rule, Ver
         ratio = 1.0 / ratio;
         rmin = 1.0 / rmin;
     }
-    HxBuf r = {0};
     if (b->raw_median < rule->min_ms) { /* render_ms, whatever the metric */
-        hx_buf_printf(&r, "time %.3f -> %.3f ms too short to judge (< %.3g ms)", b->raw_median, n->raw_median,
-                      rule->min_ms);
-        push_verdict(vs, b, "INCONCLUSIVE", r.s, n);
-        hx_buf_free(&r);
+        CmpVerdict *v = push_verdict(vs, b, "INCONCLUSIVE", NULL, n);
+        v->kind = CMP_SHORT;
+        v->raw_base = b->raw_median;
+        v->raw_new = n->raw_median;
         return;
     }
     double p = NAN;
     int slow, fast;
-    char how[160];
     if (b->nt >= 4 && n->nt >= 4) {
         p = hx_mann_whitney_p(n->t, n->nt, b->t, b->nt);
         /* the minimum must move too: noise on a busy machine only ever adds
          * time, so it inflates medians but rarely the fastest run */
         slow = ratio > rule->factor && p < rule->alpha && rmin > rule->factor;
         fast = ratio < 1.0 / rule->factor && p < rule->alpha && rmin < 1.0 / rule->factor;
-        snprintf(how, sizeof how, "Mann-Whitney p=%.4f, min ratio %.2f, n=%zu/%zu", p, rmin, n->nt, b->nt);
     } else {
         slow = ratio > rule->factor && rmin > rule->factor;
         fast = ratio < 1.0 / rule->factor && rmin < 1.0 / rule->factor;
-        snprintf(how, sizeof how, "min ratio %.2f, n=%zu/%zu (too few for a test)", rmin, n->nt, b->nt);
     }
     Resolution res = resolution(n, b, rule);
     /* "no change" only where the interval rules out the asked factor both
      * ways; anything else that is not a verdict is inconclusive */
     int none = res.lo > 1.0 / rule->factor && res.hi < rule->factor;
     const char *verdict = slow ? "REGRESSION" : fast ? "IMPROVEMENT" : none ? "no change" : "INCONCLUSIVE";
-    hx_buf_printf(&r, "median %.3f -> %.3f%s%s, %s %.3f [%.3f, %.3f] (%s)%s", b->median, n->median,
-                  *rule->unit ? " " : "", rule->unit, rule->higher ? "cost ratio (base/new)" : "ratio", ratio, res.lo,
-                  res.hi, how, (slow || fast) && rule->fp_differs ? " [different machines]" : "");
-    if (n->nbusy || b->nbusy || n->nstolen || b->nstolen) /* the noise the rows recorded */
-        hx_buf_printf(&r, "; noisy rows: busy %zu/%zu new, %zu/%zu base; CPU steal %zu/%zu new, %zu/%zu base",
-                      n->nbusy, n->nrows, b->nbusy, b->nrows, n->nstolen, n->nrows, b->nstolen, b->nrows);
-    if (none && (res.lo > 1.0 || res.hi < 1.0))
-        hx_buf_printf(&r, "; a change of x%.2f, within the factor %.2f", ratio, rule->factor);
-    if (!slow && !fast && !none && isfinite(res.mde))
-        hx_buf_printf(&r, "; at this noise only changes beyond x%.2f are detectable, about %ld repeats a side "
-                          "would resolve x%.2f", res.mde, res.need, rule->factor);
-    else if (!slow && !fast && !none)
-        hx_buf_put(&r, "; too few samples for an interval (3 a side at least)");
-    Verdict *v = push_verdict(vs, b, verdict, r.s, n);
+    CmpVerdict *v = push_verdict(vs, b, verdict, NULL, n);
+    v->kind = CMP_TIME;
     v->base_median = b->median;
     v->new_median = n->median;
     v->ratio = ratio;
@@ -321,10 +288,48 @@ static void judge_time(const HxGroup *n, const HxGroup *b, const Rule *rule, Ver
     v->ci_hi = res.hi;
     v->mde = res.mde;
     v->need = res.need;
-    hx_buf_free(&r);
+    v->busy[0] = n->nbusy, v->busy[1] = b->nbusy;
+    v->stolen[0] = n->nstolen, v->stolen[1] = b->nstolen;
+    v->rows[0] = n->nrows, v->rows[1] = b->nrows;
 }
 
-static void judge(const HxStudy *nw, const HxStudy *base, const HxGroup *b, const Rule *rule, Verdicts *vs)
+void hx_cmp_reason(HxBuf *r, const CmpVerdict *v, const CmpRule *rule)
+{
+    if (v->kind == CMP_NOTE) {
+        hx_buf_put(r, v->note ? v->note : "");
+        return;
+    }
+    if (v->kind == CMP_SHORT) {
+        hx_buf_printf(r, "time %.3f -> %.3f ms too short to judge (< %.3g ms)", v->raw_base, v->raw_new,
+                      rule->min_ms);
+        return;
+    }
+    int judged = strcmp(v->verdict, "REGRESSION") == 0 || strcmp(v->verdict, "IMPROVEMENT") == 0;
+    char how[160];
+    if (isfinite(v->p)) /* the test ran: 4 samples a side or more */
+        snprintf(how, sizeof how, "Mann-Whitney p=%.4f, min ratio %.2f, n=%zu/%zu", v->p, v->min_ratio, v->n_new,
+                 v->n_base);
+    else
+        snprintf(how, sizeof how, "min ratio %.2f, n=%zu/%zu (too few for a test)", v->min_ratio, v->n_new,
+                 v->n_base);
+    hx_buf_printf(r, "median %.3f -> %.3f%s%s, %s %.3f [%.3f, %.3f] (%s)%s", v->base_median, v->new_median,
+                  *rule->unit ? " " : "", rule->unit, rule->higher ? "cost ratio (base/new)" : "ratio", v->ratio,
+                  v->ci_lo, v->ci_hi, how, judged && rule->fp_differs ? " [different machines]" : "");
+    if (v->busy[0] || v->busy[1] || v->stolen[0] || v->stolen[1]) /* the noise the rows recorded */
+        hx_buf_printf(r, "; noisy rows: busy %zu/%zu new, %zu/%zu base; CPU steal %zu/%zu new, %zu/%zu base",
+                      v->busy[0], v->rows[0], v->busy[1], v->rows[1], v->stolen[0], v->rows[0], v->stolen[1],
+                      v->rows[1]);
+    int none = strcmp(v->verdict, "no change") == 0;
+    if (none && (v->ci_lo > 1.0 || v->ci_hi < 1.0))
+        hx_buf_printf(r, "; a change of x%.2f, within the factor %.2f", v->ratio, rule->factor);
+    if (!judged && !none && isfinite(v->mde))
+        hx_buf_printf(r, "; at this noise only changes beyond x%.2f are detectable, about %ld repeats a side "
+                         "would resolve x%.2f", v->mde, v->need, rule->factor);
+    else if (!judged && !none)
+        hx_buf_put(r, "; too few samples for an interval (3 a side at least)");
+}
+
+static void judge(const HxStudy *nw, const HxStudy *base, const HxGroup *b, const CmpRule *rule, CmpVerdicts *vs)
 {
     const HxGroup *n = match(nw, base, b);
     if (!n) {
@@ -372,18 +377,21 @@ int hx_judge_samples(const char *label, double *nw, size_t nn, double *base, siz
     HxGroup gn, gb;
     sample_group(&gn, label, nw, nn);
     sample_group(&gb, label, base, nb);
-    Rule rule = {factor, alpha, 0.0, unit, 0, higher};
-    Verdicts vs = {0};
+    CmpRule rule = {factor, alpha, 0.0, unit, 0, higher};
+    CmpVerdicts vs = {0};
     judge_time(&gn, &gb, &rule, &vs);
     *verdict = vs.v[0].verdict;
-    hx_put_clean_line(stdout, "%s %s: %s", vs.v[0].verdict, label, vs.v[0].reason);
+    HxBuf why = {0};
+    hx_cmp_reason(&why, &vs.v[0], &rule);
+    hx_put_clean_line(stdout, "%s %s: %s", vs.v[0].verdict, label, why.s);
+    hx_buf_free(&why);
     int bad = vs.regressions > 0;
     verdicts_free(&vs);
     return bad;
 }
 
 /* --format json (schema: docs/harness.md, "JSON output") */
-static void print_json(const Verdicts *vs, const Rule *rule, const char *new_csv, const char *base_csv,
+static void print_json(const CmpVerdicts *vs, const CmpRule *rule, const char *new_csv, const char *base_csv,
                        const char *metric)
 {
     FILE *o = stdout;
@@ -397,7 +405,7 @@ static void print_json(const Verdicts *vs, const Rule *rule, const char *new_csv
            " \"inconclusive\": %d,\n \"verdicts\": [",
            rule->fp_differs ? "true" : "false", vs->compared, vs->regressions, vs->improvements, vs->inconclusive);
     for (size_t i = 0; i < vs->n; i++) {
-        const Verdict *v = &vs->v[i];
+        const CmpVerdict *v = &vs->v[i];
         fputs(i ? ",\n  {\"verdict\": " : "\n  {\"verdict\": ", o);
         hx_json_str(o, v->verdict);
         hx_json_kstr(o, "scene", v->scene);
@@ -412,10 +420,28 @@ static void print_json(const Verdicts *vs, const Rule *rule, const char *new_csv
         hx_json_num(o, "repeats_needed", v->need > 0 ? (double)v->need : NAN);
         hx_json_num(o, "n_base", (double)v->n_base);
         hx_json_num(o, "n_new", (double)v->n_new);
-        hx_json_kstr(o, "reason", v->reason);
+        HxBuf why = {0};
+        hx_cmp_reason(&why, v, rule);
+        hx_json_kstr(o, "reason", why.s);
+        hx_buf_free(&why);
         fputc('}', o);
     }
     printf("]}\n");
+}
+
+/* --format text: a line per verdict (the names cleaned: a newline in a
+ * scene would fake a line), then the counts. */
+static void print_text(const CmpVerdicts *vs, const CmpRule *rule)
+{
+    for (size_t k = 0; k < vs->n; k++) {
+        HxBuf why = {0};
+        hx_cmp_reason(&why, &vs->v[k], rule);
+        hx_put_clean_line(stdout, "%s %s %s: %s", vs->v[k].verdict, vs->v[k].scene, vs->v[k].label, why.s);
+        hx_buf_free(&why);
+    }
+    printf("compare: %d configuration(s) compared, %d regression(s), %d improvement(s), %d inconclusive "
+           "(factor %.2f, alpha %.3g)\n", vs->compared, vs->regressions, vs->improvements, vs->inconclusive,
+           rule->factor, rule->alpha);
 }
 
 /* 1 when every ok row of the CSV carries calib_ms (raytrace --calibrate). */
@@ -459,11 +485,23 @@ static double calib_spread(const HxCsv *csv, char *where, size_t n)
     return worst;
 }
 
+enum { FMT_TEXT, FMT_JSON, FMT_MD };
+
+/* A note beside the verdicts: text prints it at once, md keeps it for the
+ * end of its summary (its first line must be the verdict), JSON has none. */
+static void say_note(int fmt, HxStrList *notes, const char *s)
+{
+    if (fmt == FMT_TEXT)
+        hx_put_clean_line(stdout, "NOTE %s", s);
+    else if (fmt == FMT_MD)
+        hx_strlist_push(notes, s);
+}
+
 /* A time divided by the calibration only helps while the calibration
  * varies less than the change it should reveal. Refused (-1, one line)
  * when asked for; else replaced by the plain time with a note. */
-static int calib_refused(HxStudy *nw, HxStudy *base, const char *nw_path, const char *base_path, double factor,
-                         int asked, int json, const char **metric)
+static int calib_refused(HxStudy *nw, HxStudy *base, char **paths, double factor, int asked, int fmt,
+                         HxStrList *notes, const char **metric)
 {
     char where[2][512] = {"", ""};
     double spread[2] = {calib_spread(&nw->csv, where[0], sizeof where[0]),
@@ -471,16 +509,17 @@ static int calib_refused(HxStudy *nw, HxStudy *base, const char *nw_path, const 
     int k = spread[1] > spread[0];
     if (spread[k] <= factor)
         return 0;
-    const char *path = k ? base_path : nw_path;
     if (asked) {
         hx_put_clean_line(stderr, "harness compare: --metric %s refused: the calibration varies x%.1f within %s of "
                           "%s, more than the factor %.2f it should reveal; compare the plain time", *metric,
-                          spread[k], where[k], path, factor);
+                          spread[k], where[k], paths[k], factor);
         return -1;
     }
-    if (!json)
-        hx_put_clean_line(stdout, "NOTE render_ms/calib not used: the calibration varies x%.1f within %s of %s, "
-                          "more than the factor %.2f; comparing render_ms", spread[k], where[k], path, factor);
+    HxBuf b = {0};
+    hx_buf_printf(&b, "render_ms/calib not used: the calibration varies x%.1f within %s of %s, more than the "
+                  "factor %.2f; comparing render_ms", spread[k], where[k], paths[k], factor);
+    say_note(fmt, notes, b.s);
+    hx_buf_free(&b);
     *metric = "render_ms";
     return 0;
 }
@@ -488,9 +527,23 @@ static int calib_refused(HxStudy *nw, HxStudy *base, const char *nw_path, const 
 /* compare's options. */
 typedef struct {
     double factor, alpha, min_ms;
-    int json;
-    const char *metric;
+    int fmt;
+    const char *metric, *report;
 } CompareOpts;
+
+/* --format's value into o->fmt; 0, or -1 with one line said (the wording
+ * of `table --format`). */
+static int parse_format(const char *v, CompareOpts *o)
+{
+    static const char *const names[] = {"text", "json", "md"}; /* FMT_ order */
+    for (int k = 0; k < 3; k++)
+        if (strcmp(v, names[k]) == 0) {
+            o->fmt = k;
+            return 0;
+        }
+    hx_put_clean_line(stderr, "harness compare: --format: expected text, json or md, got '%s'", v);
+    return -1;
+}
 
 /* Parses the options into o. -1: go on; else the exit status (--help 0,
  * a bad option 1). */
@@ -499,12 +552,12 @@ static int compare_opts(int argc, char **argv, CompareOpts *o)
     static const struct option lo[] = {
         {"factor", required_argument, NULL, 'f'}, {"alpha", required_argument, NULL, 'a'},
         {"metric", required_argument, NULL, 'm'}, {"min-ms", required_argument, NULL, 'n'},
-        {"format", required_argument, NULL, 'F'},
+        {"format", required_argument, NULL, 'F'}, {"report", required_argument, NULL, 'r'},
         {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
     /* defaults from 20 reruns of unchanged code on the noisy 2-core machine
      * (docs/harness.md, "False alarms"): calibrated times and 1.8 raised
      * none; plain render_ms at 1.5 raised 2 */
-    *o = (CompareOpts){1.8, 0.05, 0.5, 0, NULL};
+    *o = (CompareOpts){1.8, 0.05, 0.5, FMT_TEXT, NULL, NULL};
     int c;
     while ((c = getopt_long(argc, argv, "h", lo, NULL)) != -1) {
         switch (c) {
@@ -528,17 +581,91 @@ static int compare_opts(int argc, char **argv, CompareOpts *o)
             break;
         case 'm': o->metric = optarg; break;
         case 'F':
-            if (strcmp(optarg, "text") != 0 && strcmp(optarg, "json") != 0) {
-                fprintf(stderr, "harness compare: --format: expected text or json, got '%s'\n", optarg);
+            if (parse_format(optarg, o) != 0)
                 return 1;
-            }
-            o->json = strcmp(optarg, "json") == 0;
             break;
+        case 'r': o->report = optarg; break;
         case 'h': usage_compare(stdout); return 0;
         default: usage_compare(stderr); return 1;
         }
     }
+    if (o->report && (o->fmt != FMT_MD || !*o->report)) {
+        fprintf(stderr, "harness compare: --report: %s\n",
+                *o->report ? "only with --format md (the link is in its summary)" : "expected a URL, got ''");
+        return 1;
+    }
     return -1;
+}
+
+/* Reads both CSVs (paths: NEW, BASE) and builds their studies on one
+ * metric, whose default depends on what both hold. 0, or 1 with one line
+ * said and nothing left to free. */
+static int compare_load(char **paths, const CompareOpts *o, HxStudy *nw, HxStudy *base, HxStrList *notes)
+{
+    memset(nw, 0, sizeof *nw);
+    memset(base, 0, sizeof *base);
+    const char *metric = o->metric;
+    char err[512];
+    if (hx_csv_read(paths[0], &nw->csv, err, sizeof err) != 0) {
+        fprintf(stderr, "harness compare: %s\n", err);
+        return 1;
+    }
+    if (hx_csv_read(paths[1], &base->csv, err, sizeof err) != 0) {
+        fprintf(stderr, "harness compare: %s\n", err);
+        hx_csv_free(&nw->csv);
+        return 1;
+    }
+    /* raytrace's rows (a command study's have no render_ms) */
+    if (!metric && hx_csv_has_values(&nw->csv, "render_ms") && hx_csv_has_values(&base->csv, "render_ms")) {
+        /* calibrated times where both studies have them (--calibrate) */
+        int calibrated = has_calib(&nw->csv) && has_calib(&base->csv);
+        metric = calibrated ? "render_ms/calib" : "render_ms";
+        if (!calibrated)
+            say_note(o->fmt, notes, "times are not calibrated (run the studies with extra_args: --calibrate): on a "
+                     "noisy machine expect a false alarm now and then (docs/harness.md, \"False alarms\")");
+    }
+    if (metric && strstr(metric, "/calib") &&
+        calib_refused(nw, base, paths, o->factor, o->metric != NULL, o->fmt, notes, &metric) != 0) {
+        hx_csv_free(&nw->csv);
+        hx_csv_free(&base->csv);
+        return 1;
+    }
+    if (hx_study_build(paths[0], metric, nw, err, sizeof err) != 0) {
+        fprintf(stderr, "harness compare: %s\n", err);
+        hx_csv_free(&base->csv);
+        return 1;
+    }
+    if (hx_study_build(paths[1], metric, base, err, sizeof err) != 0) {
+        fprintf(stderr, "harness compare: %s\n", err);
+        hx_study_free(nw);
+        return 1;
+    }
+    return 0;
+}
+
+/* Whether the two studies ran on different machines (fingerprints); text
+ * lists both sides' fingerprints, md keeps a note. */
+static int machines_differ(const HxStudy *nw, const HxStudy *base, int fmt, HxStrList *notes)
+{
+    HxStrList fpn = {0}, fpb = {0};
+    fingerprints(nw, &fpn);
+    fingerprints(base, &fpb);
+    int differ = fpn.n != fpb.n;
+    for (size_t i = 0; i < fpn.n && !differ; i++)
+        differ = hx_strlist_find(&fpb, fpn.v[i]) < 0;
+    if (differ && fmt == FMT_TEXT) {
+        printf("NOTE machine fingerprints differ: times below compare different machines\n");
+        for (size_t i = 0; i < fpb.n; i++)
+            hx_put_clean_line(stdout, "  base: %s", fpb.v[i]);
+        for (size_t i = 0; i < fpn.n; i++)
+            hx_put_clean_line(stdout, "  new:  %s", fpn.v[i]);
+    } else if (differ && fmt == FMT_MD) {
+        hx_strlist_push(notes, "machine fingerprints differ (CPU, cores, SMT, governor, compiler or GPU): the "
+                        "times compare different machines");
+    }
+    hx_strlist_free(&fpn);
+    hx_strlist_free(&fpb);
+    return differ;
 }
 
 int hx_cmd_compare(int argc, char **argv)
@@ -547,85 +674,37 @@ int hx_cmd_compare(int argc, char **argv)
     int orc = compare_opts(argc, argv, &o);
     if (orc >= 0)
         return orc;
-    double factor = o.factor, alpha = o.alpha, min_ms = o.min_ms;
-    int json = o.json;
-    const char *metric = o.metric;
     if (argc - optind != 2) {
         fprintf(stderr, "harness compare: expected NEW.csv BASE.csv (see --help)\n");
         return 1;
     }
     /* each CSV read once: the metric depends on what both hold */
     HxStudy nw, base;
-    memset(&nw, 0, sizeof nw);
-    memset(&base, 0, sizeof base);
-    char err[512];
-    if (hx_csv_read(argv[optind], &nw.csv, err, sizeof err) != 0) {
-        fprintf(stderr, "harness compare: %s\n", err);
+    HxStrList notes = {0};
+    if (compare_load(argv + optind, &o, &nw, &base, &notes) != 0) {
+        hx_strlist_free(&notes);
         return 1;
     }
-    if (hx_csv_read(argv[optind + 1], &base.csv, err, sizeof err) != 0) {
-        fprintf(stderr, "harness compare: %s\n", err);
-        hx_csv_free(&nw.csv);
-        return 1;
-    }
-    /* raytrace's rows (a command study's have no render_ms) */
-    if (!metric && hx_csv_has_values(&nw.csv, "render_ms") && hx_csv_has_values(&base.csv, "render_ms")) {
-        /* calibrated times where both studies have them (--calibrate) */
-        int calibrated = has_calib(&nw.csv) && has_calib(&base.csv);
-        metric = calibrated ? "render_ms/calib" : "render_ms";
-        if (!calibrated && !json)
-            printf("NOTE times are not calibrated (run the studies with extra_args: --calibrate): on a noisy "
-                   "machine expect a false alarm now and then (docs/harness.md, \"False alarms\")\n");
-    }
-    if (metric && strstr(metric, "/calib") && calib_refused(&nw, &base, argv[optind], argv[optind + 1], factor,
-                                                           o.metric != NULL, json, &metric) != 0) {
-        hx_csv_free(&nw.csv);
-        hx_csv_free(&base.csv);
-        return 1;
-    }
-    if (hx_study_build(argv[optind], metric, &nw, err, sizeof err) != 0) {
-        fprintf(stderr, "harness compare: %s\n", err);
-        hx_csv_free(&base.csv);
-        return 1;
-    }
-    if (hx_study_build(argv[optind + 1], metric, &base, err, sizeof err) != 0) {
-        fprintf(stderr, "harness compare: %s\n", err);
-        hx_study_free(&nw);
-        return 1;
-    }
-    HxStrList fpn = {0}, fpb = {0};
-    fingerprints(&nw, &fpn);
-    fingerprints(&base, &fpb);
-    int fp_differs = fpn.n != fpb.n;
-    for (size_t i = 0; i < fpn.n && !fp_differs; i++)
-        fp_differs = hx_strlist_find(&fpb, fpn.v[i]) < 0;
-    if (fp_differs && !json) {
-        printf("NOTE machine fingerprints differ: times below compare different machines\n");
-        for (size_t i = 0; i < fpb.n; i++)
-            printf("  base: %s\n", fpb.v[i]);
-        for (size_t i = 0; i < fpn.n; i++)
-            printf("  new:  %s\n", fpn.v[i]);
-    }
-    metric = nw.metric; /* a command study's default, its unit and direction */
-    Rule rule = {factor, alpha, min_ms, nw.unit, fp_differs, nw.higher};
-    Verdicts v = {0};
+    int fp_differs = machines_differ(&nw, &base, o.fmt, &notes);
+    /* nw.metric: a command study's default, its unit and direction */
+    CmpRule rule = {o.factor, o.alpha, o.min_ms, nw.unit, fp_differs, nw.higher};
+    CmpVerdicts v = {0};
     for (size_t i = 0; i < base.ng; i++)
         judge(&nw, &base, &base.g[i], &rule, &v);
     for (size_t k = 0; k < nw.ng; k++)
         if (!match(&base, &nw, &nw.g[k]))
             push_verdict(&v, &nw.g[k], "new", "not in the baseline (not compared)", NULL);
-    if (json)
-        print_json(&v, &rule, argv[optind], argv[optind + 1], metric);
-    else
-        for (size_t k = 0; k < v.n; k++)
-            printf("%s %s %s: %s\n", v.v[k].verdict, v.v[k].scene, v.v[k].label, v.v[k].reason);
-    if (!json)
-        printf("compare: %d configuration(s) compared, %d regression(s), %d improvement(s), %d inconclusive "
-               "(factor %.2f, alpha %.3g)\n", v.compared, v.regressions, v.improvements, v.inconclusive, factor, alpha);
+    if (o.fmt == FMT_JSON) {
+        print_json(&v, &rule, argv[optind], argv[optind + 1], nw.metric);
+    } else if (o.fmt == FMT_MD) {
+        CmpMdInfo info = {&nw, &base, nw.metric, &notes, o.report};
+        hx_cmp_print_md(stdout, &v, &rule, &info);
+    } else {
+        print_text(&v, &rule);
+    }
     int regressions = v.regressions;
     verdicts_free(&v);
-    hx_strlist_free(&fpn);
-    hx_strlist_free(&fpb);
+    hx_strlist_free(&notes);
     hx_study_free(&nw);
     hx_study_free(&base);
     return regressions ? 1 : 0;

@@ -71,4 +71,83 @@ awk -F, -v OFS=, 'NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; print; next }
                   { print }' unset.csv > crash1.csv
 "$H" compare crash1.csv set.csv > c5.out || { cat c5.out; fail "a crashed first repeat made the configuration missing"; }
 grep -q "1 configuration(s) compared, 0 regression(s)" c5.out || { cat c5.out; fail "crash1 not compared as one configuration"; }
+# --format md, the pull-request summary. many: a study of N scenes s00..
+# made from IN's rows, its commit and CPU set, and per scene a change:
+# "s17=2" scales render_ms, "s05=1.25,1.3,5,6,1.2" sets the samples
+many() { # IN OUT N COMMIT CPU "SCENE=CHANGE ..."
+    python3 - "$@" <<'PY'
+import csv, sys
+src, out, n, commit, cpu = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5]
+plan = dict(p.split("=", 1) for p in sys.argv[6].split()) if len(sys.argv) > 6 else {}
+rows = list(csv.DictReader(open(src)))
+res = []
+for k in range(n):
+    name = "s%02d" % k
+    for i, r in enumerate(rows):
+        r = dict(r, scene=name, git_commit=commit, cpu_model=cpu)
+        r["run_id"] = r["run_id"].replace("scene=ok", "scene=" + name)
+        vals = plan.get(name, "1").split(",")
+        r["render_ms"] = str(float(r["render_ms"]) * float(vals[0])) if len(vals) == 1 else vals[i % len(vals)]
+        res.append(r)
+w = csv.DictWriter(open(out, "w", newline=""), fieldnames=list(rows[0].keys()), lineterminator="\n")
+w.writeheader()
+w.writerows(res)
+PY
+}
+# table rows of a summary: lines starting with "| " after the separator
+md_rows() { awk '/^\|---/ { t = 1; next } t && /^\| / { print } t && !/^\|/ { t = 0 }' "$1"; }
+many set.csv m-base.csv 40 def5678 "Test CPU 9000"
+many set.csv m-new.csv 40 abc1234 "Test CPU 9000" "s17=2 s05=1.25,1.3,5,6,1.2 s30=0.5"
+"$H" compare --format md m-new.csv m-base.csv > md1.out && { cat md1.out; fail "md: a 2x slowdown passed"; }
+# the verdict first: counts, metric, factor, both commits, the CPU in words
+head -n 1 md1.out | grep -q '^\*\*FAIL\*\*: \*\*1 regression\*\*, 1 improvement, 37 no change, 1 inconclusive in render\\_ms at factor 1\.80 (alpha 0\.05); new: study c, commit abc1234; base: study c, commit def5678; machine: Test CPU 9000$' ||
+    { cat md1.out; fail "md: verdict line"; }
+# regressions, then inconclusive, then improvements; "no change" in one line
+md_rows md1.out > md1.rows
+[ "$(wc -l < md1.rows)" -eq 3 ] || { cat md1.out; fail "md: 3 rows expected"; }
+awk 'NR == 1 && /^\| \*\*REGRESSION\*\* \| s17 \| .* \| 2\.00 \[2\.00, 2\.00\] \| 0\.[0-9]+ \|/ { a++ }
+     NR == 2 && /^\| INCONCLUSIVE \| s05 \| .* \| x[0-9.]+ \| [0-9]+ \|/ { a++ }
+     NR == 3 && /^\| IMPROVEMENT \| s30 \|/ { a++ } END { exit a != 3 }' md1.rows || { cat md1.out; fail "md: row order"; }
+grep -q '^_Not shown (37): 37 no change; ' md1.out || { cat md1.out; fail "md: no change not collapsed"; }
+# the inconclusive row carries the values the text line says, computed once
+"$H" compare m-new.csv m-base.csv > md1.txt
+mde=$(sed -n 's/^INCONCLUSIVE s05 .*changes beyond \(x[0-9.]*\) are detectable, about \([0-9]*\) repeats.*/\1 | \2/p' md1.txt)
+[ -n "$mde" ] && grep -qF "| $mde |" md1.rows || { cat md1.txt md1.rows; fail "md: detectable change differs from text's"; }
+# many regressions: still one screen, the rest counted in one line
+many set.csv m-slow.csv 40 abc1234 "Test CPU 9000" "$(for k in $(seq 10 34); do printf 's%02d=2 ' "$k"; done)"
+"$H" compare --format md m-slow.csv m-base.csv > md2.out && fail "md: 25 regressions passed"
+[ "$(md_rows md2.out | wc -l)" -eq 15 ] && [ "$(wc -l < md2.out)" -le 40 ] || { cat md2.out; fail "md: longer than a screen"; }
+md_rows md2.out | grep -vq '^| \*\*REGRESSION\*\* ' && { cat md2.out; fail "md: a row that is not a regression shown first"; }
+grep -q '^_Not shown (25): 10 regressions, 15 no change; ' md2.out || { cat md2.out; fail "md: rest line"; }
+# a hostile scene name and a report URL: text in the cell, never markup
+python3 - slow.csv hostile-new.csv unset.csv hostile-base.csv <<'PY'
+import csv, sys
+for src, out in ((sys.argv[1], sys.argv[2]), (sys.argv[3], sys.argv[4])):
+    rows = list(csv.DictReader(open(src)))
+    for r in rows:
+        r["scene"] = "<script>|x`y\nz"
+    w = csv.DictWriter(open(out, "w", newline=""), fieldnames=list(rows[0].keys()), lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+PY
+"$H" compare --format md --report $'https://ci.example/r?a=1&b=(2)<x>\n[y]' hostile-new.csv hostile-base.csv > md3.out &&
+    fail "md: hostile: a 2x slowdown passed"
+md_rows md3.out > md3.rows
+grep -qF '| **REGRESSION** | &lt;script&gt;\|x\`y z |' md3.rows || { cat md3.out; fail "md: scene not escaped"; }
+grep -q '<script\|<x>\|^z' md3.out && { cat md3.out; fail "md: raw markup or a broken row"; }
+# every row as many cells as the header: no unescaped | from the CSV
+awk '/^\|/ { gsub(/\\\|/, ""); n = gsub(/\|/, ""); if (!c) c = n; else if (n != c) bad = 1 } END { exit bad || !c }' md3.out ||
+    { cat md3.out; fail "md: a row with more cells"; }
+[ "$(tail -n 1 md3.out)" = '[Full report](https://ci.example/r?a=1&b=%282%29%3Cx%3E%0A%5By%5D)' ] ||
+    { cat md3.out; fail "md: report link"; }
+# no regression: PASS and exit 0, as text
+"$H" compare --format md fast.csv unset.csv > md4.out || { cat md4.out; fail "md: an improvement failed"; }
+head -n 1 md4.out | grep -q '^\*\*PASS\*\*: 0 regressions, 1 improvement, 0 no change, 0 inconclusive ' || { cat md4.out; fail "md: PASS line"; }
+# a bad --format names the option in one line; --report only with md
+"$H" compare --format html slow.csv unset.csv > bad.out 2> bad.err && fail "--format html accepted"
+[ "$(cat bad.err)" = "harness compare: --format: expected text, json or md, got 'html'" ] && [ ! -s bad.out ] ||
+    fail "bad --format: $(cat bad.err)"
+"$H" compare --report https://x slow.csv unset.csv > /dev/null 2> bad.err && fail "--report without md accepted"
+[ "$(wc -l < bad.err)" -eq 1 ] && grep -q -- '--report: only with --format md' bad.err || fail "--report: $(cat bad.err)"
+cat md1.out md3.out
 echo "compare test passed"
