@@ -408,6 +408,9 @@ void hx_plot_head(FILE *gp, const HxPlot *c, const char *kind, const char *title
 void hx_plot_tail(FILE *gp, const HxPlot *c, const char *kind);
 /* Closes both files and runs gnuplot; counts made and failures. */
 void hx_plot_finish(HxPlot *c, const char *kind, FILE *gp, FILE *dat);
+/* The same head for a multiplot, whose BODY is written once per terminal. */
+void hx_plot_multi(FILE *gp, const HxPlot *c, const char *kind, const char *title, int rows, int cols,
+                   const char *body, int w, int h);
 /* fprintf of fmt with one %s: s (or "BASE-KIND.EXT") quoted for gnuplot */
 void hx_plot_put(FILE *gp, const char *fmt, const char *s);
 void hx_plot_file(FILE *gp, const char *fmt, const char *base, const char *kind, const char *ext);
@@ -486,6 +489,21 @@ typedef struct {
     double *ceil_r;      /* of a lone worker's speed */
     char *ceil_path;
 } HxStudy;
+
+/* ---- plots of a study (plot.c, plot_sweep.c) ---- */
+/* "STUDY: WHAT", a new line, "on CPU, N cores, GPU" into t. */
+void hx_plot_title(HxBuf *t, const HxStudy *s, const char *what);
+/* Words every legend title shares, taken out of each into *common. */
+void hx_plot_legend(HxStrList *titles, HxBuf *common);
+/* Plot terms for DAT's block k of one-configuration series: labelled
+ * markers, one legend entry; last: the plot command ends there. */
+void hx_plot_markers(FILE *gp, const HxPlot *c, const char *kind, int k, int last);
+/* Tics at 1, 2 and 5 of each decade of [lo, hi] (finer within a decade) on a log axis ("x", "y"). */
+void hx_plot_log_tics(FILE *gp, const char *axis, double lo, double hi);
+/* PREFIX-blocks (a heatmap per scene) and PREFIX-sweep (the metric over
+ * a swept size); each says on stdout when the study has nothing for it. */
+void hx_plot_blocks(HxPlot *c, const HxStudy *s);
+void hx_plot_sweep(HxPlot *c, const HxStudy *s);
 
 /* The analysis of s->csv, already read (everything else in s zero); on
  * failure s->csv is freed. hx_study_load is hx_csv_read and this. metric
