@@ -1,11 +1,13 @@
-/* history.c: `harness history add|show|plot|check`: performance across
- * commits, in SQLite.
+/* history.c: `harness history add|show|plot|check|publish`: performance
+ * across commits, in SQLite.
  *
  * A study's CSV stays the per-study output; the database is the memory
  * across studies. Every CSV row becomes a run (its configuration, commit,
  * machine fingerprint, config hash and time) with its values, one per
  * column and per `extra` key (EAV, so new record keys need no migration):
- * history_db.c holds the schema and `add`; this file reads the series back.
+ * history_db.c holds the schema and `add`; this file reads the series back
+ * and checks them, history_plot.c names and plots them, and publish.c
+ * draws them as HTML pages.
  * Commits are ordered by their commit time where the repository knows them,
  * else by when they were first measured. A series is one configuration on
  * one machine (fingerprint): numbers from different machines never meet.
@@ -55,31 +57,14 @@ static int history_show(sqlite3 *db, const char *dbpath)
 
 /* ---- series: a metric over commits ----------------------------------------- */
 
-typedef struct {
-    char *sha;
-    double *x;
-    size_t n, cap;
-} Point;
-
-typedef struct {
-    char *config, *fingerprint;
-    Point *p; /* in commit order */
-    size_t np;
-} Series;
-
-typedef struct {
-    Series *s;
-    size_t n;
-} SeriesSet;
-
-static void point_add(Series *s, const char *sha, double v)
+static void point_add(HxSeries *s, const char *sha, double v)
 {
     if (s->np == 0 || strcmp(s->p[s->np - 1].sha, sha) != 0) {
         s->p = hx_xrealloc(s->p, (s->np + 1) * sizeof *s->p);
         memset(&s->p[s->np], 0, sizeof *s->p);
         s->p[s->np++].sha = hx_strdup(sha);
     }
-    Point *p = &s->p[s->np - 1];
+    HxSeriesPoint *p = &s->p[s->np - 1];
     if (p->n == p->cap) {
         p->cap = p->cap ? 2 * p->cap : 8;
         p->x = hx_xrealloc(p->x, p->cap * sizeof *p->x);
@@ -87,7 +72,7 @@ static void point_add(Series *s, const char *sha, double v)
     p->x[p->n++] = v;
 }
 
-static void series_free(SeriesSet *ss)
+void hx_series_free(HxSeriesSet *ss)
 {
     for (size_t i = 0; i < ss->n; i++) {
         for (size_t k = 0; k < ss->s[i].np; k++) {
@@ -134,10 +119,8 @@ static int metric_keys(const char *metric, char *num, size_t n, const char **den
     return 0;
 }
 
-/* Every ok run's metric, by series and commit (commits in commit-time
- * order, then first measured). */
-static int load_series(sqlite3 *db, const char *dbpath, const char *metric, const HxStrList *want,
-                       SeriesSet *ss)
+/* Commits in commit-time order, then first measured. */
+int hx_series_load(sqlite3 *db, const char *dbpath, const char *metric, const HxStrList *want, HxSeriesSet *ss)
 {
     char num[64];
     const char *den;
@@ -180,7 +163,7 @@ static int load_series(sqlite3 *db, const char *dbpath, const char *metric, cons
                 continue;
             v /= c;
         }
-        Series *s = ss->n ? &ss->s[ss->n - 1] : NULL;
+        HxSeries *s = ss->n ? &ss->s[ss->n - 1] : NULL;
         if (!s || strcmp(s->config, cfg) != 0 || strcmp(s->fingerprint, fp) != 0) {
             ss->s = hx_xrealloc(ss->s, (ss->n + 1) * sizeof *ss->s);
             s = &ss->s[ss->n++];
@@ -196,14 +179,8 @@ static int load_series(sqlite3 *db, const char *dbpath, const char *metric, cons
 
 /* ---- check: where did a series step? ---------------------------------------- */
 
-typedef struct {
-    int window;       /* commits on either side */
-    double alpha;     /* Mann-Whitney two-sided */
-    double threshold; /* relative change of the median that counts */
-} StepRule;
-
 /* The values of points [a, b) pooled; their count. */
-static size_t pool(const Series *s, size_t a, size_t b, double **out)
+static size_t pool(const HxSeries *s, size_t a, size_t b, double **out)
 {
     size_t n = 0;
     for (size_t k = a; k < b; k++)
@@ -227,7 +204,7 @@ static int flat(const double *x, size_t n)
 
 /* The evidence for a step at point k: p (0 when both windows are exact,
  * e.g. instruction counts) and the ratio of medians after/before. */
-static void step_at(const Series *s, size_t k, const StepRule *rule, double *p, double *ratio)
+static void step_at(const HxSeries *s, size_t k, const HxStepRule *rule, double *p, double *ratio)
 {
     size_t a = k > (size_t)rule->window ? k - (size_t)rule->window : 0;
     size_t b = k + (size_t)rule->window < s->np ? k + (size_t)rule->window : s->np;
@@ -240,46 +217,56 @@ static void step_at(const Series *s, size_t k, const StepRule *rule, double *p, 
     free(y);
 }
 
-static int step_counts(double p, double ratio, const StepRule *rule)
+static int step_counts(double p, double ratio, const HxStepRule *rule)
 {
     return isfinite(ratio) && p < rule->alpha && fabs(ratio - 1.0) > rule->threshold;
 }
 
-/* Reports the steps of one series (in each run of flagged commits, the one
- * with the smallest p, then the largest change); the count of slowdowns. */
 /* A series without a step: "no change" when its last window of commits
  * against the one before rules out a step of the threshold (the 95%
  * bootstrap interval of the ratio of medians inside 1 +- threshold), else
- * INCONCLUSIVE with the step the noise would let through. 1 when
  * inconclusive. */
-static int no_step(const Series *s, const StepRule *rule, const char *lab)
+int hx_series_no_step(const HxSeries *s, const HxStepRule *rule, HxNoStep *v)
 {
     size_t w = (size_t)rule->window, k = s->np > w ? s->np - w : s->np / 2;
-    double *x, *y, lo = NAN, hi = NAN;
+    double *x, *y;
     size_t nx = pool(s, k > w ? k - w : 0, k, &x), ny = pool(s, k, s->np, &y);
+    v->lo = v->hi = NAN;
+    v->nlast = s->np - k;
+    v->nbefore = k - (k > w ? k - w : 0);
     if (nx >= 3 && ny >= 3)
-        hx_bootstrap_ci(x, nx, y, ny, &lo, &hi);
+        hx_bootstrap_ci(x, nx, y, ny, &v->lo, &v->hi);
     free(x);
     free(y);
-    if (lo > 1.0 - rule->threshold && hi < 1.0 + rule->threshold) {
+    v->no_change = v->lo > 1.0 - rule->threshold && v->hi < 1.0 + rule->threshold;
+    return !v->no_change;
+}
+
+/* check's line for a series without a step: "no change", else
+ * INCONCLUSIVE with the step the noise would let through. 1 when
+ * inconclusive. */
+static int no_step(const HxSeries *s, const HxStepRule *rule, const char *lab)
+{
+    HxNoStep v;
+    if (!hx_series_no_step(s, rule, &v)) {
         hx_put_clean_line(stdout, "no change %s [%s]: last %zu commits against the %zu before: ratio in [%.3f, %.3f]",
-                          lab, s->fingerprint, s->np - k, k - (k > w ? k - w : 0), lo, hi);
+                          lab, s->fingerprint, v.nlast, v.nbefore, v.lo, v.hi);
         return 0;
     }
-    if (isnan(lo))
+    if (isnan(v.lo))
         hx_put_clean_line(stdout, "INCONCLUSIVE %s [%s]: %zu commit(s), too few samples to tell", lab, s->fingerprint,
                           s->np);
     else
         hx_put_clean_line(stdout, "INCONCLUSIVE %s [%s]: at this noise only steps beyond %.1f%% are detectable "
                           "(ratio of the last %zu commits to the %zu before in [%.3f, %.3f]); more repeats per commit "
-                          "would resolve %.0f%%", lab, s->fingerprint, 100.0 * (sqrt(hi / lo) - 1.0), s->np - k,
-                          k - (k > w ? k - w : 0), lo, hi, 100.0 * rule->threshold);
+                          "would resolve %.0f%%", lab, s->fingerprint, 100.0 * (sqrt(v.hi / v.lo) - 1.0), v.nlast,
+                          v.nbefore, v.lo, v.hi, 100.0 * rule->threshold);
     return 1;
 }
 
 /* A step of series s at point k re-measured (cf: NULL, not asked): 1 for
  * a slowdown that counts (confirmed, exact values, or not asked), else 0. */
-static int step_confirmed(const Series *s, size_t k, int window, double p, int slower, const char *metric, int higher,
+static int step_confirmed(const HxSeries *s, size_t k, int window, double p, int slower, const char *metric, int higher,
                           HxConfirm *cf, int *unconfirmed, size_t *last)
 {
     if (!cf)
@@ -309,43 +296,55 @@ static int step_confirmed(const Series *s, size_t k, int window, double p, int s
     return r == 1;
 }
 
-static int check_series(const Series *s, const StepRule *rule, const char *metric, int higher, int *unsure,
-                        HxConfirm *cf, int *unconfirmed)
+size_t hx_series_steps(const HxSeries *s, const HxStepRule *rule, HxStep **steps)
 {
-    int slow = 0, steps = 0;
-    size_t best = 0, last = (size_t)-1;
-    char lab[512];
-    hx_config_label(lab, sizeof lab, s->config);
-    double best_p = 2.0, best_r = 1.0;
+    size_t n = 0;
+    HxStep best = {0, 2.0, 1.0};
+    *steps = NULL;
     for (size_t k = 1; k <= s->np; k++) {
         double p = 2.0, r = NAN;
         if (k < s->np)
             step_at(s, k, rule, &p, &r);
         if (k < s->np && step_counts(p, r, rule)) {
-            if (p < best_p || (p == best_p && fabs(log(r)) > fabs(log(best_r)))) {
-                best = k;
-                best_p = p;
-                best_r = r;
-            }
+            if (p < best.p || (p == best.p && fabs(log(r)) > fabs(log(best.ratio))))
+                best = (HxStep){k, p, r};
             continue;
         }
-        if (best_p > 1.0)
+        if (best.p > 1.0)
             continue;
-        hx_put_clean_line(stdout, "STEP %s [%s]: %s at commit %s (after %s): %+.1f%%, p=%.2g", lab, s->fingerprint,
-               metric, s->p[best].sha, s->p[best - 1].sha, 100.0 * (best_r - 1.0), best_p);
-        int slower = higher ? best_r < 1.0 : best_r > 1.0; /* a rate's slowdown is a drop */
-        slow += step_confirmed(s, best, rule->window, best_p, slower, metric, higher, cf, unconfirmed, &last);
-        steps++;
-        best_p = 2.0;
+        *steps = hx_xrealloc(*steps, (n + 1) * sizeof **steps);
+        (*steps)[n++] = best;
+        best.p = 2.0;
     }
-    if (!steps)
+    return n;
+}
+
+/* Reports the steps of one series; the count of slowdowns. */
+static int check_series(const HxSeries *s, const HxStepRule *rule, const char *metric, int higher, int *unsure,
+                        HxConfirm *cf, int *unconfirmed)
+{
+    int slow = 0;
+    size_t last = (size_t)-1;
+    char lab[512];
+    hx_config_label(lab, sizeof lab, s->config);
+    HxStep *st;
+    size_t n = hx_series_steps(s, rule, &st);
+    for (size_t i = 0; i < n; i++) {
+        size_t k = st[i].k;
+        hx_put_clean_line(stdout, "STEP %s [%s]: %s at commit %s (after %s): %+.1f%%, p=%.2g", lab, s->fingerprint,
+                          metric, s->p[k].sha, s->p[k - 1].sha, 100.0 * (st[i].ratio - 1.0), st[i].p);
+        int slower = higher ? st[i].ratio < 1.0 : st[i].ratio > 1.0; /* a rate's slowdown is a drop */
+        slow += step_confirmed(s, k, rule->window, st[i].p, slower, metric, higher, cf, unconfirmed, &last);
+    }
+    if (!n)
         *unsure += no_step(s, rule, lab);
+    free(st);
     return slow;
 }
 
 /* Whether metric is a rate (higher is better), as a command study's
  * metric_info declares it; times and counts are not. */
-static int metric_higher(sqlite3 *db, const char *metric)
+int hx_metric_higher(sqlite3 *db, const char *metric)
 {
     sqlite3_stmt *st = NULL;
     int higher = 0;
@@ -360,104 +359,6 @@ static int metric_higher(sqlite3 *db, const char *metric)
     return higher || strcmp(metric, "mrays_per_s") == 0;
 }
 
-/* ---- plot --------------------------------------------------------------- */
-
-static double max_of(const double *x, size_t n)
-{
-    double m = x[0];
-    for (size_t i = 1; i < n; i++)
-        m = x[i] > m ? x[i] : m;
-    return m;
-}
-
-/* The commits of the series, in the order the series hold them (each
- * series is in commit order; a commit missing from one series keeps its
- * place from the others). */
-static void commit_order(const SeriesSet *ss, HxStrList *order)
-{
-    for (size_t i = 0; i < ss->n; i++) {
-        int at = -1;
-        for (size_t k = 0; k < ss->s[i].np; k++) {
-            int j = hx_strlist_find(order, ss->s[i].p[k].sha);
-            if (j < 0) {
-                /* insert after the previous commit of this series */
-                hx_strlist_push(order, ss->s[i].p[k].sha);
-                j = (int)order->n - 1;
-                for (int m = j; m > at + 1; m--) {
-                    char *t = order->v[m];
-                    order->v[m] = order->v[m - 1];
-                    order->v[m - 1] = t;
-                }
-                j = at + 1;
-            }
-            at = j;
-        }
-    }
-}
-
-static void write_history_dat(FILE *dat, const SeriesSet *ss, const HxStrList *order)
-{
-    fprintf(dat, "# x median min max commit (one block per series: configuration [machine])\n");
-    for (size_t i = 0; i < ss->n; i++) {
-        char cfg[400], raw[512], lab[512];
-        hx_config_label(cfg, sizeof cfg, ss->s[i].config);
-        const char *hash = strchr(ss->s[i].fingerprint, ' ');
-        snprintf(raw, sizeof raw, "%s [%.8s/%.6s]", cfg, ss->s[i].fingerprint, hash ? hash + 1 : "");
-        hx_plot_clean_label(lab, sizeof lab, raw);
-        fprintf(dat, "\"%s\"\n", lab);
-        for (size_t k = 0; k < ss->s[i].np; k++) {
-            const Point *p = &ss->s[i].p[k];
-            fprintf(dat, "%d %.6g %.6g %.6g %s\n", hx_strlist_find(order, p->sha), hx_median(p->x, p->n),
-                    hx_min(p->x, p->n), max_of(p->x, p->n), p->sha);
-        }
-        fprintf(dat, "\n\n");
-    }
-}
-
-/* The commits as x tic labels, rotated: short hashes. */
-static void gp_xtics(FILE *gp, const HxStrList *order)
-{
-    fprintf(gp, "set xtics rotate by -45 (");
-    for (size_t k = 0; k < order->n; k++) {
-        char sha[16];
-        snprintf(sha, sizeof sha, "%.9s", order->v[k]);
-        HxBuf q = {0};
-        hx_gp_quote(&q, sha);
-        fprintf(gp, "%s%s %zu", k ? ", " : "", q.s, k);
-        hx_buf_free(&q);
-    }
-    fprintf(gp, ")\nset xlabel 'commit'\n");
-}
-
-static int history_plot(const SeriesSet *ss, const char *metric, const char *prefix)
-{
-    HxPlot c;
-    if (hx_plot_init(&c, "harness history plot", prefix) != 0)
-        return 1;
-    FILE *dat, *gp = hx_plot_open(&c, "history", &dat);
-    if (!gp) {
-        hx_plot_done(&c);
-        return 1;
-    }
-    HxStrList order = {0};
-    commit_order(ss, &order);
-    write_history_dat(dat, ss, &order);
-    HxBuf t = {0};
-    hx_buf_printf(&t, "%s over commits (median, bars: min to max)", metric);
-    hx_plot_head(gp, &c, "history", t.s);
-    hx_buf_free(&t);
-    gp_xtics(gp, &order);
-    hx_plot_put(gp, "set ylabel %s\nset key below\nset offsets 0.3, 0.3, 0, 0\n", metric);
-    fprintf(gp, "plot for [i=0:%zu] ", ss->n - 1);
-    hx_plot_file(gp, "%s index i using 1:2:3:4 with yerrorlines title columnheader(1)\n", c.base, "history", "dat");
-    hx_plot_tail(gp, &c, "history");
-    hx_plot_finish(&c, "history", gp, dat);
-    hx_strlist_free(&order);
-    int rc = c.failures ? 1 : 0;
-    hx_plot_done(&c);
-    return rc;
-}
-
 /* ---- the command ------------------------------------------------------------ */
 
 static void usage_history(FILE *f)
@@ -468,6 +369,8 @@ static void usage_history(FILE *f)
           "       harness history check [--metric METRIC] [FILTERS] [--window N] [--alpha A]\n"
           "                             [--threshold T] [--db DB]\n"
           "                             [--confirm CONFIG [--rounds N] [--builder B] [--build-dir D]]\n"
+          "       harness history publish -o DIR [FILTERS] [--window N] [--alpha A] [--threshold T]\n"
+          "                               [--db DB]\n"
           "Performance across commits, in SQLite (docs/harness.md, \"History\").\n"
           "  add      stores every row of each study CSV with its commit, machine fingerprint\n"
           "           and config hash; a CSV stored before is skipped; rows of a dirty tree\n"
@@ -479,6 +382,9 @@ static void usage_history(FILE *f)
           "  check    the commit where a series stepped: medians of the N commits before and\n"
           "           from it differ by more than T and Mann-Whitney p < A (exact values:\n"
           "           any change over T); exit 1 when a series got slower\n"
+          "  publish  a static HTML dashboard in DIR (new, empty, or written before): index.html\n"
+          "           and a page per metric, each series over commits with check's steps\n"
+          "           (from the stored runs: not confirmed), self-contained, no script\n"
           "  --confirm CONFIG   re-measure each step: build both commits (B COMMIT DIR/COMMIT,\n"
           "                     default B scripts/build-commit.sh, D build-confirm) and run\n"
           "                     the step's configuration of CONFIG with both, interleaved over\n"
@@ -490,14 +396,14 @@ static void usage_history(FILE *f)
           "  --window N         commits on either side of a step (default 5)\n"
           "  --alpha A          significance (default 0.01)\n"
           "  --threshold T      relative change that counts (default 0.05)\n"
-          "  -o, --output PFX   plot's path prefix\n", f);
+          "  -o, --output PATH  plot's path prefix; publish's folder\n", f);
 }
 
 typedef struct {
     const char *db, *metric, *prefix;
     int allow_dirty;
     HxStrList want;
-    StepRule rule;
+    HxStepRule rule;
     HxConfirm confirm; /* confirm.config NULL: steps are not re-measured */
 } HistOpts;
 
@@ -583,19 +489,20 @@ static int history_series_cmd(const char *sub, HistOpts *o, int argc, char **arg
     sqlite3 *db;
     if (hx_db_open(o->db, 0, &db) != 0)
         return 1;
-    SeriesSet ss;
-    int rc = load_series(db, o->db, metric, &o->want, &ss), higher = metric_higher(db, metric);
-    sqlite3_close(db);
-    if (rc != 0)
-        return 1;
-    if (ss.n == 0) {
-        fprintf(stderr, "harness history %s: no ok runs with '%s' match in %s\n", sub, metric, o->db);
-        series_free(&ss);
+    HxSeriesSet ss;
+    int rc = hx_series_load(db, o->db, metric, &o->want, &ss), higher = hx_metric_higher(db, metric);
+    if (rc != 0) {
+        sqlite3_close(db);
         return 1;
     }
-    if (is_plot) {
-        rc = history_plot(&ss, metric, o->prefix);
-    } else {
+    if (ss.n == 0) {
+        fprintf(stderr, "harness history %s: no ok runs with '%s' match in %s\n", sub, metric, o->db);
+        rc = 1;
+    } else if (is_plot) {
+        rc = hx_history_plot(db, o->db, &ss, metric, o->prefix); /* the machines named from db */
+    }
+    sqlite3_close(db);
+    if (rc == 0 && !is_plot) {
         int slow = 0, unsure = 0, unconfirmed = 0;
         HxConfirm *cf = o->confirm.config ? &o->confirm : NULL;
         if (cf)
@@ -609,7 +516,7 @@ static int history_series_cmd(const char *sub, HistOpts *o, int argc, char **arg
             printf("history check: %d step(s) unconfirmed (not failing the check)\n", unconfirmed);
         rc = slow ? 1 : 0;
     }
-    series_free(&ss);
+    hx_series_free(&ss);
     return rc;
 }
 
@@ -644,8 +551,12 @@ int hx_cmd_history(int argc, char **argv)
         }
     } else if (strcmp(sub, "plot") == 0 || strcmp(sub, "check") == 0)
         rc = history_series_cmd(sub, &o, argc, argv);
+    else if (strcmp(sub, "publish") == 0 && optind == argc && o.prefix)
+        rc = hx_history_publish(o.db, o.prefix, &o.want, &o.rule);
+    else if (strcmp(sub, "publish") == 0)
+        fprintf(stderr, "harness history publish: expected -o DIR and no other argument (see --help)\n");
     else
-        fprintf(stderr, "harness history: unknown command '%s' (add, show, plot, check)\n", sub);
+        fprintf(stderr, "harness history: unknown command '%s' (add, show, plot, check, publish)\n", sub);
     hx_strlist_free(&o.want);
     hx_confirm_free(&o.confirm);
     return rc;

@@ -20,6 +20,79 @@ int hx_db_exec(sqlite3 *db, const char *path, const char *sql);
 sqlite3_stmt *hx_db_prep(sqlite3 *db, const char *path, const char *sql);
 #endif
 
+/* ---- series: a metric over commits (history.c), for plot, check and publish ---- */
+typedef struct {
+    char *sha;
+    double *x; /* the values of this commit's ok runs */
+    size_t n, cap;
+} HxSeriesPoint;
+
+/* One configuration on one machine under one set of settings. */
+typedef struct {
+    char *config;      /* config_id */
+    char *fingerprint; /* "MACHINE-FINGERPRINT CONFIG-HASH" */
+    HxSeriesPoint *p;  /* in commit order */
+    size_t np;
+} HxSeries;
+
+typedef struct {
+    HxSeries *s;
+    size_t n;
+} HxSeriesSet;
+
+/* check's step rule (docs/harness.md, "History"). */
+typedef struct {
+    int window;       /* commits on either side */
+    double alpha;     /* Mann-Whitney two-sided */
+    double threshold; /* relative change of the median that counts */
+} HxStepRule;
+
+/* A step at point k of a series: p (0: both windows exact) and the ratio
+ * of the medians after/before. */
+typedef struct {
+    size_t k;
+    double p, ratio;
+} HxStep;
+
+/* A series without a step: its last window against the one before. */
+typedef struct {
+    int no_change;        /* 1: a step of the threshold is ruled out */
+    double lo, hi;        /* 95% interval of the ratio (NaN: too few samples) */
+    size_t nlast, nbefore; /* commits in the two windows */
+} HxNoStep;
+
+void hx_series_free(HxSeriesSet *ss);
+/* The commits of the series in history order (a commit missing from one
+ * series keeps its place from the others). */
+void hx_series_commit_order(const HxSeriesSet *ss, HxStrList *order);
+/* The steps of a series by the rule: of each run of consecutive flagged
+ * commits, the one with the smallest p, then the largest change. Their
+ * count; *steps malloc'd (NULL when none). */
+size_t hx_series_steps(const HxSeries *s, const HxStepRule *rule, HxStep **steps);
+/* The verdict on a series without a step, in *v; 1 when inconclusive. */
+int hx_series_no_step(const HxSeries *s, const HxStepRule *rule, HxNoStep *v);
+/* Each series' legend (malloc'd into legend[i]): the settings in which the
+ * series differ ("openmp, T=2"); the settings they all share go to common. */
+void hx_series_legends(const HxSeries *const *s, size_t n, char **legend, HxBuf *common);
+/* A machine (its fingerprint) in words: CPU, cores, GPU into name; host,
+ * compiler, governor, GPU driver into detail (NULL: not wanted). */
+void hx_machine_words(sqlite3 *db, const char *dbpath, const char *fp, HxBuf *name, HxBuf *detail);
+/* `history plot`: PREFIX-history.png/.svg of the series; 0, or 1 (said). */
+int hx_history_plot(sqlite3 *db, const char *dbpath, const HxSeriesSet *ss, const char *metric,
+                    const char *prefix);
+
+#if HAVE_SQLITE
+/* Every ok run's metric (a column, a record key or COLUMN/calib) by series
+ * and commit, commits in history order; want: "key=value" words each
+ * configuration must have. 0, or -1 with one line on stderr. */
+int hx_series_load(sqlite3 *db, const char *dbpath, const char *metric, const HxStrList *want, HxSeriesSet *ss);
+/* Whether metric is a rate (higher is better). */
+int hx_metric_higher(sqlite3 *db, const char *metric);
+/* `history publish`: the static dashboard of the database in dir
+ * (publish.c). 0, or 1 with one line on stderr. */
+int hx_history_publish(const char *dbpath, const char *dir, const HxStrList *want, const HxStepRule *rule);
+#endif
+
 /* ---- a step re-measured before it counts (confirm.c) ---- */
 typedef struct HxConfirm {
     const char *config;  /* the study config whose configurations the series are */

@@ -421,6 +421,32 @@ void hx_plot_clean_label(char *dst, size_t n, const char *src);
  * word. 1 for a regression, else 0. */
 int hx_judge_samples(const char *label, double *nw, size_t nn, double *base, size_t nb, double factor, double alpha,
                      int higher, const char *unit, const char **verdict);
+/* ---- HTML pages (html.c), shared by report and history publish ---- */
+/* The mark of a folder the harness writes pages into: one holding it may be
+ * written again, any other folder that is not empty is refused. */
+#define HX_HTML_MARK ".raybench-report"
+/* The pages' inline stylesheet. */
+extern const char *const hx_html_css;
+/* DIR made ready: created, or empty, or marked before; the mark written
+ * (mark_text its line). 0, or -1 with one line "WHO: ..." on stderr. */
+int hx_html_dir(const char *who, const char *dir, const char *mark_text);
+/* The SVG file inlined as a figure (its XML declaration dropped) with the
+ * caption; 1 when there was one. */
+int hx_html_svg_file(FILE *o, const char *path, const char *caption);
+/* A page written whole or not at all: into a hidden PATH.part beside it,
+ * renamed onto PATH when complete. */
+typedef struct {
+    FILE *f;
+    char *path, *part;
+} HxHtmlPage;
+/* Opens the part file and writes the head (title escaped, the stylesheet)
+ * up to <body>; NULL when it cannot be created. */
+FILE *hx_html_open(HxHtmlPage *pg, const char *path, const char *title);
+/* Ends the body and renames the part onto the page, when ok and every
+ * write went through; else removes it and says "WHO: PATH not written".
+ * 0 or -1. */
+int hx_html_close(HxHtmlPage *pg, const char *who, int ok);
+
 /* ---- commands ---- */
 int hx_cmd_run(int argc, char **argv);
 int hx_cmd_table(int argc, char **argv);

@@ -20,7 +20,7 @@ static void usage(FILE *f)
           "  ceiling CONFIG             the machine's own ceiling for the study's efficiency\n"
           "  topo [CONFIG]              hwloc topology and planned cores per run\n"
           "  slurm CONFIG [-o FILE]     sbatch script running the study with srun\n"
-          "  history add|show|plot|check  performance across commits (SQLite)\n\n"
+          "  history add|show|plot|check|publish  performance across commits (SQLite)\n\n"
           "`harness COMMAND --help` describes each command; docs/harness.md has the\n"
           "config format and CSV schema.\n", f);
 }

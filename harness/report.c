@@ -6,24 +6,11 @@
  * a CSV goes through hx_html_put, so a scene named "<script>" is text. */
 #include "hx.h"
 
-#include <dirent.h>
-#include <errno.h>
 #include <fcntl.h>
 #include <getopt.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 #include <unistd.h>
-
-#define REPORT_MARK ".raybench-report"
-
-static const char *const css =
-    "body{font-family:sans-serif;max-width:72rem;margin:1rem auto;padding:0 1rem;color:#222}"
-    "table{border-collapse:collapse;margin:.5rem 0;font-size:.85rem}"
-    "th,td{border:1px solid #bbb;padding:.2rem .45rem;text-align:left}th{background:#eee}"
-    "tr:nth-child(even) td{background:#f8f8f8}.warn{color:#a40000;font-weight:bold}"
-    ".ok{color:#1a6d1a}figure{margin:1rem 0}figure svg{max-width:100%;height:auto}"
-    "h2{border-bottom:2px solid #444;margin-top:2.5rem}";
 
 static void usage_report(FILE *f)
 {
@@ -31,50 +18,10 @@ static void usage_report(FILE *f)
           "Writes DIR/index.html: one self-contained page (inline SVG plots and CSS, no\n"
           "script, nothing fetched) with a section per study: provenance, pinning map,\n"
           "noise and failure flags, the tables and plots, and a link to its CSV (copied\n"
-          "into DIR). DIR must be new, empty, or a report written before.\n"
+          "into DIR). DIR must be new, empty, or a report or dashboard written before.\n"
           "  -o, --output DIR   the report's folder\n"
           "  --metric COLUMN    as for table and plot\n"
           "  --ceiling FILE     the machine's ceiling (harness ceiling)\n", f);
-}
-
-static int dir_empty(const char *dir)
-{
-    DIR *d = opendir(dir);
-    struct dirent *e;
-    int empty = d != NULL;
-    while (d && empty && (e = readdir(d)) != NULL)
-        empty = strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0;
-    if (d)
-        closedir(d);
-    return empty;
-}
-
-/* DIR made ready: new, empty, or an earlier report (its mark). 0 or -1. */
-static int report_dir(const char *dir)
-{
-    HxBuf mark = {0};
-    hx_buf_printf(&mark, "%s/" REPORT_MARK, dir);
-    int rc = 0;
-    if (mkdir(dir, 0755) != 0 && errno != EEXIST) {
-        fprintf(stderr, "harness report: %s: %s\n", dir, strerror(errno));
-        rc = -1;
-    } else if (errno == EEXIST && !hx_is_dir(dir)) {
-        fprintf(stderr, "harness report: %s exists and is not a folder: refused\n", dir);
-        rc = -1;
-    } else if (!hx_file_exists(mark.s) && !dir_empty(dir)) {
-        fprintf(stderr, "harness report: %s exists and is not a report (no %s in it): refused, nothing written\n",
-                dir, REPORT_MARK);
-        rc = -1;
-    } else {
-        FILE *f = fopen(mark.s, "w");
-        rc = f && fputs("written by harness report\n", f) >= 0 ? 0 : -1;
-        if (f && fclose(f) != 0)
-            rc = -1;
-        if (rc)
-            fprintf(stderr, "harness report: %s: cannot write\n", mark.s);
-    }
-    hx_buf_free(&mark);
-    return rc;
 }
 
 /* One provenance row: the distinct values of column col. */
@@ -203,26 +150,6 @@ static void flags(FILE *o, const HxCsv *c)
     fputs("</tbody></table>\n", o);
 }
 
-/* The SVG file inlined (its XML declaration dropped); 1 when there was one. */
-static int inline_svg(FILE *o, const char *path, const char *caption)
-{
-    HxBuf t = {0};
-    if (hx_read_file(path, &t) != 0 || !t.s) {
-        hx_buf_free(&t);
-        return 0;
-    }
-    const char *svg = strstr(t.s, "<svg");
-    if (svg) {
-        fputs("<figure>", o);
-        fputs(svg, o);
-        fputs("<figcaption>", o);
-        hx_html_put(o, caption);
-        fputs("</figcaption></figure>\n", o);
-    }
-    hx_buf_free(&t);
-    return svg != NULL;
-}
-
 /* The CSV copied into the report as NAME.csv (the page links it). 0 or -1. */
 static int copy_csv(const char *src, const char *dst)
 {
@@ -243,7 +170,9 @@ static void plots(FILE *o, const char *dir, const char *name, const char *csv, c
     static const char *const kinds[][2] = {{"speedup", "Speedup against one worker, with the ideal line"},
                                            {"efficiency", "Parallel efficiency, with the machine's ceiling where measured"},
                                            {"size", "The metric against workers"},
-                                           {"blocks", "Time by CUDA block size"},
+                                           {"sweep", "The metric against the swept parameter, log axes"},
+                                           {"blocks", "Median time by CUDA block width x height, one heatmap per "
+                                                      "scene, best cell marked"},
                                            {"scenes", "Median per scene and configuration"}};
     HxBuf prefix = {0};
     hx_buf_printf(&prefix, "%s/%s", dir, name);
@@ -276,7 +205,7 @@ static void plots(FILE *o, const char *dir, const char *name, const char *csv, c
     for (size_t i = 0; i < sizeof kinds / sizeof kinds[0]; i++) {
         HxBuf svg = {0};
         hx_buf_printf(&svg, "%s-%s.svg", prefix.s, kinds[i][0]);
-        n += inline_svg(o, svg.s, kinds[i][1]);
+        n += hx_html_svg_file(o, svg.s, kinds[i][1]);
         hx_buf_free(&svg);
     }
     if (!n)
@@ -358,32 +287,22 @@ int hx_cmd_report(int argc, char **argv)
             fprintf(stderr, "harness report: %s: no such file\n", argv[i]);
             return 1;
         }
-    if (report_dir(dir) != 0)
+    if (hx_html_dir("harness report", dir, "written by harness report") != 0)
         return 1;
-    HxBuf page = {0}, tmp = {0};
+    HxBuf page = {0};
     hx_buf_printf(&page, "%s/index.html", dir);
-    hx_buf_printf(&tmp, "%s/.index.html.part", dir);
-    FILE *o = fopen(tmp.s, "w");
+    HxHtmlPage pg;
+    FILE *o = hx_html_open(&pg, page.s, "raybench report");
     int rc = o ? 0 : -1;
     if (o) {
-        fprintf(o, "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>raybench report</title>"
-                   "<style>%s</style></head><body>\n<h1>raybench report</h1>\n", css);
+        fputs("<h1>raybench report</h1>\n", o);
         for (int i = first; i < argc && rc == 0; i++)
             rc = section(o, dir, argv[i], i - first + 1, metric, ceiling);
-        fputs("<p>Written by <code>harness report</code> (docs/harness.md, \"Reports\").</p>\n</body></html>\n", o);
-        if (fclose(o) != 0)
-            rc = -1;
+        fputs("<p>Written by <code>harness report</code> (docs/harness.md, \"Reports\").</p>\n", o);
     }
-    /* the page appears whole or not at all */
-    if (rc == 0 && rename(tmp.s, page.s) != 0)
-        rc = -1;
-    if (rc != 0) {
-        unlink(tmp.s);
-        fprintf(stderr, "harness report: %s not written\n", page.s);
-    } else {
+    rc = hx_html_close(&pg, "harness report", rc == 0);
+    if (rc == 0)
         printf("harness report: wrote %s\n", page.s);
-    }
     hx_buf_free(&page);
-    hx_buf_free(&tmp);
     return rc ? 1 : 0;
 }

@@ -14,7 +14,7 @@ set -u
 . "$(dirname "$0")/common.sh"
 test_setup history "$1" "$2"
 if "$H" history show --db none.db 2>&1 | grep -q "no SQLite"; then
-    echo "SKIP: this harness was built without SQLite (libsqlite3-dev)"; exit 77
+    fail "this harness was built without SQLite (scripts/install-deps.sh installs libsqlite3-dev)"
 fi
 echo "# dummy" > oka.txt
 echo "# dummy" > okb.txt
@@ -91,6 +91,10 @@ command -v gnuplot > /dev/null || fail "gnuplot missing (scripts/install-deps.sh
 "$H" history plot render_ms --db h.db -o hist > plot.out 2>&1 || { cat plot.out; fail "plot"; }
 [ -s hist-history.png ] && [ -s hist-history.svg ] || fail "no PNG/SVG"
 [ "$(grep -c '^[0-9]' hist-history.dat)" -eq 24 ] || { cat hist-history.dat; fail "plot data: 12 commits x 2 series"; }
+# legends of what differs, the machine in words, never a hash
+grep -qE '[0-9a-f]{8}/' hist-history.dat && fail "a hash in the history plot's legends: $(head -3 hist-history.dat)"
+[ "$(grep -c '^"scene ' hist-history.dat)" -eq 2 ] || { head -3 hist-history.dat; fail "legends not the scene that differs"; }
+grep -q "on .* cores" hist-history.gp || fail "no machine in words in the history plot's title"
 # control characters from a CSV (a terminal escape that clears the screen,
 # a bell, a backspace, a carriage return, a quoted newline) reach show and
 # check as '?': the twelve studies again, with them in text fields
