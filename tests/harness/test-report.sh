@@ -37,9 +37,18 @@ view() { # PAGE PREFIX: PREFIX.dom, PREFIX.png, PREFIX.log
         fail "$1: a script error or a fetch in the browser's log"
 }
 view rep/index.html page
-for t in Provenance "Runs, pinning and noise" "Pinning map" "Per configuration" "Amdahl fit" "Scenes x configurations"; do
+for t in Provenance "Runs, pinning and noise" "Per configuration" "Amdahl fit" "Scenes x configurations"; do
     grep -q "<h3>$t" page.dom || fail "the page has no '$t' table"
 done
+# the pinning map folded when every run held, open when one did not
+if python3 -c 'import csv, sys; sys.exit(any(r["pin_held"] not in ("yes", "-") for r in csv.DictReader(open("r.csv"))))'; then
+    grep -q "<details><summary><b>Pinning map</b>: every run's pinning held" page.dom || fail "no folded pinning map"
+else
+    grep -q "<details open=\"\"><summary><b>Pinning map</b>: some runs' pinning did not hold" page.dom ||
+        fail "the pinning map of runs whose pinning did not hold is folded"
+fi
+# the plots come before the tables
+[ "$(grep -o '<svg\|<h3>Per configuration' page.dom | head -1)" = "<svg" ] || fail "a table before the plots"
 [ "$(grep -o '<table' page.dom | wc -l)" -ge 6 ] || fail "fewer than 6 tables"
 nsvg=$(grep -o '<svg' page.dom | wc -l)
 [ "$nsvg" -ge 3 ] || fail "expected the speedup, efficiency and scenes plots inline, found $nsvg <svg>"
