@@ -13,8 +13,9 @@
 # and, quiet only, the instruction metric: configs/ci-instructions.conf under
 # cachegrind with each build, `compare --metric instructions --factor 1.03`,
 # TRIALS times. Verdicts are counted per configuration (2 per trial; the CI
-# check's per run). NEIGHBOURS (default "none stress-ng") and PATHS
-# (default "ab ci-ab compare ci") pick a part. Prints the Markdown table;
+# check's per run). NEIGHBOURS (default "none stress-ng"), BUILDS (default
+# "unchanged 10% 2.5x") and PATHS (default "ab ci-ab compare ci") pick a
+# part. Prints the Markdown table;
 # logs in $OUT.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -59,7 +60,7 @@ for neighbour in ${NEIGHBOURS:-none stress-ng}; do
         spid=$!
         sleep 1
     fi
-    for b in unchanged 10% 2.5x; do
+    for b in ${BUILDS:-unchanged 10% 2.5x}; do
         bin=$head; [ "$b" = 10% ] && bin=$p10; [ "$b" = 2.5x ] && bin=$p25
         tag="$neighbour-${b%\%}"
         : > "$out/ab-$tag.log"; : > "$out/ci-ab-$tag.log"; : > "$out/compare-$tag.log"
