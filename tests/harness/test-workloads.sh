@@ -22,9 +22,13 @@ for s in hpcc xz; do
         { cat "$s.out"; fail "$s study failed"; }
     tail -2 "$s.out"
     [ "$(csv "$s.csv" status | sort | uniq -c | awk '{print $1 $2}')" = 6ok ] || fail "$s: not 6 ok rows"
-    while IFS='|' read -r w planned actual held; do
-        [ "$w" -gt "$ncores" ] || [ "$held" = yes ] || fail "$s: workers=$w planned $planned, ran on $actual ($held)"
-    done < <(csv "$s.csv" workers cores_planned cores_actual pin_held)
+    # a thread seen on another thread's core counts as held only in part;
+    # where other work took a core (noise: busy) that is the machine, and
+    # the row says so, else it is a pinning fault
+    while IFS='|' read -r w planned actual held noise; do
+        [ "$w" -gt "$ncores" ] || [ "$held" = yes ] || { [ "$held" = partial ] && [[ "$noise" == *busy* ]]; } ||
+            fail "$s: workers=$w planned $planned, ran on $actual ($held, noise '$noise')"
+    done < <(csv "$s.csv" workers cores_planned cores_actual pin_held noise)
     "$H" table "$s.csv" > "$s-table.md" || fail "$s: table"
     cat "$s-table.md"
 done
