@@ -73,6 +73,8 @@ size_t hx_series_steps(const HxSeries *s, const HxStepRule *rule, HxStep **steps
 int hx_series_no_step(const HxSeries *s, const HxStepRule *rule, HxNoStep *v);
 /* Each series' legend (malloc'd into legend[i]): the settings in which the
  * series differ ("openmp, T=2"); the settings they all share go to common. */
+/* The machine part of a series' fingerprint ("MACHINE SETTINGS"), malloc'd. */
+char *hx_series_machine(const HxSeries *s);
 void hx_series_legends(const HxSeries *const *s, size_t n, char **legend, HxBuf *common);
 /* A machine (its fingerprint) in words: CPU, cores, GPU into name; host,
  * compiler, governor, GPU driver into detail (NULL: not wanted). */

@@ -46,6 +46,12 @@ static void put_setting(HxBuf *b, const char *key, const char *val)
         hx_buf_printf(b, *val ? "%s %s" : "%s", key, val);
 }
 
+char *hx_series_machine(const HxSeries *s)
+{
+    const char *sp = strchr(s->fingerprint, ' ');
+    return hx_strndup(s->fingerprint, sp ? (size_t)(sp - s->fingerprint) : strlen(s->fingerprint));
+}
+
 /* Series alike in every setting differ in their settings hash (other
  * extra_args, ...): numbered, never named by the hash. */
 void hx_series_legends(const HxSeries *const *s, size_t n, char **legend, HxBuf *common)
@@ -215,13 +221,15 @@ static void write_history_dat(FILE *dat, const HxSeriesSet *ss, const HxStrList 
 static void history_legends(sqlite3 *db, const char *dbpath, const HxSeriesSet *ss, char **legend, HxBuf *title)
 {
     const HxSeries **ptr = calloc(ss->n, sizeof *ptr);
+    int *machine = calloc(ss->n, sizeof *machine); /* series i's index in fps */
     HxStrList fps = {0};
     for (size_t i = 0; i < ss->n; i++) {
         ptr[i] = &ss->s[i];
-        const char *sp = strchr(ss->s[i].fingerprint, ' ');
-        char *fp = hx_strndup(ss->s[i].fingerprint, sp ? (size_t)(sp - ss->s[i].fingerprint) : strlen(ss->s[i].fingerprint));
-        if (hx_strlist_find(&fps, fp) < 0)
+        char *fp = hx_series_machine(&ss->s[i]);
+        if ((machine[i] = hx_strlist_find(&fps, fp)) < 0) {
+            machine[i] = (int)fps.n;
             hx_strlist_push(&fps, fp);
+        }
         free(fp);
     }
     HxBuf common = {0};
@@ -238,16 +246,14 @@ static void history_legends(sqlite3 *db, const char *dbpath, const HxSeriesSet *
         hx_buf_free(&name);
     }
     for (size_t i = 0; fps.n > 1 && i < ss->n; i++) {
-        const char *sp = strchr(ss->s[i].fingerprint, ' ');
-        char *fp = hx_strndup(ss->s[i].fingerprint, sp ? (size_t)(sp - ss->s[i].fingerprint) : strlen(ss->s[i].fingerprint));
         HxBuf l = {0};
-        hx_buf_printf(&l, "machine %d%s%s", hx_strlist_find(&fps, fp) + 1, *legend[i] ? ", " : "", legend[i]);
+        hx_buf_printf(&l, "machine %d%s%s", machine[i] + 1, *legend[i] ? ", " : "", legend[i]);
         free(legend[i]);
         legend[i] = l.s;
-        free(fp);
     }
     hx_buf_free(&common);
     hx_strlist_free(&fps);
+    free(machine);
     free(ptr);
 }
 

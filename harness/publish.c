@@ -200,13 +200,6 @@ static void load_machines(Pub *p)
     hx_strlist_free(&fps);
 }
 
-/* The machine part of a series' fingerprint ("MACHINE SETTINGS"), malloc'd. */
-static char *machine_fp(const HxSeries *s)
-{
-    const char *sp = strchr(s->fingerprint, ' ');
-    return hx_strndup(s->fingerprint, sp ? (size_t)(sp - s->fingerprint) : strlen(s->fingerprint));
-}
-
 static const Machine *machine_of(const Pub *p, const char *fp)
 {
     for (size_t i = 0; i < p->nmach; i++)
@@ -506,7 +499,7 @@ static void machine_section(FILE *o, const Pub *pub, Metric *m, Plot *p)
             m->nfast += !slower;
         }
     }
-    char *mfp = machine_fp(p->s[0]);
+    char *mfp = hx_series_machine(p->s[0]);
     const Machine *mc = machine_of(pub, mfp);
     put(o, "<section><h2>", mc ? mc->name : "a machine not described in the database", "</h2>\n");
     put(o, "<p class=\"note\">", mc ? mc->detail : "", "");
@@ -558,7 +551,7 @@ static int metric_page(Pub *pub, Metric *m)
     hx_series_commit_order(ss, &all);
     m->ncommits = all.n;
     for (size_t i = 0; i < ss->n; i++) {
-        char *fp = machine_fp(&ss->s[i]);
+        char *fp = hx_series_machine(&ss->s[i]);
         if (hx_strlist_find(&fps, fp) < 0)
             hx_strlist_push(&fps, fp);
         free(fp);
@@ -578,7 +571,7 @@ static int metric_page(Pub *pub, Metric *m)
         for (size_t f = 0; f < fps.n; f++) {
             Plot p = {.s = hx_xmalloc(ss->n * sizeof *p.s), .higher = m->higher, .step0 = step0};
             for (size_t i = 0; i < ss->n; i++) {
-                char *fp = machine_fp(&ss->s[i]);
+                char *fp = hx_series_machine(&ss->s[i]);
                 if (strcmp(fp, fps.v[f]) == 0)
                     p.s[p.n++] = &ss->s[i];
                 free(fp);
