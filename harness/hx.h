@@ -517,10 +517,10 @@ typedef struct {
 } HxStudy;
 
 /* ---- plots of a study (plot.c, plot_sweep.c) ---- */
-/* "STUDY: WHAT", a new line, "on CPU, N cores, GPU" into t. */
-void hx_plot_title(HxBuf *t, const HxStudy *s, const char *what);
-/* Words every legend title shares, taken out of each into *common. */
-void hx_plot_legend(HxStrList *titles, HxBuf *common);
+/* "STUDY: WHAT", a new line, "on CPU, N cores, GPU" into t; given the
+ * legend's titles (else NULL), the words every one shares are taken out of
+ * each and named once in a last line, "all series: ...". */
+void hx_plot_title(HxBuf *t, const HxStudy *s, const char *what, HxStrList *titles);
 /* Plot terms for DAT's block k of one-configuration series: labelled
  * markers, one legend entry; last: the plot command ends there. */
 void hx_plot_markers(FILE *gp, const HxPlot *c, const char *kind, int k, int last);
@@ -561,6 +561,8 @@ const HxGroup *hx_baseline_one_worker(const HxStudy *s, const HxGroup *g);
 /* The series' name: g's label without the swept dimension's value (second:
  * the hybrid series over threads). malloc'd. */
 char *hx_series_label(const HxGroup *g, int second);
+/* LABEL without its " KEY=VALUE" word (a plot's axis, a series' sweep). malloc'd. */
+char *hx_label_drop(const char *label, const char *key);
 /* The same for a hybrid group's series2 (one thread, same ranks). */
 const HxGroup *hx_baseline_one_thread(const HxStudy *s, const HxGroup *g);
 const HxGroup *hx_baseline_fastest(const HxStudy *s, const HxGroup *g,

@@ -147,29 +147,10 @@ void hx_plot_multi(FILE *gp, const HxPlot *c, const char *kind, const char *titl
     }
 }
 
-/* "STUDY: WHAT", then "on CPU, N cores[, GPU]": a plot shown alone still
- * says which study, metric and machine it is. */
-void hx_plot_title(HxBuf *t, const HxStudy *s, const char *what)
-{
-    const HxCsv *csv = &s->csv;
-    const char *study = csv->nrows ? hx_csv_get(csv, 0, "study") : "";
-    const char *cpu = csv->nrows ? hx_csv_get(csv, 0, "cpu_model") : "";
-    const char *cores = csv->nrows ? hx_csv_get(csv, 0, "phys_cores") : "";
-    const char *gpu = csv->nrows ? hx_csv_get(csv, 0, "gpu_name") : "";
-    hx_buf_printf(t, "%s%s%s", study, *study ? ": " : "", what);
-    if (*cpu && strcmp(cpu, "-") != 0) {
-        hx_buf_printf(t, "\non %s", cpu);
-        if (*cores && strcmp(cores, "-") != 0)
-            hx_buf_printf(t, ", %s cores", cores);
-        if (*gpu && strcmp(gpu, "-") != 0)
-            hx_buf_printf(t, ", %s", gpu);
-    }
-}
-
 /* Legends name what differs between series: a word every title shares
  * (the scene of a one-scene study, "accel=bvh") is taken out of each and
  * listed once in *common, for the plot's title. */
-void hx_plot_legend(HxStrList *titles, HxBuf *common)
+static void plot_legend(HxStrList *titles, HxBuf *common)
 {
     if (titles->n < 2)
         return;
@@ -204,6 +185,33 @@ void hx_plot_legend(HxStrList *titles, HxBuf *common)
         hx_buf_printf(common, "%s%s", i ? " " : "", shared.v[i]);
     hx_strlist_free(&shared);
 }
+
+/* "STUDY: WHAT", then "on CPU, N cores[, GPU]": a plot shown alone still
+ * says which study, metric and machine it is. With the legend's titles,
+ * the words they all share move from them into a last line. */
+void hx_plot_title(HxBuf *t, const HxStudy *s, const char *what, HxStrList *titles)
+{
+    const HxCsv *csv = &s->csv;
+    const char *study = csv->nrows ? hx_csv_get(csv, 0, "study") : "";
+    const char *cpu = csv->nrows ? hx_csv_get(csv, 0, "cpu_model") : "";
+    const char *cores = csv->nrows ? hx_csv_get(csv, 0, "phys_cores") : "";
+    const char *gpu = csv->nrows ? hx_csv_get(csv, 0, "gpu_name") : "";
+    hx_buf_printf(t, "%s%s%s", study, *study ? ": " : "", what);
+    if (*cpu && strcmp(cpu, "-") != 0) {
+        hx_buf_printf(t, "\non %s", cpu);
+        if (*cores && strcmp(cores, "-") != 0)
+            hx_buf_printf(t, ", %s cores", cores);
+        if (*gpu && strcmp(gpu, "-") != 0)
+            hx_buf_printf(t, ", %s", gpu);
+    }
+    HxBuf common = {0};
+    if (titles)
+        plot_legend(titles, &common);
+    if (common.len)
+        hx_buf_printf(t, "\nall series: %s", common.s);
+    hx_buf_free(&common);
+}
+
 
 FILE *hx_plot_open(const HxPlot *c, const char *kind, FILE **dat)
 {
@@ -311,17 +319,6 @@ static const char *workers_label(const HxStudy *s)
                                                         : "workers: threads or ranks (log2 scale)";
 }
 
-/* The title with the words the legend no longer repeats. */
-static void title_common(HxBuf *t, const HxStudy *s, const char *what, HxStrList *titles)
-{
-    HxBuf common = {0};
-    hx_plot_legend(titles, &common);
-    hx_plot_title(t, s, what);
-    if (common.len)
-        hx_buf_printf(t, "\nall series: %s", common.s);
-    hx_buf_free(&common);
-}
-
 /* One series' points in increasing order of its swept dimension into dat;
  * the number of points. Only a series of two or more is a line: a single
  * configuration has no speedup but its own. */
@@ -412,7 +409,7 @@ static void plot_scaling(HxPlot *c, const HxStudy *s, int efficiency)
     HxBuf t = {0}, what = {0};
     hx_buf_printf(&what, "%s of %s vs the same series at 1 worker", efficiency ? "parallel efficiency" : "speedup",
                   s->metric);
-    title_common(&t, s, what.s, &titles);
+    hx_plot_title(&t, s, what.s, &titles);
     hx_plot_head(gp, c, kind, t.s);
     hx_buf_free(&t);
     hx_buf_free(&what);
@@ -509,7 +506,7 @@ static void plot_size(HxPlot *c, const HxStudy *s)
     HxBuf t = {0};
     hx_buf_printf(&t, "%s against workers (median; bars: quartiles)", s->metric);
     HxBuf title = {0};
-    title_common(&title, s, t.s, &titles);
+    hx_plot_title(&title, s, t.s, &titles);
     hx_plot_head(gp, c, "size", title.s);
     hx_buf_free(&title);
     t.len = 0;
@@ -592,7 +589,7 @@ static void plot_scenes(HxPlot *c, const HxStudy *s)
         fputc('\n', dat);
     }
     HxBuf t = {0};
-    hx_plot_title(&t, s, "scenes x configurations (median, bars: quartiles; no bar: TLE or failed)");
+    hx_plot_title(&t, s, "scenes x configurations (median, bars: quartiles; no bar: TLE or failed)", NULL);
     hx_plot_head(gp, c, "scenes", t.s);
     t.len = 0;
     hx_buf_printf(&t, "median %s (%s, log scale)", s->metric, s->unit[0] ? s->unit : "-");

@@ -13,32 +13,33 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* LABEL without its " KEY=..." word (the value is the plot's axis). */
-static char *label_drop(const char *label, const char *key)
-{
-    char *lab = hx_strdup(label);
-    HxBuf tok = {0};
-    hx_buf_printf(&tok, " %s=", key);
-    char *at = strstr(lab, tok.s);
-    if (at) {
-        char *end = strchr(at + 1, ' ');
-        const char *rest = end ? end : at + strlen(at);
-        memmove(at, rest, strlen(rest) + 1);
-    }
-    hx_buf_free(&tok);
-    return lab;
-}
-
 /* "SCENE LABEL-without-KEY", or the label alone in a command study. */
 static char *series_name(const HxGroup *g, const char *key)
 {
-    char *lab = label_drop(g->label, key);
+    char *lab = hx_label_drop(g->label, key);
     HxBuf t = {0};
     if (strcmp(g->scene, "-") != 0)
         hx_buf_printf(&t, "%s ", g->scene);
     hx_buf_put(&t, lab);
     free(lab);
     return t.s;
+}
+
+/* Each ok group's series name for KEY (NULL for the others), made once per
+ * plot: panels and lines look them up per group. */
+static char **group_names(const HxStudy *s, const char *key)
+{
+    char **name = calloc(s->ng + 1, sizeof *name);
+    for (size_t i = 0; i < s->ng; i++)
+        name[i] = s->g[i].nt ? series_name(&s->g[i], key) : NULL;
+    return name;
+}
+
+static void names_free(char **name, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        free(name[i]);
+    free(name);
 }
 
 /* A block "WxH" (or "W") as width and height; 0 when it is none. */
@@ -81,22 +82,20 @@ static int index_of(const int *xs, int n, int v)
 }
 
 /* One panel: its cells into dat (block k), its gnuplot commands into body. */
-static void heat_panel(const HxStudy *s, const char *series, const int *ws, int nw, const int *hs, int nh,
-                       const HxPlot *c, FILE *dat, int k, HxBuf *body)
+static void heat_panel(const HxStudy *s, char *const *names, const char *series, const int *ws, int nw,
+                       const int *hs, int nh, const HxPlot *c, FILE *dat, int k, HxBuf *body)
 {
     const HxGroup *best = NULL;
     fprintf(dat, "# panel %d: width_index height_index median q1 q3 width height\n", k);
     for (size_t i = 0; i < s->ng; i++) {
         const HxGroup *g = &s->g[i];
         int w, h;
-        char *name = g->nt && block_dims(g->block, &w, &h) ? series_name(g, "B") : NULL;
-        if (name && strcmp(name, series) == 0) {
+        if (names[i] && block_dims(g->block, &w, &h) && strcmp(names[i], series) == 0) {
             fprintf(dat, "%d %d %.6g %.6g %.6g %d %d\n", index_of(ws, nw, w), index_of(hs, nh, h), g->median, g->q1,
                     g->q3, w, h);
             if (!best || (s->higher ? g->median > best->median : g->median < best->median))
                 best = g;
         }
-        free(name);
     }
     fprintf(dat, "\n\n");
     int bw = 0, bh = 0;
@@ -140,17 +139,16 @@ static void heat_axes(HxBuf *body, const int *ws, int nw, const int *hs, int nh,
 void hx_plot_blocks(HxPlot *c, const HxStudy *s)
 {
     HxStrList series = {0};
+    char **names = group_names(s, "B");
     int *ws = calloc(s->ng + 1, sizeof *ws), *hs = calloc(s->ng + 1, sizeof *hs), nw = 0, nh = 0;
     for (size_t i = 0; i < s->ng; i++) {
         int w, h;
-        if (!s->g[i].nt || !block_dims(s->g[i].block, &w, &h))
+        if (!names[i] || !block_dims(s->g[i].block, &w, &h))
             continue;
         set_add(ws, &nw, w);
         set_add(hs, &nh, h);
-        char *name = series_name(&s->g[i], "B");
-        if (hx_strlist_find(&series, name) < 0)
-            hx_strlist_push(&series, name);
-        free(name);
+        if (hx_strlist_find(&series, names[i]) < 0)
+            hx_strlist_push(&series, names[i]);
     }
     FILE *dat = NULL, *gp = series.n ? hx_plot_open(c, "blocks", &dat) : NULL;
     if (!series.n)
@@ -162,11 +160,11 @@ void hx_plot_blocks(HxPlot *c, const HxStudy *s)
         HxBuf body = {0}, t = {0};
         heat_axes(&body, ws, nw, hs, nh, s);
         for (size_t k = 0; k < series.n; k++)
-            heat_panel(s, series.v[k], ws, nw, hs, nh, c, dat, (int)k, &body);
+            heat_panel(s, names, series.v[k], ws, nw, hs, nh, c, dat, (int)k, &body);
         HxBuf what = {0};
         hx_buf_printf(&what, "median %s (%s) by CUDA block width x height, best cell framed", s->metric,
                       s->unit[0] ? s->unit : "-");
-        hx_plot_title(&t, s, what.s);
+        hx_plot_title(&t, s, what.s, NULL);
         hx_buf_free(&what);
         hx_plot_multi(gp, c, "blocks", t.s, rows, cols, body.s, 480 * cols, 360 * rows + 60);
         hx_buf_free(&body);
@@ -175,6 +173,7 @@ void hx_plot_blocks(HxPlot *c, const HxStudy *s)
     }
     free(ws);
     free(hs);
+    names_free(names, s->ng);
     hx_strlist_free(&series);
 }
 
@@ -233,21 +232,20 @@ static int swept_size(const HxStudy *s, char *key, size_t n)
     return 0;
 }
 
-/* One series' points over the size, in increasing order, into pts; how many. */
-static int sweep_points(const HxStudy *s, const char *key, const char *series, HxBuf *pts, const HxGroup **one)
+/* One series' points over the size (xs: each group's), in increasing
+ * order, into pts; how many. */
+static int sweep_points(const HxStudy *s, char *const *names, const double *xs, const char *series, HxBuf *pts,
+                        const HxGroup **one)
 {
     int n = 0;
     for (double last = 0;; n++) {
         const HxGroup *next = NULL;
         double nx = 0;
         for (size_t i = 0; i < s->ng; i++) {
-            double x = s->g[i].nt ? size_value(s, &s->g[i], key) : 0;
-            char *name = x > last && (!next || x < nx) ? series_name(&s->g[i], key) : NULL;
-            if (name && strcmp(name, series) == 0) {
+            if (names[i] && xs[i] > last && (!next || xs[i] < nx) && strcmp(names[i], series) == 0) {
                 next = &s->g[i];
-                nx = x;
+                nx = xs[i];
             }
-            free(name);
         }
         if (!next)
             break;
@@ -274,35 +272,34 @@ void hx_plot_sweep(HxPlot *c, const HxStudy *s)
             s->metric, s->unit);
     HxStrList series = {0}, titles = {0};
     HxBuf singles = {0};
+    char **names = group_names(s, key);
+    double *xs = calloc(s->ng + 1, sizeof *xs);
+    for (size_t i = 0; i < s->ng; i++)
+        xs[i] = names[i] ? size_value(s, &s->g[i], key) : 0;
     for (size_t i = 0; i < s->ng; i++) {
-        char *name = s->g[i].nt ? series_name(&s->g[i], key) : NULL;
+        const char *name = names[i];
         if (name && hx_strlist_find(&series, name) < 0) {
             hx_strlist_push(&series, name);
             HxBuf pts = {0};
             const HxGroup *one = NULL;
-            if (sweep_points(s, key, name, &pts, &one) >= 2) {
+            if (sweep_points(s, names, xs, name, &pts, &one) >= 2) {
                 fprintf(dat, "%s\n\n", pts.s);
                 hx_strlist_push(&titles, name);
             } else if (one) {
                 char lab[256];
                 hx_plot_clean_label(lab, sizeof lab, name);
-                hx_buf_printf(&singles, "%.6g %.6g %.6g %.6g \"%s\"\n", size_value(s, one, key), one->median,
-                              one->q1, one->q3, lab);
+                hx_buf_printf(&singles, "%.6g %.6g %.6g %.6g \"%s\"\n", xs[one - s->g], one->median, one->q1,
+                              one->q3, lab);
             }
             hx_buf_free(&pts);
         }
-        free(name);
     }
     if (singles.len)
         fprintf(dat, "%s\n\n", singles.s);
-    HxBuf t = {0}, common = {0};
+    HxBuf t = {0}, title = {0};
     size_t nseries = titles.n;
-    hx_plot_legend(&titles, &common);
     hx_buf_printf(&t, "%s against %s (median; bars: quartiles)", s->metric, key);
-    HxBuf title = {0};
-    hx_plot_title(&title, s, t.s);
-    if (common.len)
-        hx_buf_printf(&title, "\nall series: %s", common.s);
+    hx_plot_title(&title, s, t.s, &titles);
     hx_plot_head(gp, c, "sweep", title.s);
     t.len = 0;
     hx_buf_printf(&t, "%s%s (log scale)", key, strcmp(key, "resolution") == 0 ? " in pixels" : "");
@@ -311,7 +308,7 @@ void hx_plot_sweep(HxPlot *c, const HxStudy *s)
      * two-fold sweep with no tic at all */
     double xlo = INFINITY, xhi = 0, ylo = INFINITY, yhi = 0;
     for (size_t i = 0; i < s->ng; i++) {
-        double x = s->g[i].nt ? size_value(s, &s->g[i], key) : 0;
+        double x = xs[i];
         if (x > 0 && s->g[i].q1 > 0) {
             xlo = fmin(xlo, x), xhi = fmax(xhi, x);
             ylo = fmin(ylo, s->g[i].q1), yhi = fmax(yhi, s->g[i].q3);
@@ -336,8 +333,9 @@ void hx_plot_sweep(HxPlot *c, const HxStudy *s)
     hx_plot_finish(c, "sweep", gp, dat);
     hx_buf_free(&t);
     hx_buf_free(&title);
-    hx_buf_free(&common);
     hx_buf_free(&singles);
     hx_strlist_free(&series);
     hx_strlist_free(&titles);
+    names_free(names, s->ng);
+    free(xs);
 }
