@@ -33,9 +33,9 @@ void hx_buf_printf(HxBuf *b, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)));
 void hx_buf_free(HxBuf *b);
 char *hx_strdup(const char *s);
-/* Removes the worker count (" T=n" or " P=n") from a group label, in place:
- * what is left names the series a scaling study draws as one line. */
-void hx_label_drop_workers(char *lab);
+/* LABEL without its " KEY=VALUE" word (a series' sweep, a plot's axis:
+ * what is left names the line), malloc'd. */
+char *hx_label_drop(const char *label, const char *key);
 char *hx_strndup(const char *s, size_t n);
 void *hx_xmalloc(size_t n);
 void *hx_xrealloc(void *p, size_t n);
@@ -561,8 +561,6 @@ const HxGroup *hx_baseline_one_worker(const HxStudy *s, const HxGroup *g);
 /* The series' name: g's label without the swept dimension's value (second:
  * the hybrid series over threads). malloc'd. */
 char *hx_series_label(const HxGroup *g, int second);
-/* LABEL without its " KEY=VALUE" word (a plot's axis, a series' sweep). malloc'd. */
-char *hx_label_drop(const char *label, const char *key);
 /* The same for a hybrid group's series2 (one thread, same ranks). */
 const HxGroup *hx_baseline_one_thread(const HxStudy *s, const HxGroup *g);
 const HxGroup *hx_baseline_fastest(const HxStudy *s, const HxGroup *g,

@@ -551,21 +551,6 @@ const HxGroup *hx_baseline_fastest(const HxStudy *s, const HxGroup *g, const cha
 }
 
 /* The series' name: the label without the swept dimension's value. */
-char *hx_label_drop(const char *label, const char *key)
-{
-    char *lab = hx_strdup(label);
-    HxBuf tok = {0};
-    hx_buf_printf(&tok, " %s=", key);
-    char *at = strstr(lab, tok.s);
-    if (at) {
-        char *end = strchr(at + 1, ' ');
-        const char *rest = end ? end : at + strlen(at);
-        memmove(at, rest, strlen(rest) + 1);
-    }
-    hx_buf_free(&tok);
-    return lab;
-}
-
 char *hx_series_label(const HxGroup *g, int second)
 {
     return hx_label_drop(g->label, second || g->swept == HX_DIM_THREADS ? "T" : "P");

@@ -46,15 +46,19 @@ char *hx_strndup(const char *s, size_t n)
     return d;
 }
 
-void hx_label_drop_workers(char *lab)
+char *hx_label_drop(const char *label, const char *key)
 {
-    char *tp = strstr(lab, " T=");
-    if (!tp)
-        tp = strstr(lab, " P=");
-    if (tp) {
-        char *end = strchr(tp + 1, ' ');
-        memmove(tp, end ? end : tp + strlen(tp), strlen(end ? end : tp + strlen(tp)) + 1);
+    char *lab = hx_strdup(label);
+    HxBuf tok = {0};
+    hx_buf_printf(&tok, " %s=", key);
+    char *at = strstr(lab, tok.s);
+    if (at) {
+        char *end = strchr(at + 1, ' ');
+        const char *rest = end ? end : at + strlen(at);
+        memmove(at, rest, strlen(rest) + 1);
     }
+    hx_buf_free(&tok);
+    return lab;
 }
 
 char *hx_strdup(const char *s)
