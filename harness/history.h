@@ -71,19 +71,19 @@ void hx_series_commit_order(const HxSeriesSet *ss, HxStrList *order);
 size_t hx_series_steps(const HxSeries *s, const HxStepRule *rule, HxStep **steps);
 /* The verdict on a series without a step, in *v; 1 when inconclusive. */
 int hx_series_no_step(const HxSeries *s, const HxStepRule *rule, HxNoStep *v);
-/* Each series' legend (malloc'd into legend[i]): the settings in which the
- * series differ ("openmp, T=2"); the settings they all share go to common. */
 /* The machine part of a series' fingerprint ("MACHINE SETTINGS"), malloc'd. */
 char *hx_series_machine(const HxSeries *s);
+/* Each series' legend (malloc'd into legend[i]): the settings in which the
+ * series differ ("openmp, T=2"); the settings they all share go to common. */
 void hx_series_legends(const HxSeries *const *s, size_t n, char **legend, HxBuf *common);
+
+#if HAVE_SQLITE
 /* A machine (its fingerprint) in words: CPU, cores, GPU into name; host,
  * compiler, governor, GPU driver into detail (NULL: not wanted). */
 void hx_machine_words(sqlite3 *db, const char *dbpath, const char *fp, HxBuf *name, HxBuf *detail);
 /* `history plot`: PREFIX-history.png/.svg of the series; 0, or 1 (said). */
 int hx_history_plot(sqlite3 *db, const char *dbpath, const HxSeriesSet *ss, const char *metric,
                     const char *prefix);
-
-#if HAVE_SQLITE
 /* Every ok run's metric (a column, a record key or COLUMN/calib) by series
  * and commit, commits in history order; want: "key=value" words each
  * configuration must have. 0, or -1 with one line on stderr. */

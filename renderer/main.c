@@ -608,6 +608,24 @@ static int render_runs(Run *r, const RtRenderJob *job, RtError *err)
     return rc;
 }
 
+/* --verify: no pixel left unwritten (NaN), and an image quantised by the
+ * backend (on the GPU) equal to the CPU's quantisation of its floats. */
+static int verify_image(const Run *r, RtError *err)
+{
+    const size_t w = (size_t)r->cam.width;
+    for (size_t i = 0; i < r->npix * 3; i++) {
+        if (isnan(r->rgbf[i]))
+            return rt_fail(err, "--verify: pixel (%zu, %zu) was never written by the %s backend", (i / 3) % w,
+                           (i / 3) / w, r->be->name);
+        if (r->out.quantized && r->rgb[i] != rt_quantize_value(r->rgbf[i]))
+            return rt_fail(err, "--verify: pixel (%zu, %zu) channel %zu: the %s backend quantised %.9g to %u, "
+                                "the CPU's rule gives %u",
+                           (i / 3) % w, (i / 3) / w, i % 3, r->be->name, (double)r->rgbf[i], (unsigned)r->rgb[i],
+                           (unsigned)rt_quantize_value(r->rgbf[i]));
+    }
+    return 0;
+}
+
 /* The render itself, into the poisoned float image; with --verify, a pixel
  * left unwritten fails it. */
 static int render(Run *r, RtError *err)
@@ -630,6 +648,7 @@ static int render(Run *r, RtError *err)
     job.runs = o->runs;
     job.warmup_runs = o->warmup_runs;
     job.warmup_ms = o->warmup_ms;
+    job.want_float = o->verify; /* the unwritten-pixel check needs the float image's NaN poison */
     Progress prog_state = {0, -1};
     if (!o->quiet && isatty(STDERR_FILENO)) {
         prog_state.enabled = 1;
@@ -646,24 +665,22 @@ static int render(Run *r, RtError *err)
     r->calib_ms = o->calibrate ? rt_calibrate_ms() : 0.0;
     memset(&r->out, 0, sizeof r->out);
     r->out.rgb = r->rgbf;
+    r->out.rgb8 = r->rgb;
     r->out.is_root = 1;
-    poison(r->rgbf, r->npix * 3);
+    if (!r->be->gpu || job.want_float) /* (a GPU backend leaves the floats alone) */
+        poison(r->rgbf, r->npix * 3);
     const int rc = r->be->times_runs ? r->be->render(&job, &r->out, err) : render_runs(r, &job, err);
     free(soa);
     if (rc != 0)
         return -1;
-    if (r->out.is_root && o->verify)
-        for (size_t i = 0; i < r->npix * 3; i++)
-            if (isnan(r->rgbf[i]))
-                return rt_fail(err, "--verify: pixel (%zu, %zu) was never written by the %s backend",
-                               (i / 3) % (size_t)r->cam.width, (i / 3) / (size_t)r->cam.width, r->be->name);
-    return 0;
+    return r->out.is_root && o->verify ? verify_image(r, err) : 0;
 }
 
 /* The 8-bit image, its hash, and the file (whole or not at all). */
 static int write_image(Run *r, RtError *err)
 {
-    rt_image_quantize(r->rgbf, r->rgb, r->npix);
+    if (!r->out.quantized)
+        rt_image_quantize(r->rgbf, r->rgb, r->npix);
     r->hash = rt_fnv1a64(r->rgb, r->npix * 3);
     double t0 = rt_now_ms();
     if (rt_image_write(r->output, r->rgb, r->cam.width, r->cam.height, err) != 0)

@@ -204,6 +204,8 @@ int rt_image_write(const char *path, const uint8_t *rgb, int width, int height, 
 /* Reads PNG (8/16-bit, any colour type), BMP (24-bit) or PPM (P6) into 8-bit RGB (malloc'd). */
 int rt_image_read(const char *path, uint8_t **rgb, int *width, int *height, RtError *err);
 void rt_image_quantize(const float *rgbf, uint8_t *rgb, size_t npixels);
+/* One channel by the same rule (rt_quantize). */
+uint8_t rt_quantize_value(float c);
 uint64_t rt_fnv1a64(const uint8_t *data, size_t len);
 
 /* ---------------------------------------------------------------- CPU traversal */
@@ -248,12 +250,16 @@ typedef struct RtRenderJob {
     double warmup_ms;     /* -1: unset */
     RtProgressFn progress; /* may be NULL */
     void *progress_ctx;
+    int want_float;       /* GPU backends: fill RtRenderOut.rgb too (--verify), not only rgb8 */
 } RtRenderJob;
 
 typedef struct RtRenderOut {
-    float *rgb;           /* width*height*3 floats, filled by the backend (root rank) */
+    float *rgb;           /* width*height*3 floats, filled by the backend (root rank); GPU backends
+                           * fill it only with want_float */
+    uint8_t *rgb8;        /* width*height*3 bytes: the image as written (rt_quantize of rgb) */
+    int quantized;        /* 1: the backend filled rgb8 itself (GPU backends, quantised on the GPU) */
     RtCounters counters;  /* summed over all workers */
-    double render_ms;     /* pixel work only (max over ranks for MPI; kernel time for CUDA) */
+    double render_ms;     /* pixel work only (max over ranks for MPI; GPU: to the image in host memory) */
     double render_ms_min; /* min over ranks; = render_ms elsewhere */
     double render_ms_best; /* the fastest of the timed runs */
     int runs, warmups;    /* timed and warm-up renders */

@@ -159,6 +159,8 @@ uint64_t rt_fnv1a64(const uint8_t *data, size_t len)
     return h;
 }
 
+uint8_t rt_quantize_value(float c) { return rt_quantize(c); }
+
 void rt_image_quantize(const float *rgbf, uint8_t *rgb, size_t npixels)
 {
     for (size_t i = 0; i < 3 * npixels; i++)

@@ -42,8 +42,8 @@ typedef enum { RT_REC_MAIN, RT_REC_MAIN_IF, RT_REC_BACKEND, RT_REC_LAST } RtRecW
     X(build_ms, F3, "ms", OWN, "build_ms", MAIN, \
       "building the primitive records and the BVH, including its invariant check") \
     X(render_ms, F3, "ms", OWN, "render_ms", MAIN, \
-      "the pixel work only, as the report timed it (max over ranks for mpi; kernel time for cuda; " \
-      "for mpi-cuda the frame to the whole image in rank 0's memory)") \
+      "the pixel work only, as the report timed it (max over ranks for mpi); for cuda and mpi-cuda, " \
+      "a frame until its 8-bit image is in (rank 0's) host memory, frames pipelined (docs/gpu.md)") \
     X(write_ms, F3, "ms", OWN, "write_ms", MAIN, "quantizing and writing the image file") \
     X(total_ms, F3, "ms", OWN, "total_ms", MAIN, "the whole command, start to record") \
     X(rays, UINT, "", OWN, "rays", MAIN, "primary + shadow + secondary rays") \
@@ -93,7 +93,12 @@ typedef enum { RT_REC_MAIN, RT_REC_MAIN_IF, RT_REC_BACKEND, RT_REC_LAST } RtRecW
     X(block, STR, "", OWN, "rec_block", BACKEND, \
       "cuda, mpi-cuda: the thread block shape BXxBY (`--block`; docs/gpu.md)") \
     X(upload_ms, F3, "ms", OWN, "upload_ms", BACKEND, "cuda: copying the scene's arrays to the GPU") \
-    X(download_ms, F3, "ms", OWN, "download_ms", BACKEND, "cuda: copying the image back from the GPU") \
+    X(download_ms, F3, "ms", OWN, "download_ms", BACKEND, \
+      "cuda, mpi-cuda: copying a frame's image (8-bit; the floats too with `--verify`) back from the GPU, " \
+      "median over the frames (mpi-cuda: the slowest rank's)") \
+    X(kernel_ms, F4, "ms", EXTRA, "extra", BACKEND, \
+      "cuda, mpi-cuda: the render kernel alone, median over the frames (mpi-cuda: the slowest rank's); " \
+      "`render_ms` is the time until the image is in host memory (docs/gpu.md, \"What render_ms means\")") \
     X(wall_ms, F3, "ms", OWN, "rec_wall_ms", BACKEND, "cuda: the whole backend call") \
     X(gpu, STR, "", OWN, "rec_gpu", BACKEND, \
       "cuda, mpi-cuda (rank 0's): the GPU's name, other characters than letters, digits, `-` and `.` as `_`") \

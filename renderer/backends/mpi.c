@@ -43,6 +43,8 @@
 enum { RT_TAG_ERROR = 1 };
 
 int rt_mpi_rank, rt_mpi_size = 1;
+int rt_mpi_local_rank, rt_mpi_local_size = 1, rt_mpi_node, rt_mpi_nodes = 1;
+MPI_Comm rt_mpi_node_comm = MPI_COMM_NULL;
 static int g_inited, g_provided;
 static double g_load_ms;                      /* this rank's time in mpi_scene_load */
 static const char *g_scene_how = "every";     /* how the scene reached the ranks (every when P = 1) */
@@ -67,6 +69,16 @@ int rt_mpi_init(int *argc, char ***argv, RtError *err)
     MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN);
     RT_MPI_CHECK(MPI_Comm_rank(MPI_COMM_WORLD, &rt_mpi_rank));
     RT_MPI_CHECK(MPI_Comm_size(MPI_COMM_WORLD, &rt_mpi_size));
+    /* The ranks of this node (what the launcher calls a node: MPI_COMM_TYPE_SHARED)
+     * and the node's number: the order of the nodes' lowest ranks. */
+    RT_MPI_CHECK(MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &rt_mpi_node_comm));
+    RT_MPI_CHECK(MPI_Comm_rank(rt_mpi_node_comm, &rt_mpi_local_rank));
+    RT_MPI_CHECK(MPI_Comm_size(rt_mpi_node_comm, &rt_mpi_local_size));
+    int leader = rt_mpi_local_rank == 0, before = 0;
+    RT_MPI_CHECK(MPI_Allreduce(&leader, &rt_mpi_nodes, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD));
+    RT_MPI_CHECK(MPI_Exscan(&leader, &before, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD));
+    rt_mpi_node = rt_mpi_rank == 0 ? 0 : before; /* (Exscan leaves rank 0's undefined) */
+    RT_MPI_CHECK(MPI_Bcast(&rt_mpi_node, 1, MPI_INT, 0, rt_mpi_node_comm));
     return 0;
 }
 
@@ -75,6 +87,8 @@ void rt_mpi_finalize(void)
     if (!g_inited)
         return;
     g_inited = 0;
+    if (rt_mpi_node_comm != MPI_COMM_NULL)
+        MPI_Comm_free(&rt_mpi_node_comm);
     /* After an agreed failure every rank is alive and knows it, and rank 0
      * has printed the one message (main.c): all ranks finalize together and
      * exit 1. MPI_Abort would return from mpirun faster, but Open MPI 4.1's
@@ -106,6 +120,32 @@ int rt_mpi_agree(int failed, RtError *err)
         }
     }
     return 1;
+}
+
+int rt_mpi_test_rank(const char *var)
+{
+#if RT_TEST_HOOKS
+    const char *v = getenv(var);
+    return v && *v && atoi(v) == rt_mpi_rank;
+#else
+    (void)var;
+    return 0;
+#endif
+}
+
+void rt_mpi_rank_nodes(char *buf, size_t size)
+{
+    int *all = rt_mpi_rank == 0 ? malloc(sizeof *all * (size_t)rt_mpi_size) : NULL;
+    if (rt_mpi_rank == 0 && !all)
+        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
+    RT_MPI_CHECK(MPI_Gather(&rt_mpi_node, 1, MPI_INT, all, 1, MPI_INT, 0, MPI_COMM_WORLD));
+    if (rt_mpi_rank != 0)
+        return;
+    size_t len = 0;
+    buf[0] = '\0';
+    for (int r = 0; r < rt_mpi_size && len < size; r++)
+        len += (size_t)snprintf(buf + len, size - len, "%s%d", r ? "/" : "", all[r]);
+    free(all);
 }
 
 /* Broadcasts n bytes in pieces below INT_MAX (MPI counts are int). */
@@ -238,16 +278,16 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
 /* Window layout on rank 0 (disp_unit 1): the claim counter, then the image. */
 #define RT_WIN_IMAGE 8 /* byte offset of the float RGB image */
 
-void rt_mpi_image_open(RtMpiImage *m, size_t npix, const float *rgb, int shared)
+void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared)
 {
     memset(m, 0, sizeof *m);
-    m->npix = npix;
+    m->bytes = bytes;
     shared = shared && rt_mpi_size > 1;
-    MPI_Aint bytes = rt_mpi_rank == 0 ? (MPI_Aint)(RT_WIN_IMAGE + npix * 3 * sizeof(float)) : 0;
+    MPI_Aint size = rt_mpi_rank == 0 ? (MPI_Aint)(RT_WIN_IMAGE + bytes) : 0;
     if (shared)
-        RT_MPI_CHECK(MPI_Win_allocate_shared(bytes, 1, MPI_INFO_NULL, MPI_COMM_WORLD, &m->base, &m->win));
+        RT_MPI_CHECK(MPI_Win_allocate_shared(size, 1, MPI_INFO_NULL, MPI_COMM_WORLD, &m->base, &m->win));
     else
-        RT_MPI_CHECK(MPI_Win_allocate(bytes, 1, MPI_INFO_NULL, MPI_COMM_WORLD, &m->base, &m->win));
+        RT_MPI_CHECK(MPI_Win_allocate(size, 1, MPI_INFO_NULL, MPI_COMM_WORLD, &m->base, &m->win));
     MPI_Win_set_errhandler(m->win, MPI_ERRORS_RETURN);
     int *model = NULL, flag = 0;
     RT_MPI_CHECK(MPI_Win_get_attr(m->win, MPI_WIN_MODEL, &model, &flag));
@@ -255,14 +295,18 @@ void rt_mpi_image_open(RtMpiImage *m, size_t npix, const float *rgb, int shared)
      * the window directly; in the separate model it MPI_Puts to itself. */
     m->direct = rt_mpi_rank == 0 && flag && *model == MPI_WIN_UNIFIED;
     if (shared) { /* rank 0's segment, mapped here */
-        MPI_Aint size;
+        MPI_Aint seg;
         int disp;
-        RT_MPI_CHECK(MPI_Win_shared_query(m->win, 0, &size, &disp, &m->base));
+        RT_MPI_CHECK(MPI_Win_shared_query(m->win, 0, &seg, &disp, &m->base));
         m->direct = 1;
     }
-    m->img0 = (float *)(void *)((char *)m->base + RT_WIN_IMAGE);
-    if (rt_mpi_rank == 0)
-        memcpy(m->img0, rgb, npix * 3 * sizeof(float)); /* carry main's NaN poison for --verify */
+    m->img0 = (char *)m->base + RT_WIN_IMAGE;
+    if (rt_mpi_rank == 0) {
+        if (init)
+            memcpy(m->img0, init, bytes); /* e.g. main's NaN poison, for --verify */
+        else
+            memset(m->img0, 0, bytes);
+    }
     RT_MPI_CHECK(MPI_Win_lock_all(MPI_MODE_NOCHECK, m->win));
 }
 
@@ -287,10 +331,15 @@ int64_t rt_mpi_claim(RtMpiImage *m, int64_t total, int64_t min_claim, int64_t *s
     return total - *first < claim ? total - *first : claim;
 }
 
-void rt_mpi_put(RtMpiImage *m, const float *src, size_t off, size_t n)
+void rt_mpi_put_runs(RtMpiImage *m, const void *src, size_t off, size_t width, size_t pitch, size_t count)
 {
-    RT_MPI_CHECK(MPI_Put(src + off, (int)n, MPI_FLOAT, 0, (MPI_Aint)(RT_WIN_IMAGE + off * sizeof(float)), (int)n,
-                         MPI_FLOAT, m->win));
+    if (count == 0 || width == 0)
+        return;
+    MPI_Datatype t;
+    RT_MPI_CHECK(MPI_Type_vector((int)count, (int)width, (int)pitch, MPI_BYTE, &t));
+    RT_MPI_CHECK(MPI_Type_commit(&t));
+    RT_MPI_CHECK(MPI_Put((const char *)src + off, 1, t, 0, (MPI_Aint)(RT_WIN_IMAGE + off), 1, t, m->win));
+    MPI_Type_free(&t);
 }
 
 void rt_mpi_frame_end(RtMpiImage *m)
@@ -302,10 +351,10 @@ void rt_mpi_frame_end(RtMpiImage *m)
         RT_MPI_CHECK(MPI_Win_sync(m->win));
 }
 
-void rt_mpi_image_close(RtMpiImage *m, float *rgb)
+void rt_mpi_image_close(RtMpiImage *m, void *out)
 {
     if (rt_mpi_rank == 0)
-        memcpy(rgb, m->img0, m->npix * 3 * sizeof(float));
+        memcpy(out, m->img0, m->bytes);
     RT_MPI_CHECK(MPI_Win_unlock_all(m->win));
     RT_MPI_CHECK(MPI_Win_free(&m->win));
 }
@@ -342,11 +391,11 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
     int w = v->cam.width, h = v->cam.height;
     int64_t ntiles = rt_tile_count(w, h, tw, th);
     RtMpiImage m;
-    rt_mpi_image_open(&m, (size_t)w * (size_t)h, rgb, 0);
+    rt_mpi_image_open(&m, (size_t)w * (size_t)h * 3 * sizeof(float), rgb, 0);
     rt_mpi_frame_start(&m);
     *t_start = rt_now_ms();
 
-    float *dst = m.direct ? m.img0 : rgb;
+    float *dst = m.direct ? (float *)m.img0 : rgb;
     const int64_t min_claim = tiles_per_claim(pool->nthreads);
     int64_t seen = 0, first, count; /* seen: the counter as this rank last saw it */
     TileTypes tt;
@@ -383,13 +432,10 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
                          g_provided) != 0;
     else if (rt_cpu_pool_init(&pool, threads, err) != 0)
         failed = 1;
-#if RT_TEST_HOOKS
     /* only in tests/cpu's raytrace-testhooks (mpi_fail.sh): an error on one
      * rank only */
-    const char *inject = getenv("RT_MPI_TEST_FAIL_RANK");
-    if (!failed && inject && atoi(inject) == rt_mpi_rank)
+    if (!failed && rt_mpi_test_rank("RT_MPI_TEST_FAIL_RANK"))
         failed = rt_fail(err, "injected failure (RT_MPI_TEST_FAIL_RANK=%d)", rt_mpi_rank) != 0;
-#endif
     /* A rank that cannot render must not leave the others in a collective. */
     if (rt_mpi_agree(failed, err) != 0) {
         rt_cpu_pool_free(&pool);
@@ -423,6 +469,8 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     if (rt_mpi_rank == 0 && !all)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
     RT_MPI_CHECK(MPI_Gather(cores, (int)sizeof cores, MPI_CHAR, all, (int)sizeof cores, MPI_CHAR, 0, MPI_COMM_WORLD));
+    char nodes[400];
+    rt_mpi_rank_nodes(nodes, sizeof nodes);
 
     out->threads_used = threads;
     out->ranks_used = rt_mpi_size;
@@ -451,11 +499,11 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     free(all);
     snprintf(out->extra, sizeof out->extra,
              " mpi_schedule=%s schedule=%s mpi_scene=%s load_ms_max=%.3f tiles_per_claim=%lld"
-             " rank_cores=%s",
+             " rank_cores=%s nodes=%d rank_node=%s",
              job->mpi_schedule == RT_MPI_ROWS ? "rows" : "dynamic",
              job->schedule == RT_SCHED_PIXELS ? "pixels" : "tiles",
              g_scene_how, load_max,
-             (long long)tiles_per_claim(threads), per_rank);
+             (long long)tiles_per_claim(threads), per_rank, rt_mpi_nodes, nodes);
     if (job->progress)
         job->progress(job->progress_ctx, 1, 1);
     return 0;

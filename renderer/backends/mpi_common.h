@@ -11,6 +11,11 @@
 #include "rt.h"
 
 extern int rt_mpi_rank, rt_mpi_size;
+/* This rank's node (MPI_COMM_TYPE_SHARED: the ranks that share memory with
+ * it), its rank and size there, the node's number (0 holds rank 0) and the
+ * number of nodes; set by rt_mpi_init. */
+extern int rt_mpi_local_rank, rt_mpi_local_size, rt_mpi_node, rt_mpi_nodes;
+extern MPI_Comm rt_mpi_node_comm;
 
 /* Names the failed call with MPI's error string, then MPI_Abort (never a hang). */
 void rt_mpi_die(const char *file, int line, const char *call, int code);
@@ -29,24 +34,31 @@ void rt_mpi_finalize(void);
 /* Collective: nonzero on every rank if any failed; rank 0's err then holds
  * the lowest failing rank's message (RtCollective.agree). */
 int rt_mpi_agree(int failed, RtError *err);
+/* Test hooks: 1 when environment variable var names this rank, in
+ * raytrace-testhooks only (mpi.c built with RT_TEST_HOOKS); else 0. */
+int rt_mpi_test_rank(const char *var);
+/* Collective: rank 0's buf gets each rank's node number, ranks separated by
+ * '/' (the record's rank_node: "0/0/1/1"). */
+void rt_mpi_rank_nodes(char *buf, size_t size);
 extern const RtCollective rt_mpi_collective;
 
 /* The shared image of the dynamic scheme. */
 typedef struct RtMpiImage {
     MPI_Win win;
     void *base;     /* rank 0's window (the counter at its start) */
-    float *img0;    /* rank 0's image, where this rank may write it directly */
+    void *img0;     /* rank 0's image, where this rank may write it directly */
     int direct;     /* 1: write img0 directly; 0: MPI_Put into it */
-    size_t npix;
+    size_t bytes;   /* the image's size */
 } RtMpiImage;
 
-/* Collective: the window on rank 0 (counter and image, the image starting as
- * rgb: main's NaN poison), locked for the passive target epochs of frames.
- * Rank 0 writes its own pixels directly where the memory model allows.
- * shared (the same on every rank) says every rank runs on one node: the
- * window is then shared memory (MPI_Win_allocate_shared) and every rank
- * writes its pixels straight into rank 0's image: no puts. */
-void rt_mpi_image_open(RtMpiImage *m, size_t npix, const float *rgb, int shared);
+/* Collective: the window on rank 0 (counter and an image of `bytes`, the
+ * image starting as rank 0's init, e.g. main's NaN poison, or zeros where
+ * init is NULL), locked for the passive target epochs of frames. Rank 0
+ * writes its own pixels directly where the memory model allows. shared (the
+ * same on every rank) says every rank runs on one node: the window is then
+ * shared memory (MPI_Win_allocate_shared) and every rank writes its pixels
+ * straight into rank 0's image: no puts. */
+void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared);
 /* Collective: the counter back to 0; returns when every rank may claim. */
 void rt_mpi_frame_start(RtMpiImage *m);
 /* Guided self-scheduling (Polychronopoulos & Kuck 1987) of `total` units:
@@ -56,12 +68,13 @@ void rt_mpi_frame_start(RtMpiImage *m);
  * so the ranks finish together. The claim's first unit in *first and its
  * length returned; 0 when nothing is left. */
 int64_t rt_mpi_claim(RtMpiImage *m, int64_t total, int64_t min_claim, int64_t *seen, int64_t *first);
-/* Puts floats [off, off + n) of this rank's whole-image buffer src into the
- * same place in rank 0's image. */
-void rt_mpi_put(RtMpiImage *m, const float *src, size_t off, size_t n);
+/* Puts `count` pieces of `width` bytes, `pitch` apart from byte `off` of
+ * this rank's whole-image buffer src, into the same places of rank 0's
+ * image (one MPI vector). */
+void rt_mpi_put_runs(RtMpiImage *m, const void *src, size_t off, size_t width, size_t pitch, size_t count);
 /* Collective: every rank's puts are in rank 0's image. */
 void rt_mpi_frame_end(RtMpiImage *m);
-/* Collective: rank 0 copies the image into rgb; the window is freed. */
-void rt_mpi_image_close(RtMpiImage *m, float *rgb);
+/* Collective: rank 0 copies the image into out; the window is freed. */
+void rt_mpi_image_close(RtMpiImage *m, void *out);
 
 #endif

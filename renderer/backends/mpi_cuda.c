@@ -7,14 +7,16 @@
  * them take turns.
  *
  * Each rank opens a CUDA session (cuda_session.h: the device, the plan for
- * the whole image, the scene uploaded once). The frame is handed out as in
- * the CPU MPI backend's dynamic scheme (mpi_common.h): ranks claim bands of
- * tile rows from the counter in rank 0's window (guided, never less than the
- * rows that fill the GPU once) and render each with the CUDA kernel; a
- * band's rows are copied down while the next band renders. A band is
- * contiguous in the image: on one node every rank copies it straight into
- * rank 0's image (a shared-memory window); across nodes it is one MPI_Put.
- * docs/gpu.md, "Several GPUs". */
+ * the whole image, the scene uploaded once) and renders, every frame, its
+ * share of the image's tile rows: rank r of P takes rows r, r + P, r + 2P...
+ * Interleaved row by row, the expensive rows (the subject) are split evenly,
+ * so GPUs of one kind finish a frame together with no claims and no step on
+ * rank 0 that grows with P. The GPU quantises the pixels to the 8 bits that
+ * are written; on one node each rank's copy engine puts its rows straight
+ * into rank 0's image (a shared-memory window, page-locked: no staging);
+ * across nodes they come down into the rank's own buffer and go on in one
+ * MPI_Put (a vector of rows). Frames are pipelined: frame k + 1's kernel
+ * runs while frame k's rows are copied down. docs/gpu.md, "Several GPUs". */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -24,28 +26,8 @@
 #include "mpi_common.h"
 #include "rt.h"
 
-static int g_local_rank, g_local_size = 1;
-static MPI_Comm g_node = MPI_COMM_NULL; /* the ranks on this rank's node */
-
-static int mpi_cuda_init(int *argc, char ***argv, RtError *err)
-{
-    if (rt_mpi_init(argc, argv, err) != 0)
-        return -1;
-    RT_MPI_CHECK(MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &g_node));
-    RT_MPI_CHECK(MPI_Comm_rank(g_node, &g_local_rank));
-    RT_MPI_CHECK(MPI_Comm_size(g_node, &g_local_size));
-    return 0;
-}
-
-static void mpi_cuda_finalize(void)
-{
-    if (g_node != MPI_COMM_NULL)
-        MPI_Comm_free(&g_node);
-    rt_mpi_finalize();
-}
-
 /* (the device as pick_device will choose it) */
-static void mpi_cuda_prewarm(int device) { rt_cuda_prewarm_device(device + g_local_rank, 1); }
+static void mpi_cuda_prewarm(int device) { rt_cuda_prewarm_device(device + rt_mpi_local_rank, 1); }
 
 /* This rank's device: --device + local rank, modulo the GPUs it sees (under
  * Slurm's --gpus-per-task each rank sees only its own: device 0). */
@@ -57,7 +39,7 @@ static int pick_device(const RtRenderJob *job, int *dev, char *bus, size_t size,
     if (job->device >= n)
         return rt_fail(err, "mpi-cuda: --device %d: this node has %d CUDA device(s), numbered 0 to %d", job->device,
                        n, n - 1);
-    *dev = (job->device + g_local_rank) % n;
+    *dev = (job->device + rt_mpi_local_rank) % n;
     return rt_cuda_device_bus(*dev, bus, size, err);
 }
 
@@ -66,157 +48,131 @@ static int pick_device(const RtRenderJob *job, int *dev, char *bus, size_t size,
 static int check_one_per_gpu(const RtRenderJob *job, const char *bus, RtError *err)
 {
     enum { BUS = 32 };
-    char *all = malloc((size_t)BUS * (size_t)g_local_size);
+    char *all = malloc((size_t)BUS * (size_t)rt_mpi_local_size);
     if (!all)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
     char mine[BUS];
     snprintf(mine, sizeof mine, "%s", bus);
-    RT_MPI_CHECK(MPI_Allgather(mine, BUS, MPI_CHAR, all, BUS, MPI_CHAR, g_node));
+    RT_MPI_CHECK(MPI_Allgather(mine, BUS, MPI_CHAR, all, BUS, MPI_CHAR, rt_mpi_node_comm));
     int rc = 0;
-    for (int q = 0; q < g_local_rank && !job->share_gpu && !rc && *mine; q++)
+    for (int q = 0; q < rt_mpi_local_rank && !job->share_gpu && !rc && *mine; q++)
         if (strcmp(all + (size_t)q * BUS, mine) == 0)
             rc = rt_fail(err,
                          "mpi-cuda: local ranks %d and %d would both drive GPU %s (%d ranks on this node): one "
                          "rank per GPU, or --share-gpu to let ranks share them",
-                         q, g_local_rank, mine, g_local_size);
+                         q, rt_mpi_local_rank, mine, rt_mpi_local_size);
     free(all);
     return rc;
 }
 
 /* What one rank did in a frame. */
 typedef struct Share {
-    double done_ms; /* from the frame's start to its last pixels in rank 0's image */
-    double claim_ms, wait_ms, put_ms; /* in claims, waiting for the GPU, in puts */
-    int rows;       /* tile rows rendered */
-    int claims;
-    int cpu;        /* the CPU the rank ran on */
+    double end_ms;    /* from the previous frame's end to its rows in rank 0's image */
+    double kernel_ms, copy_ms, put_ms;
+    double rows;      /* its share of the tile rows */
+    int cpu;          /* the CPU the rank ran on */
 } Share;
-
-/* The bands this rank has queued and not yet put, oldest first. */
-typedef struct Bands {
-    int r0[RT_CUDA_BANDS], r1[RT_CUDA_BANDS];
-    unsigned long long queued, put;
-    int row_h, w;
-} Bands;
 
 static void die_on(int rc, const RtError *err)
 {
     if (rc == 0)
         return;
-    /* mid-frame the other ranks are in the claim loop: end them all */
+    /* mid-frame the other ranks wait in the frame's reduction: end them all */
     fprintf(stderr, "raytrace: rank %d: %s\n", rt_mpi_rank, err->msg);
     fflush(stderr);
     MPI_Abort(MPI_COMM_WORLD, 1);
 }
 
-/* The bands whose rows are down (wait: all of them) into rank 0's image:
- * already there when this rank writes it directly, else one MPI_Put each. */
-static void put_ready(RtCudaSession *s, RtMpiImage *m, float *rgb, Bands *b, int wait, Share *sh, RtError *err)
+/* Where a rank's frames come down: rank 0's image itself (direct), or a
+ * buffer of its own per frame in flight, taken in turn, so that frame k + 1
+ * comes down while frame k is still being put. */
+typedef struct Dest {
+    RtMpiImage *m;
+    void *stage;      /* slots x bytes, or NULL when direct */
+    size_t bytes;
+    int slots;
+    int floats;       /* the image is floats (--verify), not 8-bit */
+} Dest;
+
+static void *dest(const Dest *d, unsigned long long frame)
 {
-    double t = rt_now_ms();
-    const int n = rt_cuda_session_ready(s, wait, err);
-    die_on(n < 0, err);
-    sh->wait_ms += rt_now_ms() - t;
-    t = rt_now_ms();
-    for (int i = 0; i < n; i++, b->put++) {
-        const unsigned k = (unsigned)(b->put % RT_CUDA_BANDS);
-        if (m->direct)
-            continue;
-        const size_t h = m->npix / (size_t)b->w, y0 = (size_t)b->r0[k] * (size_t)b->row_h;
-        const size_t y1 = (size_t)b->r1[k] * (size_t)b->row_h < h ? (size_t)b->r1[k] * (size_t)b->row_h : h;
-        rt_mpi_put(m, rgb, y0 * (size_t)b->w * 3, (y1 - y0) * (size_t)b->w * 3);
-    }
-    sh->put_ms += rt_now_ms() - t;
+    return d->stage ? (char *)d->stage + (frame % (unsigned long long)d->slots) * d->bytes : d->m->img0;
 }
 
-/* One frame: claims of tile rows until none is left, each queued on the GPU
- * as soon as the previous band's kernel runs (so the GPU never waits for a
- * claim, and a rank never holds more than two unfinished bands: the claims
- * stay balanced), its rows put as they come down. Returns rank 0's time to
- * the whole image (other ranks: their own end). */
-static double frame(RtCudaSession *s, RtMpiImage *m, float *rgb, int rows, int wave_rows, Bands *b, Share *sh,
-                    RtError *err)
+/* Frame `frame`'s rows, down in this rank's buffer, put into rank 0's image. */
+static void put_frame(const Dest *d, const RtShareRuns *r, unsigned long long frame)
 {
-    float *dst = m->direct ? m->img0 : rgb;
-    int64_t seen = 0, first, count;
-    memset(sh, 0, sizeof *sh);
-    b->queued = b->put = 0;
-    die_on(rt_cuda_session_frame(s, err), err);
-    rt_mpi_frame_start(m);
-    const double t0 = rt_now_ms();
-    for (;;) {
-        double t = rt_now_ms();
-        die_on(rt_cuda_session_kernels(s, 1, err), err);
-        sh->wait_ms += rt_now_ms() - t;
-        t = rt_now_ms();
-        count = rt_mpi_claim(m, rows, wave_rows, &seen, &first);
-        sh->claim_ms += rt_now_ms() - t;
-        if (count == 0)
+    const void *src = dest(d, frame);
+    rt_mpi_put_runs(d->m, src, r->off, r->width, r->pitch, r->count);
+    rt_mpi_put_runs(d->m, src, r->tail_off, r->tail_bytes, r->tail_bytes, r->tail_bytes ? 1 : 0);
+    RT_MPI_CHECK(MPI_Win_flush(0, d->m->win));
+}
+
+static int queue(RtCudaSession *s, const Dest *d, unsigned long long frame, RtError *err)
+{
+    void *p = dest(d, frame);
+    return rt_cuda_session_queue(s, d->floats ? NULL : (uint8_t *)p, d->floats ? (float *)p : NULL, err);
+}
+
+/* Only in raytrace-testhooks (tests/gpu/mpi_cuda_check.sh): a real fault of
+ * the GPU of the rank RT_MPI_TEST_GPU_FAULT names, after its frame 2. */
+static int test_fault(RtCudaSession *s, unsigned long long k, RtError *err)
+{
+    return k == 2 && rt_mpi_test_rank("RT_MPI_TEST_GPU_FAULT") ? rt_cuda_session_fault(s, err) : 0;
+}
+
+/* The frames, as many in flight as the session has slots. A frame ends,
+ * on rank 0, when every rank's rows are in its image: one reduction of the
+ * ranks' times per frame (O(log P)), which also carries rank 0's wish for
+ * no more frames (from the frame before: frames queued past the last wanted
+ * one are rendered and not counted) and any rank's failure. A rank whose GPU
+ * fails stops using it; every rank leaves after that frame and the failure
+ * is agreed (one message). Every rank changes course at the same frame, so
+ * all make the same calls. Returns nonzero on every rank when one failed. */
+static int frames(RtCudaSession *s, const Dest *d, const RtShareRuns *runs, RtCudaFrames *fr, Share *sh,
+                  RtError *err)
+{
+    const unsigned long long n = (unsigned long long)d->slots;
+    RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD));
+    double prev = rt_now_ms();
+    int more = 1, want = 1, failed = 0;
+    for (unsigned long long k = 0;; k++) {
+        while (!failed && more && rt_cuda_session_queued(s) < k + n)
+            failed = queue(s, d, rt_cuda_session_queued(s), err) != 0;
+        RtCudaFrame f;
+        memset(&f, 0, sizeof f);
+        if (!failed && k < rt_cuda_session_queued(s))
+            failed = rt_cuda_session_wait(s, &f, err) != 0 || test_fault(s, k, err) != 0;
+        const double t = rt_now_ms();
+        if (!failed && d->stage)
+            put_frame(d, runs, k);
+        sh->put_ms = rt_now_ms() - t;
+        sh->end_ms = rt_now_ms() - prev;
+        sh->kernel_ms = f.kernel_ms;
+        sh->copy_ms = f.copy_ms;
+        /* max of end, kernel and copy; min of end (as the max of its negation); any failure; stop */
+        double mine[6] = {sh->end_ms, f.kernel_ms, f.copy_ms, -sh->end_ms, failed, rt_mpi_rank == 0 && !want};
+        double top[6];
+        RT_MPI_CHECK(MPI_Allreduce(mine, top, 6, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD));
+        const double now = rt_now_ms();
+        if (top[4] > 0.0)
             break;
-        if (b->queued - b->put == RT_CUDA_BANDS)
-            put_ready(s, m, rgb, b, 1, sh, err);
-        const unsigned k = (unsigned)(b->queued++ % RT_CUDA_BANDS);
-        b->r0[k] = (int)first;
-        b->r1[k] = (int)(first + count);
-        die_on(rt_cuda_session_band(s, b->r0[k], b->r1[k], dst, err), err);
-        put_ready(s, m, rgb, b, 0, sh, err);
-        sh->rows += (int)count;
-        sh->claims++;
+        if (rt_mpi_rank == 0 && want)
+            want = rt_cuda_frames_add(fr, now - prev, top[1], top[2], -top[3]);
+        prev = now;
+        if (top[5] > 0.0)
+            more = 0;
+        if (!more && k + 1 == rt_cuda_session_queued(s))
+            break;
     }
-    put_ready(s, m, rgb, b, 1, sh, err);
-    const double tf = rt_now_ms();
-    RT_MPI_CHECK(MPI_Win_flush(0, m->win));
-    sh->put_ms += rt_now_ms() - tf;
-    sh->done_ms = rt_now_ms() - t0;
     sh->cpu = rt_current_cpu();
-    rt_mpi_frame_end(m);
-    return rt_now_ms() - t0;
+    return rt_mpi_agree(failed, err);
 }
 
-/* Warm-up and timed frames as the CUDA backend times launches (rank 0
- * decides, so every rank renders the same frames). times[] gets rank 0's
- * frame times, mins[] the earliest rank's end of each. */
-static void frames(const RtRenderJob *job, RtCudaSession *s, RtMpiImage *m, float *rgb, int rows, int row_h,
-                   int wave_rows, double *times, double *mins, int max_runs, int *runs, int *warmups, Share *sh,
-                   RtError *err)
-{
-    Bands *b = malloc(sizeof *b);
-    if (!b)
-        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
-    b->row_h = row_h;
-    b->w = job->view.cam.width;
-    const double warm_ms = job->warmup_runs < 0 && job->warmup_ms < 0.0 ? RT_CUDA_WARMUP_MS : job->warmup_ms;
-    const double t0 = rt_now_ms();
-    *runs = *warmups = 0;
-    for (int n = 0;; n++) {
-        double ms = frame(s, m, rgb, rows, wave_rows, b, sh, err), first_end;
-        RT_MPI_CHECK(MPI_Reduce(&sh->done_ms, &first_end, 1, MPI_DOUBLE, MPI_MIN, 0, MPI_COMM_WORLD));
-        int next = 0; /* rank 0's answer: another frame (1) or the last (0) */
-        if (rt_mpi_rank == 0) {
-            const int warm = *runs == 0 && rt_warmup_due(job->warmup_runs, warm_ms, n, rt_now_ms() - t0);
-            if (warm) {
-                ++*warmups;
-            } else {
-                times[*runs] = ms;
-                mins[(*runs)++] = first_end;
-            }
-            const int budget = job->runs <= 0 && ms * (*runs + 1) > RT_CUDA_TIME_BUDGET_MS;
-            next = *runs < max_runs && !budget ? 1 : 0;
-        }
-        RT_MPI_CHECK(MPI_Bcast(&next, 1, MPI_INT, 0, MPI_COMM_WORLD));
-        if (job->progress && rt_mpi_rank == 0)
-            job->progress(job->progress_ctx, (uint64_t)(n + 1), (uint64_t)max_runs + 1);
-        if (!next) {
-            free(b);
-            return;
-        }
-    }
-}
-
-/* The record's per-rank keys: its GPU, share of the tile rows, claims and
- * time to its last band in the last frame, ranks separated by '/'; and the
- * union of the ranks' CPUs (the harness's pinning check). */
-static void rank_keys(RtCudaSession *s, const Share *sh, int rows, RtRenderOut *out)
+/* The record's per-rank keys: its GPU, share of the tile rows and times in
+ * the last frame, ranks separated by '/'; and the union of the ranks' CPUs
+ * (the harness's pinning check). */
+static void rank_keys(RtCudaSession *s, const Share *sh, RtRenderOut *out)
 {
     char gpu[64];
     snprintf(gpu, sizeof gpu, "%s", strchr(rt_cuda_session_gpu(s), '@') + 1);
@@ -227,12 +183,15 @@ static void rank_keys(RtCudaSession *s, const Share *sh, int rows, RtRenderOut *
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
     RT_MPI_CHECK(MPI_Gather(gpu, (int)sizeof gpu, MPI_CHAR, gpus, (int)sizeof gpu, MPI_CHAR, 0, MPI_COMM_WORLD));
     RT_MPI_CHECK(MPI_Gather(sh, (int)sizeof *sh, MPI_BYTE, all, (int)sizeof *sh, MPI_BYTE, 0, MPI_COMM_WORLD));
+    char nodes[400];
+    rt_mpi_rank_nodes(nodes, sizeof nodes);
     if (rt_mpi_rank != 0)
         return;
-    char k_gpu[300] = "", k[6][160];
-    size_t a = 0, len[6] = {0};
+    enum { K = 5 };
+    char k_gpu[300] = "", k[K][160];
+    size_t a = 0, len[K] = {0};
     int distinct = 0;
-    for (int i = 0; i < 6; i++)
+    for (int i = 0; i < K; i++)
         k[i][0] = '\0';
     for (int r = 0; r < P; r++) {
         const char *g = gpus + (size_t)r * sizeof gpu;
@@ -244,18 +203,16 @@ static void rank_keys(RtCudaSession *s, const Share *sh, int rows, RtRenderOut *
         const char *sep = r ? "/" : "";
         if (a < sizeof k_gpu)
             a += (size_t)snprintf(k_gpu + a, sizeof k_gpu - a, "%s%s", sep, g);
-        const double v[6] = {(double)all[r].rows / rows, all[r].claims, all[r].done_ms, all[r].claim_ms,
-                             all[r].wait_ms, all[r].put_ms};
-        for (int i = 0; i < 6; i++)
+        const double v[K] = {all[r].rows, all[r].kernel_ms, all[r].copy_ms, all[r].end_ms, all[r].put_ms};
+        for (int i = 0; i < K; i++)
             if (len[i] < sizeof k[i])
-                len[i] += (size_t)snprintf(k[i] + len[i], sizeof k[i] - len[i], i == 1 ? "%s%.0f" : "%s%.3f", sep,
-                                           v[i]);
+                len[i] += (size_t)snprintf(k[i] + len[i], sizeof k[i] - len[i], "%s%.3f", sep, v[i]);
     }
     size_t n = strlen(out->extra);
     snprintf(out->extra + n, sizeof out->extra - n,
-             " gpus=%d rank_gpu=%s rank_share=%s rank_claims=%s rank_end_ms=%s rank_claim_ms=%s rank_wait_ms=%s"
-             " rank_put_ms=%s",
-             distinct, k_gpu, k[0], k[1], k[2], k[3], k[4], k[5]);
+             " gpus=%d rank_gpu=%s rank_share=%s rank_kernel_ms=%s rank_copy_ms=%s rank_end_ms=%s rank_put_ms=%s"
+             " nodes=%d rank_node=%s",
+             distinct, k_gpu, k[0], k[1], k[2], k[3], k[4], rt_mpi_nodes, nodes);
     free(gpus);
     free(all);
 }
@@ -279,38 +236,68 @@ static int open_all(const RtRenderJob *job, RtCudaSession **s, RtError *err)
     return 0;
 }
 
+/* The image: rank 0's window (8-bit, or floats with --verify), and where
+ * this rank's frames come down to. */
+static void open_image(const RtRenderJob *job, RtCudaSession *s, RtRenderOut *out, RtMpiImage *m, Dest *d)
+{
+    const size_t npix = (size_t)job->view.cam.width * (size_t)job->view.cam.height;
+    memset(d, 0, sizeof *d);
+    d->m = m;
+    d->floats = job->want_float;
+    d->bytes = npix * 3 * (d->floats ? sizeof(float) : 1);
+    d->slots = rt_cuda_session_slots(s);
+    /* the same on every rank, or their frames' calls would differ (GPUs of other kinds) */
+    RT_MPI_CHECK(MPI_Allreduce(MPI_IN_PLACE, &d->slots, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD));
+    rt_mpi_image_open(m, d->bytes, d->floats ? (const void *)out->rgb : NULL, rt_mpi_local_size == rt_mpi_size);
+    if (!m->direct && (d->stage = malloc((size_t)d->slots * d->bytes)) == NULL)
+        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
+    rt_cuda_session_pin(s, d->stage ? d->stage : m->img0, d->stage ? (size_t)d->slots * d->bytes : d->bytes);
+}
+
 static int render_mpi_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 {
     RtCudaSession *s = NULL;
     if (open_all(job, &s, err) != 0)
         return -1;
-    const int max_runs = job->runs > 0 ? job->runs : RT_CUDA_RUNS;
-    double *times = malloc(2 * sizeof *times * (size_t)max_runs);
-    if (!times)
-        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
-    RtMpiImage m;
-    Share sh;
-    int runs, warmups, row_h, wave_rows;
+    RtCudaFrames fr;
+    die_on(rt_cuda_frames_init(&fr, job, err), err);
+    int row_h, wave_rows;
     const int rows = rt_cuda_session_tile_rows(s, &row_h, &wave_rows);
-    const size_t npix = (size_t)job->view.cam.width * (size_t)job->view.cam.height;
-    rt_mpi_image_open(&m, npix, out->rgb, g_local_size == rt_mpi_size);
-    rt_cuda_session_pin(s, m.direct ? (void *)m.img0 : (void *)out->rgb, npix * 3 * sizeof(float));
-    frames(job, s, &m, out->rgb, rows, row_h, wave_rows, times, times + max_runs, max_runs, &runs, &warmups, &sh,
-           err);
+    const RtCudaShare mine = {rt_mpi_rank, 1, rt_mpi_size};
+    Share sh;
+    memset(&sh, 0, sizeof sh);
+    sh.rows = (double)rt_cuda_session_share(s, &mine) / rows;
+    RtShareRuns runs;
+    RtMpiImage m;
+    Dest d;
+    open_image(job, s, out, &m, &d);
+    rt_cuda_share_runs(&mine, rows, row_h, job->view.cam.height,
+                       (size_t)job->view.cam.width * 3 * (d.floats ? sizeof(float) : 1), &runs);
+    const int failed = frames(s, &d, &runs, &fr, &sh, err);
+    rt_mpi_frame_end(&m);
     rt_cuda_session_unpin(s); /* (before the window's memory goes) */
-    rt_mpi_image_close(&m, out->rgb);
+    rt_mpi_image_close(&m, d.floats ? (void *)out->rgb : (void *)out->rgb8);
+    free(d.stage);
+    if (failed) {
+        rt_cuda_frames_free(&fr);
+        rt_cuda_session_close(s);
+        return -1;
+    }
 
-    RtCounters mine, sum;
-    die_on(rt_cuda_session_counters(s, &mine, err), err);
+    RtCounters cnt, sum;
+    die_on(rt_cuda_session_counters(s, &cnt, err), err);
     _Static_assert(sizeof(RtCounters) == 5 * sizeof(uint64_t), "RtCounters is reduced as 5 uint64");
-    RT_MPI_CHECK(MPI_Reduce(&mine, &sum, 5, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD));
+    RT_MPI_CHECK(MPI_Reduce(&cnt, &sum, 5, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD));
     if (rt_mpi_rank == 0) {
+        rt_cuda_frames_out(&fr, out);
         rt_cuda_session_keys(s, out->extra, sizeof out->extra);
         size_t len = strlen(out->extra);
-        snprintf(out->extra + len, sizeof out->extra - len, " row_h=%d wave_rows=%d frames=%d warmup_frames=%d",
-                 row_h, wave_rows, runs, warmups);
+        snprintf(out->extra + len, sizeof out->extra - len,
+                 " kernel_ms=%.4f kernel_min_ms=%.4f download_ms=%.3f row_h=%d wave_rows=%d frames=%d"
+                 " warmup_frames=%d",
+                 fr.kernel_ms, fr.kernel_min_ms, fr.copy_ms, row_h, wave_rows, fr.runs, fr.warmups);
     }
-    rank_keys(s, &sh, rows, out);
+    rank_keys(s, &sh, out);
     out->threads_used = 1;
     out->ranks_used = rt_mpi_size;
     out->is_root = rt_mpi_rank == 0;
@@ -318,17 +305,14 @@ static int render_mpi_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *er
         size_t len = strlen(out->extra);
         snprintf(out->extra + len, sizeof out->extra - len, " gpu=%.60s", rt_cuda_session_gpu(s));
         out->counters = sum;
-        out->render_ms_min = rt_median(times + max_runs, runs);
-        out->render_ms = rt_median(times, runs); /* (sorts: times[0] is the fastest) */
-        out->render_ms_best = times[0];
-        out->runs = runs;
-        out->warmups = warmups;
     }
-    free(times);
+    if (job->progress && out->is_root)
+        job->progress(job->progress_ctx, (uint64_t)fr.max_runs + 1, (uint64_t)fr.max_runs + 1);
+    rt_cuda_frames_free(&fr);
     rt_cuda_session_close(s);
     return 0;
 }
 
 /* times its own runs: the scene stays on each rank's device between frames */
-const RtBackend rt_backend_mpi_cuda = {"mpi-cuda",         NULL, mpi_cuda_init, render_mpi_cuda, mpi_cuda_finalize,
+const RtBackend rt_backend_mpi_cuda = {"mpi-cuda",         NULL, rt_mpi_init, render_mpi_cuda, rt_mpi_finalize,
                                        &rt_mpi_collective, 1,    mpi_cuda_prewarm, 1};

@@ -107,7 +107,7 @@ for sc in "$@"; do
         # pixel pairs need an even block width and whole warps
         [ "$blk" = 13x7 ] && { says pairs 0 || continue; }
         case $kind in
-            runs) says runs 3 && says warmups 1 && says kernel_runs 3 && says warmup_launches 1 || continue ;;
+            runs) says runs 3 && says warmups 1 && says frames 3 && says warmup_frames 1 || continue ;;
             default)
                 ah=slot; case $rec_c in *" pairs=1 "*) ah=sorted ;; esac
                 says large 0 && says sched grid && says order center && says anyhit "$ah" || continue ;;

@@ -2,13 +2,18 @@
 # mpi_cuda_check.sh RAYTRACE MPIRUN MODE SCENE[@WxH][+none]...
 #
 # The MPI backend with a GPU per rank against the CUDA backend:
-#   full   for each scene, `--backend cuda --verify` is the reference; then
-#          `--backend mpi-cuda --verify` on 1, 2 and 4 ranks (--share-gpu
-#          where the ranks outnumber the GPUs) must give the same image hash
-#          and exactly the same five counters, say ranks=N, and give the
-#          ranks shares of the tile rows that add up to 1. Then more ranks
-#          than GPUs without --share-gpu must fail: one line naming
-#          --share-gpu, exit 1, no image, no hang.
+#   full   for each scene, `--backend cuda --verify` is the reference (the
+#          floats come down and the host quantises them); `--backend cuda`
+#          without --verify (quantised on the GPU) must give the same file.
+#          Then `--backend mpi-cuda`, with --verify and without, on 1, 2 and
+#          4 ranks (--share-gpu where the ranks outnumber the GPUs) must give
+#          the same image file and exactly the same five counters, say
+#          ranks=N, and give the ranks shares of the tile rows that add up to
+#          1. Then more ranks than GPUs without --share-gpu must fail: one
+#          line naming --share-gpu, exit 1, no image, no hang.
+#   fault  RAYTRACE is raytrace-testhooks: rank 1's GPU faults for real (a
+#          trapping kernel) in the middle of a study of 2 ranks: one line
+#          naming rank 1 and the CUDA error, exit 1, no image, no hang.
 #   nogpu  2 ranks where there is no GPU: one line, exit 1, no image (the CI
 #          machine); skipped where a GPU is present.
 # SCENE@WxH renders at that size; +none with brute force (the persistent
@@ -43,6 +48,14 @@ if [ "$MODE" = nogpu ]; then
     exit $fail
 fi
 [ "$ngpu" -gt 0 ] || { echo "SKIP: no GPU (nvidia-smi finds none)"; exit 77; }
+if [ "$MODE" = fault ]; then
+    share=""; [ "$ngpu" -lt 2 ] && share=--share-gpu
+    # shellcheck disable=SC2086
+    export RT_MPI_TEST_GPU_FAULT=1
+    expect_one_error "rank 1's GPU faults mid-study" 'rank 1: .*cuda' 2 \
+        --backend mpi-cuda $share --runs 20 "${1%%[@+]*}"
+    exit $fail
+fi
 
 field() { printf '%s\n' "$1" | tr ' ' '\n' | sed -n "s/^$2=//p"; }
 COUNTERS="image_fnv1a primary_rays shadow_rays secondary_rays node_visits prim_tests"
@@ -55,12 +68,17 @@ for arg in "$@"; do
     # shellcheck disable=SC2086
     ref=$("$RT" -q --verify --backend cuda $opts -o "$TMP/cuda.ppm" "$sc") ||
         { echo "FAIL $arg: cuda render"; fail=1; continue; }
-    for np in 1 2 4; do
+    # shellcheck disable=SC2086
+    "$RT" -q --backend cuda $opts -o "$TMP/cuda8.ppm" "$sc" > /dev/null &&
+        cmp -s "$TMP/cuda.ppm" "$TMP/cuda8.ppm" ||
+        { echo "FAIL $arg: cuda's image quantised on the GPU differs from the host's quantisation"; fail=1; }
+    for run in "1 --verify" "2 --verify" "4 --verify" "1" "2" "4"; do
+        np=${run%% *}; verify=""; [ "$run" = "$np" ] || verify=--verify
         share=""; [ "$np" -gt "$ngpu" ] && share=--share-gpu
         # shellcheck disable=SC2086
-        rec=$(timeout 300 "$MPIRUN" --quiet --oversubscribe -np $np "$RT" -q --verify --backend mpi-cuda $share \
+        rec=$(timeout 300 "$MPIRUN" --quiet --oversubscribe -np $np "$RT" -q $verify --backend mpi-cuda $share \
             $opts -o "$TMP/m.ppm" "$sc" | grep '^record:')
-        [ -n "$rec" ] || { echo "FAIL $arg np=$np: mpi-cuda render"; fail=1; continue; }
+        [ -n "$rec" ] || { echo "FAIL $arg np=$np $verify: mpi-cuda render"; fail=1; continue; }
         bad=""
         for k in $COUNTERS; do
             [ "$(field "$ref" $k)" = "$(field "$rec" $k)" ] || bad="$bad $k:$(field "$ref" $k)/$(field "$rec" $k)"
@@ -70,10 +88,10 @@ for arg in "$@"; do
         awk -v s="$shares" 'BEGIN { n = split(s, a, "/"); t = 0; for (i = 1; i <= n; i++) t += a[i];
                                     exit !(t > 0.997 && t < 1.003) }' || bad="$bad rank_share=$shares"
         cmp -s "$TMP/cuda.ppm" "$TMP/m.ppm" || bad="$bad image-file"
-        echo "$arg np=$np: render_ms=$(field "$rec" render_ms) (cuda $(field "$ref" render_ms))" \
-             "gpus=$(field "$rec" gpus) share=$shares claims=$(field "$rec" rank_claims)" \
+        echo "$arg np=$np $verify: render_ms=$(field "$rec" render_ms) (cuda $(field "$ref" render_ms))" \
+             "gpus=$(field "$rec" gpus) share=$shares kernel_ms=$(field "$rec" rank_kernel_ms)" \
              "end_ms=$(field "$rec" rank_end_ms) ${bad:-identical}"
-        [ -z "$bad" ] || { echo "FAIL $arg np=$np:$bad"; fail=1; }
+        [ -z "$bad" ] || { echo "FAIL $arg np=$np $verify:$bad"; fail=1; }
     done
 done
 np=$((ngpu + 1))

@@ -8,7 +8,10 @@
  *     depth first; rays find the same hits in it as in the builder's tree;
  *     other scenes get no copy;
  *   - the rules: pairs need the grid, an even width and whole warps; the
- *     large-image switch at 40 waves; the launch geometry and its limit. */
+ *     large-image switch at 40 waves; the launch geometry and its limit;
+ *   - the shares of several GPUs: P interleaved shares cover every tile of
+ *     the image once (the kernel's tile formula), and their copy pieces
+ *     cover every byte of the image once, whatever the image's height. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -195,8 +198,66 @@ static void test_rules(void)
           err.msg);
 }
 
+/* P shares {r, run, P * run} of a w x h image in bx x by tiles. */
+static void test_shares(int w, int h, int bx, int by, int P, int run)
+{
+    RtCudaPlan p;
+    RtCudaGrid whole;
+    RtError err;
+    rt_cuda_plan_start(&p, 1, bx, by);
+    CHECK(rt_cuda_grid(&p, w, h, &whole, &err) == 0, "grid %dx%d", w, h);
+    const int rows = (int)(whole.ntiles / (uint32_t)whole.tiles_x);
+    const size_t row_bytes = (size_t)w * 3, bytes = row_bytes * (size_t)h;
+    unsigned char *tiles = calloc(whole.ntiles, 1), *img = calloc(bytes, 1);
+    uint32_t tile_rows = 0;
+    for (int r = 0; r < P; r++) {
+        const RtCudaShare sh = {r * run, run, P * run};
+        RtCudaGrid g = whole;
+        const uint32_t n = rt_cuda_grid_share(&g, &sh, rows);
+        CHECK(g.ntiles == n * (uint32_t)g.tiles_x, "%dx%d P=%d: share %d's tiles", w, h, P, r);
+        for (uint32_t t = 0; t < g.ntiles; t++) {
+            const uint32_t tile = rt_cuda_share_tile(&g, t);
+            CHECK(tile < whole.ntiles && tiles[tile] == 0, "%dx%d P=%d: tile %u twice or outside", w, h, P, tile);
+            if (tile < whole.ntiles)
+                tiles[tile] = 1;
+        }
+        RtShareRuns sr;
+        rt_cuda_share_runs(&sh, rows, by, h, row_bytes, &sr);
+        CHECK(sr.tile_rows == n, "%dx%d P=%d: share %d: %u rows against %u", w, h, P, r, sr.tile_rows, n);
+        tile_rows += n;
+        for (size_t k = 0; k < sr.count; k++)
+            for (size_t b = 0; b < sr.width; b++) {
+                const size_t at = sr.off + k * sr.pitch + b;
+                CHECK(at < bytes && img[at] == 0, "%dx%d P=%d: byte %zu twice or outside", w, h, P, at);
+                if (at < bytes)
+                    img[at] = 1;
+            }
+        for (size_t b = 0; b < sr.tail_bytes; b++) {
+            const size_t at = sr.tail_off + b;
+            CHECK(at < bytes && img[at] == 0, "%dx%d P=%d: tail byte %zu twice or outside", w, h, P, at);
+            if (at < bytes)
+                img[at] = 1;
+        }
+    }
+    CHECK(tile_rows == (uint32_t)rows, "%dx%d P=%d: %u tile rows shared of %d", w, h, P, tile_rows, rows);
+    size_t missed = 0;
+    for (uint32_t t = 0; t < whole.ntiles; t++)
+        missed += !tiles[t];
+    for (size_t b = 0; b < bytes; b++)
+        missed += !img[b];
+    CHECK(missed == 0, "%dx%d P=%d run %d: %zu tiles or bytes in no share", w, h, P, run, missed);
+    free(tiles);
+    free(img);
+}
+
 int main(void)
 {
+    test_shares(64, 48, 16, 8, 1, 1);
+    test_shares(64, 45, 16, 8, 2, 1);
+    test_shares(100, 61, 8, 8, 3, 1);
+    test_shares(100, 61, 8, 8, 4, 2);
+    test_shares(40, 20, 8, 8, 5, 1); /* more ranks than tile rows */
+    test_shares(512, 384, 16, 8, 4, 1);
     test_center_order(40, 24, 8, 8);
     test_center_order(512, 384, 16, 8);
     test_center_order(37, 23, 13, 7);

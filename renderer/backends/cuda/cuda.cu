@@ -4,10 +4,12 @@
  *   cuda_plan    block, schedule and kernel (the choices are schedule.c's),
  *                checked against the kernel's real limits;
  *   cuda_upload  one device allocation holding the flat scene arrays, the
- *                BVH as the host built it, the image and the counters;
- *   cuda_launch  warm-up launches, then the timed ones (CUDA events; the
- *                median is render_ms);
- *   cuda_finish  image and counters down, the record's keys.
+ *                BVH as the host built it, the images and the counters;
+ *   sessions     frames: each a kernel over a share of the image's tile rows
+ *                that also quantises its pixels to 8 bits, then the copy of
+ *                those bytes to the host, pipelined with the next frame's
+ *                kernel (cuda_session.h). The CUDA backend is one session
+ *                whose share is the whole image; mpi-cuda runs one per rank.
  * The device code is kernels.cuh. docs/gpu.md describes the design. */
 #include <errno.h>
 #include <math.h>
@@ -33,8 +35,13 @@ typedef struct RtCudaPart {
     size_t offset;
 } RtCudaPart;
 
-enum { P_PRIMS, P_NODES, P_WIDE, P_VERTS, P_NORMALS, P_SPHERES, P_TRIS, P_MATS, P_LIGHTS, P_IMAGE, P_COUNTERS, P_WORK,
-       P_ORDER, P_COUNT };
+/* A slot of what a frame writes -- the float image (P_IMAGE), its 8-bit
+ * form (P_IMAGE8), the ray counters and the work counter (P_COUNTERS, one
+ * RT_CUDA_CSLOT each) -- per frame in flight (CudaRun.slots): one frame's
+ * kernel runs while another's kernel ends or its bytes are copied down. */
+enum { P_PRIMS, P_NODES, P_WIDE, P_VERTS, P_NORMALS, P_SPHERES, P_TRIS, P_MATS, P_LIGHTS, P_IMAGE, P_IMAGE8,
+       P_COUNTERS, P_ORDER, P_COUNT };
+enum { RT_CUDA_CSLOT = 64, RT_CUDA_WORK = 48 }; /* a slot's counters: the ray counters, the work counter at 48 */
 
 /* Everything one render acquires (cuda_release frees it) and measures. */
 typedef struct CudaRun {
@@ -56,10 +63,8 @@ typedef struct CudaRun {
     size_t arena_bytes;
     uint32_t *center;          /* host copy of the centre order */
     RtBvh4Node *slot_wide;     /* host copy of the wide tree in slot order */
-    cudaEvent_t ev0, ev1;
-    double *times;             /* timed launches, ms */
-    int runs, warmups;
-    double init_ms, upload_ms, download_ms, first_ms;
+    int slots;                 /* frames in flight (rt_cuda_frames_in_flight) */
+    double init_ms, upload_ms;
 } CudaRun;
 
 static void cuda_gpu_name(const char *in, char *out, size_t size)
@@ -206,6 +211,7 @@ static int cuda_plan(CudaRun *c, RtError *err)
     /* the image's pixels over the pixels in flight (a block of pairs covers half its threads' pixels) */
     c->waves = (double)c->npix / ((double)c->blocks_per_sm * (double)(p->pairs ? p->threads / 2 : p->threads) *
                                   (double)prop->multiProcessorCount);
+    c->slots = rt_cuda_frames_in_flight(c->waves);
     if (rt_cuda_grid(p, c->w, c->h, &c->g, err))
         return -1;
     /* Persistent: exactly the blocks resident at once, never more than there are tiles. */
@@ -241,9 +247,9 @@ static int cuda_parts(CudaRun *c, RtError *err)
     pt[P_TRIS].host = hv->triangles;   pt[P_TRIS].bytes = (size_t)hv->ntriangles * sizeof(RtTriangle);
     pt[P_MATS].host = hv->materials;   pt[P_MATS].bytes = (size_t)hv->nmaterials * sizeof(RtMaterial);
     pt[P_LIGHTS].host = hv->lights;    pt[P_LIGHTS].bytes = (size_t)hv->nlights * sizeof(RtLight);
-    pt[P_IMAGE].bytes = c->npix * 3 * sizeof(float);
-    pt[P_COUNTERS].bytes = RT_NCOUNTERS * sizeof(unsigned long long);
-    pt[P_WORK].bytes = sizeof(unsigned int);
+    pt[P_IMAGE].bytes = (size_t)c->slots * c->npix * 3 * sizeof(float);
+    pt[P_IMAGE8].bytes = (size_t)c->slots * c->npix * 3;
+    pt[P_COUNTERS].bytes = (size_t)c->slots * RT_CUDA_CSLOT;
     pt[P_ORDER].host = c->center;
     pt[P_ORDER].bytes = c->center ? (size_t)c->g.ntiles * sizeof(uint32_t) : 0;
     c->arena_bytes = 0;
@@ -304,25 +310,28 @@ fail:
     return -1;
 }
 
-/* The kernel over grid g in nblocks blocks (the stream's order keeps it
- * after the work counter's reset). */
-static int cuda_kernel(CudaRun *c, const RtCudaGrid *g, int nblocks, cudaStream_t stream, RtError *err)
+/* The kernel over grid g in nblocks blocks, its 8-bit pixels into image
+ * slot `slot` (the stream's order keeps it after the work counter's reset). */
+static int cuda_kernel(CudaRun *c, const RtCudaGrid *g, int nblocks, int slot, cudaStream_t stream, RtError *err)
 {
     unsigned char *a = c->arena;
     c->variant->kernel<<<nblocks, dim3((unsigned)c->plan.bx, (unsigned)c->plan.by), 0, stream>>>(
-        c->dv, (float *)(a + c->parts[P_IMAGE].offset), (unsigned long long *)(a + c->parts[P_COUNTERS].offset),
-        (unsigned int *)(a + c->parts[P_WORK].offset), *g);
+        c->dv, (float *)(a + c->parts[P_IMAGE].offset) + (size_t)slot * c->npix * 3,
+        a + c->parts[P_IMAGE8].offset + (size_t)slot * c->npix * 3,
+        (unsigned long long *)(a + c->parts[P_COUNTERS].offset + (size_t)slot * RT_CUDA_CSLOT),
+        (unsigned int *)(a + c->parts[P_COUNTERS].offset + (size_t)slot * RT_CUDA_CSLOT + RT_CUDA_WORK), *g);
     RT_CUDA_CHECK_LAUNCH("rt_render_kernel");
     return 0;
 fail:
     return -1;
 }
 
-/* The ray counters down from the device. */
-static int cuda_counters(CudaRun *c, RtCounters *cnt, RtError *err)
+/* Slot `slot`'s ray counters down from the device. */
+static int cuda_counters(CudaRun *c, int slot, RtCounters *cnt, RtError *err)
 {
     unsigned long long h[RT_NCOUNTERS];
-    RT_CUDA_CHECK(cudaMemcpy(h, c->arena + c->parts[P_COUNTERS].offset, sizeof h, cudaMemcpyDeviceToHost));
+    RT_CUDA_CHECK(cudaMemcpy(h, c->arena + c->parts[P_COUNTERS].offset + (size_t)slot * RT_CUDA_CSLOT, sizeof h,
+                             cudaMemcpyDeviceToHost));
     cnt->primary_rays = h[0];
     cnt->shadow_rays = h[1];
     cnt->secondary_rays = h[2];
@@ -333,158 +342,68 @@ fail:
     return -1;
 }
 
-/* One launch from zeroed counters, timed between CUDA events. */
-static int cuda_launch_once(CudaRun *c, float *ms, RtError *err)
-{
-    unsigned char *a = c->arena;
-    /* the counters and the work counter that follows them, in one memset */
-    RT_CUDA_CHECK(cudaMemsetAsync(a + c->parts[P_COUNTERS].offset, 0,
-                                  c->parts[P_WORK].offset + c->parts[P_WORK].bytes - c->parts[P_COUNTERS].offset));
-    RT_CUDA_CHECK(cudaEventRecord(c->ev0));
-    if (cuda_kernel(c, &c->g, c->nblocks, 0, err))
-        return -1;
-    RT_CUDA_CHECK(cudaEventRecord(c->ev1));
-    RT_CUDA_CHECK(cudaEventSynchronize(c->ev1));
-    RT_CUDA_CHECK(cudaEventElapsedTime(ms, c->ev0, c->ev1));
-    return 0;
-fail:
-    return -1;
-}
-
-/* Warm-up launches (--warmup: a count, or a time with at least one launch;
- * first_ms is the first, cold, launch either way), then the timed ones
- * (--runs). The image and counters of the last launch are kept. */
-static int cuda_launch(CudaRun *c, RtError *err)
-{
-    const RtRenderJob *job = c->job;
-    const int max_runs = job->runs > 0 ? job->runs : RT_CUDA_RUNS;
-    const int budget = job->runs <= 0;
-    const double warm_ms = job->warmup_runs < 0 && job->warmup_ms < 0.0 ? RT_CUDA_WARMUP_MS : job->warmup_ms;
-    c->times = (double *)malloc((size_t)max_runs * sizeof *c->times);
-    if (!c->times)
-        return rt_fail(err, "cuda: out of memory for %d timings", max_runs);
-    double t0;
-    RT_CUDA_CHECK(cudaEventCreate(&c->ev0));
-    RT_CUDA_CHECK(cudaEventCreate(&c->ev1));
-    t0 = rt_now_ms();
-    for (int launch = 0;; launch++) {
-        float ms = 0.0f;
-        if (cuda_launch_once(c, &ms, err))
-            return -1;
-        if (launch == 0) {
-            c->first_ms = ms;
-            if (job->progress)
-                job->progress(job->progress_ctx, 1, (uint64_t)max_runs + 1);
-        }
-        const int warm = c->runs == 0 && rt_warmup_due(job->warmup_runs, warm_ms, launch, rt_now_ms() - t0);
-        if (warm) {
-            c->warmups++;
-            continue;
-        }
-        c->times[c->runs++] = ms;
-        if (c->runs >= max_runs || (budget && (double)ms * (double)(c->runs + 1) > RT_CUDA_TIME_BUDGET_MS))
-            break;
-    }
-    if (job->progress)
-        job->progress(job->progress_ctx, (uint64_t)max_runs + 1, (uint64_t)max_runs + 1);
-    return 0;
-fail:
-    return -1;
-}
-
-/* The image and counters down; render_ms the median of the timed launches. */
-static int cuda_finish(CudaRun *c, RtRenderOut *out, RtError *err)
-{
-    double t0 = rt_now_ms();
-    RT_CUDA_CHECK(cudaMemcpy(out->rgb, c->arena + c->parts[P_IMAGE].offset, c->parts[P_IMAGE].bytes,
-                             cudaMemcpyDeviceToHost));
-    c->download_ms = rt_now_ms() - t0;
-    if (cuda_counters(c, &out->counters, err))
-        return -1;
-    out->render_ms = rt_median(c->times, c->runs); /* (sorts: times[0] is the fastest) */
-    out->render_ms_min = out->render_ms;
-    out->render_ms_best = c->times[0];
-    out->runs = c->runs;
-    out->warmups = c->warmups;
-    out->threads_used = c->nblocks * c->plan.threads;
-    out->ranks_used = 1;
-    out->is_root = 1;
-    rt_cores_note(out->cores, sizeof out->cores, rt_current_cpu());
-    return 0;
-fail:
-    return -1;
-}
-
-/* The plan's record keys (docs/gpu.md, "Record keys"). */
-static void cuda_plan_keys(const CudaRun *c, char *buf, size_t size)
+/* The plan's record keys (docs/gpu.md, "Record keys"), for the launch g in
+ * nblocks blocks. */
+static void cuda_plan_keys(const CudaRun *c, const RtCudaGrid *g, int nblocks, char *buf, size_t size)
 {
     const RtCudaPlan *p = &c->plan;
     snprintf(buf, size,
              " block=%dx%d large=%d pairs=%d sched=%s order=%s traversal=%s anyhit=%s waves=%.2f regs=%d "
-             "local_bytes=%zu bounds=%dx%d blocks_per_sm=%d grid=%d",
-             p->bx, p->by, p->large, p->pairs, p->persistent ? "persistent" : "grid", p->center ? "center" : "tiles",
+             "local_bytes=%zu bounds=%dx%d blocks_per_sm=%d grid=%d in_flight=%d",
+             p->bx, p->by, p->large, p->pairs, p->persistent ? "persistent" : "grid", g->units ? "center" : "tiles",
              c->job->view.wide ? "wide" : "binary", p->slot ? "slot" : "sorted", c->waves, c->fa.numRegs,
-             (size_t)c->fa.localSizeBytes, c->variant->maxt, c->variant->minb, c->blocks_per_sm, c->nblocks);
-}
-
-/* The backend's record keys: the plan's, then the timings'. */
-static void cuda_record(const CudaRun *c, RtRenderOut *out, double wall_ms)
-{
-    char plan[512];
-    cuda_plan_keys(c, plan, sizeof plan);
-    snprintf(out->extra, sizeof out->extra,
-             "%s kernel_runs=%d kernel_min_ms=%.4f warmup_launches=%d first_ms=%.4f init_ms=%.3f upload_ms=%.3f "
-             "download_ms=%.3f wall_ms=%.3f gpu=%s",
-             plan, c->runs, c->times[0], c->warmups, c->first_ms, c->init_ms, c->upload_ms, c->download_ms, wall_ms,
-             c->gpu);
+             (size_t)c->fa.localSizeBytes, c->variant->maxt, c->variant->minb, c->blocks_per_sm, nblocks, c->slots);
 }
 
 static void cuda_release(CudaRun *c)
 {
-    if (c->ev0)
-        cudaEventDestroy(c->ev0);
-    if (c->ev1)
-        cudaEventDestroy(c->ev1);
     if (c->arena)
         cudaFree(c->arena);
     free(c->center);
     free(c->slot_wide);
-    free(c->times);
-}
-
-static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
-{
-    const double t_wall0 = rt_now_ms();
-    CudaRun c;
-    memset(&c, 0, sizeof c);
-    c.job = job;
-    c.w = job->view.cam.width;
-    c.h = job->view.cam.height;
-    c.npix = (size_t)c.w * (size_t)c.h;
-    int rc = -1;
-    if (cuda_open(&c, err) == 0 && cuda_plan(&c, err) == 0 && cuda_upload(&c, err) == 0 && cuda_launch(&c, err) == 0 &&
-        cuda_finish(&c, out, err) == 0) {
-        cuda_record(&c, out, rt_now_ms() - t_wall0);
-        rc = 0;
-    }
-    cuda_release(&c);
-    return rc;
 }
 
 /* ---------------------------------------------------------------- sessions */
 
-/* A session queues bands: each band's kernel on one stream, the copy of its
- * rows down on another after it, so that a band's copy overlaps the next
- * band's kernel. Events mark each band's kernel and copy; bands complete in
- * the order they were queued. */
+/* Event sets: the frames in flight and the one before them (whose kernel's
+ * end may start the next frame's kernel time). */
+#define RT_CUDA_EV (RT_CUDA_MAX_SLOTS + 1)
+#define RT_CUDA_PINS 4
+
+/* A session queues frames: each frame's kernel on a stream of its slot, so
+ * that a frame's kernel starts on the multiprocessors the previous
+ * frame's last blocks leave idle (the tail of a launch); the copy of its
+ * share's rows down on a third stream after it, so that it overlaps the next
+ * frame's kernel. Events time each frame's kernel and copy; frames complete
+ * in the order they were queued. */
 struct RtCudaSession {
     CudaRun c;
-    void *pinned;                 /* the host buffer page-locked by rt_cuda_session_pin */
-    cudaStream_t ks, cs;          /* kernels, copies */
-    cudaEvent_t kev[RT_CUDA_BANDS], cev[RT_CUDA_BANDS];
-    int nev;                      /* event pairs created */
-    unsigned long long queued, kernels_done, copies_done;
+    RtCudaGrid g;                 /* the share's launch */
+    int nblocks;
+    RtShareRuns r8, rf;           /* the share's pixels in the 8-bit and in the float image */
+    void *pinned[RT_CUDA_PINS];   /* host buffers page-locked by rt_cuda_session_pin */
+    int npinned;
+    cudaStream_t ks[RT_CUDA_MAX_SLOTS], cs; /* kernels (frame k on ks[k % slots]), copies */
+    cudaEvent_t k0[RT_CUDA_EV], k1[RT_CUDA_EV], c1[RT_CUDA_EV];
+    int nev;                      /* event sets created */
+    unsigned long long queued, done;
 };
+
+static int session_events(RtCudaSession *s, RtError *err)
+{
+    for (; s->nev < RT_CUDA_EV; s->nev++) {
+        cudaEvent_t *e[3] = {&s->k0[s->nev], &s->k1[s->nev], &s->c1[s->nev]};
+        for (int i = 0; i < 3; i++)
+            if (cudaEventCreate(e[i]) != cudaSuccess) {
+                while (i-- > 0)
+                    cudaEventDestroy(*e[i]);
+                RT_CUDA_CHECK(cudaGetLastError());
+            }
+    }
+    return 0;
+fail:
+    return -1;
+}
 
 int rt_cuda_session_open(const RtRenderJob *job, RtCudaSession **out, RtError *err)
 {
@@ -497,19 +416,17 @@ int rt_cuda_session_open(const RtRenderJob *job, RtCudaSession **out, RtError *e
     c->w = job->view.cam.width;
     c->h = job->view.cam.height;
     c->npix = (size_t)c->w * (size_t)c->h;
-    int rc = cuda_open(c, err) || cuda_plan(c, err);
-    c->plan.center = 0; /* bands are raster runs of tiles: no centre order */
-    if (rc || cuda_upload(c, err))
+    if (cuda_open(c, err) || cuda_plan(c, err) || cuda_upload(c, err))
         goto fail;
     RT_CUDA_CHECK(cudaDeviceSynchronize()); /* (the streams below do not wait for the legacy stream's poison) */
-    RT_CUDA_CHECK(cudaStreamCreateWithFlags(&s->ks, cudaStreamNonBlocking));
+    for (int i = 0; i < c->slots; i++)
+        RT_CUDA_CHECK(cudaStreamCreateWithFlags(&s->ks[i], cudaStreamNonBlocking));
     RT_CUDA_CHECK(cudaStreamCreateWithFlags(&s->cs, cudaStreamNonBlocking));
-    for (; s->nev < RT_CUDA_BANDS; s->nev++) {
-        RT_CUDA_CHECK(cudaEventCreateWithFlags(&s->kev[s->nev], cudaEventDisableTiming));
-        if (cudaEventCreateWithFlags(&s->cev[s->nev], cudaEventDisableTiming) != cudaSuccess) {
-            cudaEventDestroy(s->kev[s->nev]);
-            RT_CUDA_CHECK(cudaGetLastError());
-        }
+    if (session_events(s, err))
+        goto fail;
+    {
+        const RtCudaShare whole = {0, 1, 1};
+        rt_cuda_session_share(s, &whole);
     }
     *out = s;
     return 0;
@@ -521,7 +438,7 @@ fail:
 int rt_cuda_session_tile_rows(const RtCudaSession *s, int *row_h, int *wave_rows)
 {
     const CudaRun *c = &s->c;
-    const int rows = (int)(c->g.ntiles / (uint32_t)c->g.tiles_x);
+    const int rows = (int)((c->g.ntiles + (uint32_t)c->g.tiles_x - 1) / (uint32_t)c->g.tiles_x);
     /* the pixels resident at once over a tile row's pixels, rounded up */
     const double resident = (double)c->blocks_per_sm * (double)c->prop.multiProcessorCount *
                             (double)(c->plan.pairs ? c->plan.threads / 2 : c->plan.threads);
@@ -532,125 +449,294 @@ int rt_cuda_session_tile_rows(const RtCudaSession *s, int *row_h, int *wave_rows
     return rows;
 }
 
+int rt_cuda_session_share(RtCudaSession *s, const RtCudaShare *sh)
+{
+    CudaRun *c = &s->c;
+    int row_h, wave_rows;
+    const int rows = rt_cuda_session_tile_rows(s, &row_h, &wave_rows);
+    s->g = c->g;
+    const uint32_t n = rt_cuda_grid_share(&s->g, sh, rows);
+    /* persistent: the blocks resident at once, never more than there are tiles */
+    s->nblocks = (int)s->g.ntiles;
+    if (c->plan.persistent && c->nblocks < s->nblocks)
+        s->nblocks = c->nblocks;
+    rt_cuda_share_runs(sh, rows, row_h, c->h, (size_t)c->w * 3, &s->r8);
+    rt_cuda_share_runs(sh, rows, row_h, c->h, (size_t)c->w * 3 * sizeof(float), &s->rf);
+    return (int)n;
+}
+
 void rt_cuda_session_pin(RtCudaSession *s, void *host, size_t bytes)
 {
-    rt_cuda_session_unpin(s);
+    if (s->npinned == RT_CUDA_PINS)
+        return;
     if (cudaHostRegister(host, bytes, cudaHostRegisterDefault) == cudaSuccess)
-        s->pinned = host;
+        s->pinned[s->npinned++] = host;
     else
         cudaGetLastError(); /* (not sticky: the copies go on from pageable memory) */
 }
 
 void rt_cuda_session_unpin(RtCudaSession *s)
 {
-    if (s->pinned)
-        cudaHostUnregister(s->pinned);
-    s->pinned = NULL;
+    while (s->npinned > 0)
+        cudaHostUnregister(s->pinned[--s->npinned]);
 }
 
-int rt_cuda_session_frame(RtCudaSession *s, RtError *err)
+/* The share's pieces of one image (runs r, from src to dst at the same
+ * offsets) queued on stream st. */
+static int copy_runs(const RtShareRuns *r, void *dst, const void *src, cudaStream_t st, RtError *err)
 {
-    CudaRun *c = &s->c;
-    RT_CUDA_CHECK(cudaMemsetAsync(c->arena + c->parts[P_COUNTERS].offset, 0, c->parts[P_COUNTERS].bytes, s->ks));
+    if (r->count)
+        RT_CUDA_CHECK(cudaMemcpy2DAsync((char *)dst + r->off, r->pitch, (const char *)src + r->off, r->pitch,
+                                        r->width, r->count, cudaMemcpyDeviceToHost, st));
+    if (r->tail_bytes)
+        RT_CUDA_CHECK(cudaMemcpyAsync((char *)dst + r->tail_off, (const char *)src + r->tail_off, r->tail_bytes,
+                                      cudaMemcpyDeviceToHost, st));
     return 0;
 fail:
     return -1;
 }
 
-int rt_cuda_session_band(RtCudaSession *s, int r0, int r1, float *rgb, RtError *err)
+int rt_cuda_session_queue(RtCudaSession *s, uint8_t *rgb8, float *rgbf, RtError *err)
 {
     CudaRun *c = &s->c;
     unsigned char *a = c->arena;
-    RtCudaGrid g = c->g;
-    const unsigned slot = (unsigned)(s->queued % RT_CUDA_BANDS);
-    const uint32_t tiles = (uint32_t)(r1 - r0) * (uint32_t)g.tiles_x;
-    g.units = NULL;
-    g.first_tile = (uint32_t)r0 * (uint32_t)g.tiles_x;
-    g.ntiles = tiles;
-    g.total_items = tiles * g.tile_items;
-    const int nblocks = (int)(g.persistent && (uint32_t)c->nblocks < tiles ? (uint32_t)c->nblocks : tiles);
-    const int y0 = r0 * g.by, y1 = r1 * g.by < c->h ? r1 * g.by : c->h;
-    const size_t off = (size_t)y0 * (size_t)c->w * 3, n = (size_t)(y1 - y0) * (size_t)c->w * 3;
-    if (s->queued - s->copies_done >= RT_CUDA_BANDS)
-        return rt_fail(err, "cuda: more than %d bands in flight", RT_CUDA_BANDS);
-    RT_CUDA_CHECK(cudaMemsetAsync(a + c->parts[P_WORK].offset, 0, c->parts[P_WORK].bytes, s->ks));
-    if (cuda_kernel(c, &g, nblocks, s->ks, err))
+    const unsigned long long q = s->queued;
+    const unsigned long long n = (unsigned long long)c->slots;
+    const int e = (int)(q % RT_CUDA_EV), slot = (int)(q % n);
+    cudaStream_t ks = s->ks[slot];
+    if (q - s->done >= n)
+        return rt_fail(err, "cuda: more than %d frames in flight", c->slots);
+    /* the slot's last frame is copied down before this one writes it */
+    if (q >= n)
+        RT_CUDA_CHECK(cudaStreamWaitEvent(ks, s->c1[(q - n) % RT_CUDA_EV], 0));
+    RT_CUDA_CHECK(cudaMemsetAsync(a + c->parts[P_COUNTERS].offset + (size_t)slot * RT_CUDA_CSLOT, 0, RT_CUDA_CSLOT,
+                                  ks));
+    RT_CUDA_CHECK(cudaEventRecord(s->k0[e], ks));
+    if (s->nblocks > 0 && cuda_kernel(c, &s->g, s->nblocks, slot, ks, err))
         return -1;
-    RT_CUDA_CHECK(cudaEventRecord(s->kev[slot], s->ks));
-    RT_CUDA_CHECK(cudaStreamWaitEvent(s->cs, s->kev[slot], 0));
-    RT_CUDA_CHECK(cudaMemcpyAsync(rgb + off, (float *)(a + c->parts[P_IMAGE].offset) + off, n * sizeof(float),
-                                  cudaMemcpyDeviceToHost, s->cs));
-    RT_CUDA_CHECK(cudaEventRecord(s->cev[slot], s->cs));
+    RT_CUDA_CHECK(cudaEventRecord(s->k1[e], ks));
+    RT_CUDA_CHECK(cudaStreamWaitEvent(s->cs, s->k1[e], 0));
+    if (rgb8 && copy_runs(&s->r8, rgb8, a + c->parts[P_IMAGE8].offset + (size_t)slot * c->npix * 3, s->cs, err))
+        return -1;
+    if (rgbf && copy_runs(&s->rf, rgbf, (float *)(a + c->parts[P_IMAGE].offset) + (size_t)slot * c->npix * 3, s->cs,
+                          err))
+        return -1;
+    RT_CUDA_CHECK(cudaEventRecord(s->c1[e], s->cs));
     s->queued++;
     return 0;
 fail:
     return -1;
 }
 
-int rt_cuda_session_kernels(RtCudaSession *s, int keep, RtError *err)
+int rt_cuda_session_wait(RtCudaSession *s, RtCudaFrame *f, RtError *err)
 {
-    if (s->queued - s->kernels_done > (unsigned long long)keep) {
-        const unsigned long long last = s->queued - (unsigned long long)keep - 1;
-        RT_CUDA_CHECK(cudaEventSynchronize(s->kev[last % RT_CUDA_BANDS]));
-        s->kernels_done = last + 1;
+    const int e = (int)(s->done % RT_CUDA_EV);
+    float k = 0.0f, d = 0.0f;
+    if (s->done == s->queued)
+        return rt_fail(err, "cuda: no frame queued");
+    RT_CUDA_CHECK(cudaEventSynchronize(s->c1[e]));
+    f->end = rt_now_ms();
+    RT_CUDA_CHECK(cudaEventElapsedTime(&k, s->k0[e], s->k1[e]));
+    RT_CUDA_CHECK(cudaEventElapsedTime(&d, s->k1[e], s->c1[e]));
+    if (s->done > 0) { /* from the previous kernel's end where this one started under it */
+        float since = 0.0f;
+        RT_CUDA_CHECK(cudaEventElapsedTime(&since, s->k1[(s->done - 1) % RT_CUDA_EV], s->k1[e]));
+        if (since > 0.0f && since < k)
+            k = since;
     }
+    f->kernel_ms = k;
+    f->copy_ms = d;
+    s->done++;
     return 0;
 fail:
     return -1;
 }
 
-int rt_cuda_session_ready(RtCudaSession *s, int wait, RtError *err)
+static __global__ void rt_trap_kernel(void) { __trap(); }
+
+int rt_cuda_session_fault(RtCudaSession *s, RtError *err)
 {
-    int n = 0;
-    for (; s->copies_done < s->queued; s->copies_done++, n++) {
-        cudaEvent_t e = s->cev[s->copies_done % RT_CUDA_BANDS];
-        if (wait) {
-            RT_CUDA_CHECK(cudaEventSynchronize(e));
-        } else {
-            cudaError_t q = cudaEventQuery(e);
-            if (q == cudaErrorNotReady)
-                break;
-            RT_CUDA_CHECK(q);
-        }
-    }
-    if (s->kernels_done < s->copies_done)
-        s->kernels_done = s->copies_done;
-    return n;
+    rt_trap_kernel<<<1, 1, 0, s->ks[0]>>>();
+    RT_CUDA_CHECK(cudaStreamSynchronize(s->ks[0]));
+    return rt_fail(err, "cuda: the trap kernel did not fault");
 fail:
     return -1;
 }
 
+int rt_cuda_session_slots(const RtCudaSession *s) { return s->c.slots; }
+
+unsigned long long rt_cuda_session_queued(const RtCudaSession *s) { return s->queued; }
+
 int rt_cuda_session_counters(RtCudaSession *s, RtCounters *cnt, RtError *err)
 {
-    RT_CUDA_CHECK(cudaStreamSynchronize(s->ks));
-    return cuda_counters(&s->c, cnt, err);
+    for (int i = 0; i < s->c.slots; i++)
+        RT_CUDA_CHECK(cudaStreamSynchronize(s->ks[i]));
+    return cuda_counters(&s->c, (int)((s->queued - 1) % (unsigned long long)s->c.slots), cnt, err);
 fail:
     return -1;
 }
 
 const char *rt_cuda_session_gpu(const RtCudaSession *s) { return s->c.gpu_at; }
 
-void rt_cuda_session_keys(const RtCudaSession *s, char *buf, size_t size) { cuda_plan_keys(&s->c, buf, size); }
+void rt_cuda_session_keys(const RtCudaSession *s, char *buf, size_t size)
+{
+    cuda_plan_keys(&s->c, &s->g, s->nblocks, buf, size);
+}
 
 void rt_cuda_session_close(RtCudaSession *s)
 {
     if (!s)
         return;
+    for (int i = 0; i < RT_CUDA_MAX_SLOTS; i++)
+        if (s->ks[i])
+            cudaStreamSynchronize(s->ks[i]);
+    if (s->cs)
+        cudaStreamSynchronize(s->cs);
     rt_cuda_session_unpin(s);
     for (int i = 0; i < s->nev; i++) {
-        cudaEventDestroy(s->kev[i]);
-        cudaEventDestroy(s->cev[i]);
+        cudaEventDestroy(s->k0[i]);
+        cudaEventDestroy(s->k1[i]);
+        cudaEventDestroy(s->c1[i]);
     }
-    if (s->ks)
-        cudaStreamDestroy(s->ks);
+    for (int i = 0; i < RT_CUDA_MAX_SLOTS; i++)
+        if (s->ks[i])
+            cudaStreamDestroy(s->ks[i]);
     if (s->cs)
         cudaStreamDestroy(s->cs);
     cuda_release(&s->c);
     free(s);
 }
 
+/* ---------------------------------------------------------------- frames */
+
+int rt_cuda_frames_init(RtCudaFrames *f, const RtRenderJob *job, RtError *err)
+{
+    memset(f, 0, sizeof *f);
+    f->job = job;
+    f->max_runs = job->runs > 0 ? job->runs : RT_CUDA_RUNS;
+    f->warm_ms = job->warmup_runs < 0 && job->warmup_ms < 0.0 ? RT_CUDA_WARMUP_MS : job->warmup_ms;
+    f->v = (double *)malloc(4 * sizeof *f->v * (size_t)f->max_runs);
+    if (!f->v)
+        return rt_fail(err, "cuda: out of memory for %d timings", f->max_runs);
+    f->t0 = rt_now_ms();
+    return 0;
+}
+
+int rt_cuda_frames_add(RtCudaFrames *f, double period_ms, double kernel_ms, double copy_ms, double first_end_ms)
+{
+    const RtRenderJob *job = f->job;
+    if (f->n == 0)
+        f->first_kernel_ms = kernel_ms;
+    const int warm = f->runs == 0 && rt_warmup_due(job->warmup_runs, f->warm_ms, f->n, rt_now_ms() - f->t0);
+    f->n++;
+    if (warm) {
+        f->warmups++;
+    } else {
+        const int m = f->max_runs, r = f->runs++;
+        f->v[r] = period_ms;
+        f->v[m + r] = kernel_ms;
+        f->v[2 * m + r] = copy_ms;
+        f->v[3 * m + r] = first_end_ms;
+    }
+    if (job->progress)
+        job->progress(job->progress_ctx, (uint64_t)f->n, (uint64_t)f->max_runs + 1);
+    const int budget = job->runs <= 0 && period_ms * (f->runs + 1) > RT_CUDA_TIME_BUDGET_MS;
+    return f->runs < f->max_runs && !budget;
+}
+
+void rt_cuda_frames_out(RtCudaFrames *f, RtRenderOut *out)
+{
+    const int m = f->max_runs, n = f->runs;
+    out->render_ms = rt_median(f->v, n); /* (sorts: v[0] is the fastest) */
+    out->render_ms_best = f->v[0];
+    out->render_ms_min = rt_median(f->v + 3 * m, n);
+    out->runs = n;
+    out->warmups = f->warmups;
+    f->kernel_ms = rt_median(f->v + m, n);
+    f->kernel_min_ms = f->v[m];
+    f->copy_ms = rt_median(f->v + 2 * m, n);
+    out->quantized = !f->job->want_float;
+}
+
+void rt_cuda_frames_free(RtCudaFrames *f)
+{
+    free(f->v);
+    f->v = NULL;
+}
+
+/* ---------------------------------------------------------------- render */
+
+/* Frames of the whole image until the timing is done (rt_cuda_frames_add),
+ * as many in flight as the session has slots, so that a frame's copy runs
+ * under the next frame's kernel. Frames queued after the last wanted one are
+ * waited for and not counted. */
+static int cuda_frames(RtCudaSession *s, RtCudaFrames *fr, RtRenderOut *out, RtError *err)
+{
+    const RtRenderJob *job = fr->job;
+    uint8_t *rgb8 = job->want_float ? NULL : out->rgb8;
+    float *rgbf = job->want_float ? out->rgb : NULL;
+    double prev = rt_now_ms();
+    int more = 1;
+    if (rt_cuda_session_queue(s, rgb8, rgbf, err))
+        return -1;
+    while (s->done < s->queued) {
+        while (more && s->queued - s->done < (unsigned long long)s->c.slots)
+            if (rt_cuda_session_queue(s, rgb8, rgbf, err))
+                return -1;
+        RtCudaFrame f;
+        if (rt_cuda_session_wait(s, &f, err))
+            return -1;
+        if (more)
+            more = rt_cuda_frames_add(fr, f.end - prev, f.kernel_ms, f.copy_ms, f.end - prev);
+        prev = f.end;
+    }
+    if (job->progress)
+        job->progress(job->progress_ctx, (uint64_t)fr->max_runs + 1, (uint64_t)fr->max_runs + 1);
+    return 0;
+}
+
+static int render_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *err)
+{
+    const double t_wall0 = rt_now_ms();
+    RtCudaSession *s = NULL;
+    RtCudaFrames fr;
+    memset(&fr, 0, sizeof fr);
+    if (rt_cuda_session_open(job, &s, err) || rt_cuda_frames_init(&fr, job, err))
+        goto fail;
+    {
+        const size_t npix = s->c.npix;
+        if (job->want_float) /* --verify: the floats, quantised and checked on the host */
+            rt_cuda_session_pin(s, out->rgb, npix * 3 * sizeof(float));
+        else
+            rt_cuda_session_pin(s, out->rgb8, npix * 3);
+    }
+    if (cuda_frames(s, &fr, out, err) || rt_cuda_session_counters(s, &out->counters, err))
+        goto fail;
+    rt_cuda_frames_out(&fr, out);
+    out->threads_used = s->nblocks * s->c.plan.threads;
+    out->ranks_used = 1;
+    out->is_root = 1;
+    rt_cores_note(out->cores, sizeof out->cores, rt_current_cpu());
+    {
+        char plan[512];
+        rt_cuda_session_keys(s, plan, sizeof plan);
+        snprintf(out->extra, sizeof out->extra,
+                 "%s kernel_ms=%.4f kernel_min_ms=%.4f frames=%d warmup_frames=%d first_ms=%.4f init_ms=%.3f "
+                 "upload_ms=%.3f download_ms=%.3f wall_ms=%.3f gpu=%s",
+                 plan, fr.kernel_ms, fr.kernel_min_ms, fr.runs, fr.warmups, fr.first_kernel_ms, s->c.init_ms,
+                 s->c.upload_ms, fr.copy_ms, rt_now_ms() - t_wall0, s->c.gpu);
+    }
+    rt_cuda_frames_free(&fr);
+    rt_cuda_session_close(s);
+    return 0;
+fail:
+    rt_cuda_frames_free(&fr);
+    rt_cuda_session_close(s);
+    return -1;
+}
+
 extern "C" {
 extern const RtBackend rt_backend_cuda;
-/* times its own runs: the scene stays on the device between launches */
+/* times its own runs: the scene stays on the device between frames */
 const RtBackend rt_backend_cuda = {"cuda", NULL, NULL, render_cuda, NULL, NULL, 1, cuda_prewarm, 1};
 }

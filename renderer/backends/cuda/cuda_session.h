@@ -1,16 +1,16 @@
-/* cuda_session.h - the CUDA backend's steps for a caller that renders one
- * frame in many pieces: the MPI backend with a GPU on each rank
- * (backends/mpi_cuda.c). A session opens the device, plans the launch for
- * the whole image and uploads the scene once (as cuda.cu's own render does);
- * then the caller queues bands of tile rows, each rendered by the same kernel
- * and its pixel rows copied down while the next band renders. Plain C:
- * mpi_cuda.c is compiled by the C compiler. */
+/* cuda_session.h - the GPU backends' frames: a session opens the device,
+ * plans the launch for the whole image and uploads the scene once; then it
+ * renders frames of its share of the image's tile rows (the whole image for
+ * the CUDA backend, one share per rank for mpi-cuda), each frame's 8-bit
+ * pixels copied down while the next frame renders. Plain C: mpi_cuda.c is
+ * compiled by the C compiler. */
 #ifndef RT_CUDA_SESSION_H
 #define RT_CUDA_SESSION_H
 
 #include <stddef.h>
 
 #include "rt.h"
+#include "schedule.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -37,36 +37,73 @@ int rt_cuda_device_bus(int device, char *bus, size_t size, RtError *err);
  * ready when the session opens; device modulo the device count when wrap. */
 void rt_cuda_prewarm_device(int device, int wrap);
 /* Opens job->device, plans the launch for job's whole image and uploads the
- * scene. 0, or -1 with the message (out of memory names the bytes needed). */
+ * scene; the share is the whole image. 0, or -1 with the message (out of
+ * memory names the bytes needed). */
 int rt_cuda_session_open(const RtRenderJob *job, RtCudaSession **s, RtError *err);
 /* Tile rows in the image; *row_h receives the rows of pixels in each, and
  * *wave_rows the tile rows that fill the GPU once (its resident threads). */
 int rt_cuda_session_tile_rows(const RtCudaSession *s, int *row_h, int *wave_rows);
-/* Page-locks the host buffer the bands are copied into (the copies then run
- * at the link's speed, several times faster than into pageable memory) until
- * rt_cuda_session_unpin; a buffer that cannot be locked is left as it is. */
+/* The tile rows this session renders of each frame from now on (schedule.h);
+ * returns how many there are. */
+int rt_cuda_session_share(RtCudaSession *s, const RtCudaShare *sh);
+/* Page-locks a host buffer the frames are copied into (the copies then run
+ * at the link's speed, several times faster than into pageable memory)
+ * until rt_cuda_session_unpin; a buffer that cannot be locked is left as it
+ * is. Up to four buffers. */
 void rt_cuda_session_pin(RtCudaSession *s, void *host, size_t bytes);
 void rt_cuda_session_unpin(RtCudaSession *s);
-/* Zeroes the ray counters: a frame starts. */
-int rt_cuda_session_frame(RtCudaSession *s, RtError *err);
-/* Queues tile rows [r0, r1): their kernel, then the copy of their pixel rows
- * into rgb (the whole image's host buffer, at the same offsets) on a second
- * stream, so that it overlaps the next band's kernel. Returns at once. At
- * most RT_CUDA_BANDS bands may be queued and not yet reported ready. */
-#define RT_CUDA_BANDS 256
-int rt_cuda_session_band(RtCudaSession *s, int r0, int r1, float *rgb, RtError *err);
-/* Waits until at most `keep` queued kernels are unfinished. */
-int rt_cuda_session_kernels(RtCudaSession *s, int keep, RtError *err);
-/* How many more of the oldest queued bands are in rgb now, in queue order
- * (wait: all of them, waiting for their copies); -1 on an error. */
-int rt_cuda_session_ready(RtCudaSession *s, int wait, RtError *err);
-/* The counters of the frame so far. */
+/* Queues a frame: the ray counters zeroed, the kernel over the share (its
+ * pixels quantised to 8 bits on the GPU, rt_quantize), then on a second
+ * stream the copy of the share's 8-bit pixels into rgb8 and, unless NULL,
+ * of their floats into rgbf (whole-image host buffers, the pixels at their
+ * own offsets; rgb8 may be NULL too). Returns at once. The frame's kernel
+ * runs while the frame before it is copied down; at most
+ * rt_cuda_session_slots frames are queued and not yet waited for. */
+int rt_cuda_session_queue(RtCudaSession *s, uint8_t *rgb8, float *rgbf, RtError *err);
+/* The oldest queued frame, waited for until its copies are in host memory:
+ * end is that moment (rt_now_ms); kernel_ms the GPU's time in its kernel
+ * (from its start, or from the previous frame's kernel end where it started
+ * under that one); copy_ms from its kernel's end to its copies' end. */
+typedef struct RtCudaFrame {
+    double end, kernel_ms, copy_ms;
+} RtCudaFrame;
+int rt_cuda_session_wait(RtCudaSession *s, RtCudaFrame *f, RtError *err);
+/* Frames the session keeps in flight (rt_cuda_frames_in_flight). */
+int rt_cuda_session_slots(const RtCudaSession *s);
+/* Frames queued so far. */
+unsigned long long rt_cuda_session_queued(const RtCudaSession *s);
+/* A real fault of the session's GPU (a kernel that traps), for the tests
+ * of a GPU failing mid-study: -1 with CUDA's message; the device is
+ * unusable afterwards. */
+int rt_cuda_session_fault(RtCudaSession *s, RtError *err);
+/* The counters of the last frame (waits for its kernel). */
 int rt_cuda_session_counters(RtCudaSession *s, RtCounters *c, RtError *err);
 /* "NAME@PCI-BUS-ID" of the session's GPU (characters safe in a record). */
 const char *rt_cuda_session_gpu(const RtCudaSession *s);
 /* The plan's record keys (" block=8x8 sched=grid ..."; docs/gpu.md). */
 void rt_cuda_session_keys(const RtCudaSession *s, char *buf, size_t size);
 void rt_cuda_session_close(RtCudaSession *s);
+
+/* The GPU backends' frame timing: warm-up frames (--warmup, else
+ * RT_CUDA_WARMUP_MS of them), then --runs timed frames (else RT_CUDA_RUNS,
+ * fewer past RT_CUDA_TIME_BUDGET_MS). A frame's time is its period: from
+ * the previous frame's image in host memory to its own (the first frame:
+ * from the first queue). */
+typedef struct RtCudaFrames {
+    const RtRenderJob *job;
+    double *v;               /* per timed frame: period, kernel, copy, earliest end (4 x max_runs) */
+    int max_runs, runs, warmups, n;
+    double t0, warm_ms, first_kernel_ms;
+    double kernel_ms, kernel_min_ms, copy_ms; /* rt_cuda_frames_out's medians */
+} RtCudaFrames;
+int rt_cuda_frames_init(RtCudaFrames *f, const RtRenderJob *job, RtError *err);
+/* Frame n done: counted as warm-up or timed; 1 while another is wanted. */
+int rt_cuda_frames_add(RtCudaFrames *f, double period_ms, double kernel_ms, double copy_ms, double first_end_ms);
+/* render_ms (the periods' median), render_ms_best, render_ms_min (the
+ * earliest ends'), runs, warmups and quantized into out; the kernel's and
+ * copies' medians into f. */
+void rt_cuda_frames_out(RtCudaFrames *f, RtRenderOut *out);
+void rt_cuda_frames_free(RtCudaFrames *f);
 
 #ifdef __cplusplus
 }

@@ -41,14 +41,14 @@ extern "C" {
 enum { RT_NCOUNTERS = 5 }; /* fields of RtCounters, all uint64_t, in order */
 
 /* Persistent schedule: work item -> pixel. Items are numbered tile by tile
- * from g.first_tile, row-major inside a tile. Returns 0 for the overhang of
- * an edge tile. */
+ * through the launch's share of tile rows, row-major inside a tile. Returns
+ * 0 for the overhang of an edge tile. */
 static __device__ __forceinline__ int rt_cuda_item_pixel(const RtSceneView &view, const RtCudaGrid &g,
                                                          uint32_t item, int *px, int *py)
 {
     const uint32_t nth = item / g.tile_items;
     const uint32_t local = item - nth * g.tile_items;
-    const uint32_t tile = g.first_tile + nth;
+    const uint32_t tile = rt_cuda_share_tile(&g, nth);
     *px = (int)(tile % (uint32_t)g.tiles_x) * g.bx + (int)(local % (uint32_t)g.bx);
     *py = (int)(tile / (uint32_t)g.tiles_x) * g.by + (int)(local / (uint32_t)g.bx);
     return *px < view.cam.width && *py < view.cam.height;
@@ -185,6 +185,18 @@ static __device__ __forceinline__ void rt_cuda_pair_item(const RtSceneView &view
     }
 }
 
+/* The pixel's 8-bit value, from the floats this thread has just written,
+ * by the rule the CPU backends' images get (rt_quantize): the image leaves
+ * the GPU a quarter of the float image's size. */
+static __device__ __forceinline__ void rt_cuda_store8(const RtSceneView &view, const float *rgb, uint8_t *rgb8, int px,
+                                                      int py)
+{
+    const size_t i = 3 * ((size_t)py * (size_t)view.cam.width + (size_t)px);
+    rgb8[i] = rt_quantize(rgb[i]);
+    rgb8[i + 1] = rt_quantize(rgb[i + 1]);
+    rgb8[i + 2] = rt_quantize(rgb[i + 2]);
+}
+
 /* Exact counters: sum over the warp (shuffles), then the block (shared
  * atomics), then one 64-bit global atomic per counter and block. Called by
  * every thread of the block at the end of a kernel. */
@@ -226,8 +238,8 @@ enum { RT_MODE_PAIRS = 1, RT_MODE_SLOT = 2 };
  * &view without a local copy. */
 template <int MAXT, int MINB, int MODE>
 __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_constant__ RtSceneView view, float *rgb,
-                                                               unsigned long long *counters, unsigned int *next_item,
-                                                               const RtCudaGrid g)
+                                                               uint8_t *rgb8, unsigned long long *counters,
+                                                               unsigned int *next_item, const RtCudaGrid g)
 {
     constexpr bool PAIRS = (MODE & RT_MODE_PAIRS) != 0;
     constexpr int SHADOW = (MODE & RT_MODE_SLOT) ? RT_ANY_HIT_SLOT : RT_ANY_HIT;
@@ -256,22 +268,27 @@ __global__ void __launch_bounds__(MAXT, MINB) rt_render_kernel(const __grid_cons
                 break;
             const uint32_t item = base + rank;
             int px, py;
-            if (item < g.total_items && rt_cuda_item_pixel(view, g, item, &px, &py))
+            if (item < g.total_items && rt_cuda_item_pixel(view, g, item, &px, &py)) {
                 rt_render_pixel(&view, px, py, SHADOW, rgb, &cnt);
+                rt_cuda_store8(view, rgb, rgb8, px, py);
+            }
         }
     } else {
-        const uint32_t tile = g.units ? g.units[blockIdx.x] : g.first_tile + blockIdx.x;
+        const uint32_t tile = g.units ? g.units[blockIdx.x] : rt_cuda_share_tile(&g, blockIdx.x);
         int px, py;
         const bool valid = rt_cuda_unit_pixel(view, g, tile, PAIRS, tid, &px, &py);
         if (PAIRS)
             rt_cuda_pair_item(view, px, py, valid, tid & 1u, rgb, &cnt);
         else if (valid)
             rt_render_pixel(&view, px, py, SHADOW, rgb, &cnt);
+        if (valid && !(PAIRS && (tid & 1u)))
+            rt_cuda_store8(view, rgb, rgb8, px, py);
     }
     rt_cuda_flush_counters(cnt, block_cnt, counters, mask, lane, tid);
 }
 
-typedef void (*RtCudaKernel)(const RtSceneView, float *, unsigned long long *, unsigned int *, const RtCudaGrid);
+typedef void (*RtCudaKernel)(const RtSceneView, float *, uint8_t *, unsigned long long *, unsigned int *,
+                             const RtCudaGrid);
 
 typedef struct RtCudaVariant {
     int maxt, minb, mode;

@@ -25,6 +25,14 @@
 #define RT_CUDA_LARGE_BY 8
 #define RT_CUDA_LARGE_MINB 3
 
+/* Below about 4 waves a frame's time is its slowest pixels' (latency), not
+ * the GPU's throughput: on the H200 the dragon at 512x384 (2.9 waves) gave
+ * a frame every 0.149 ms with 2 frames in flight and every 0.124 ms with 4;
+ * at 3840x2160 (82 waves) 2 are as fast as any more (docs/gpu.md). */
+#define RT_CUDA_DEEP_WAVES 4.0
+
+int rt_cuda_frames_in_flight(double waves) { return waves < RT_CUDA_DEEP_WAVES ? RT_CUDA_MAX_SLOTS : 2; }
+
 void rt_cuda_default_block(int has_tree, int *bx, int *by)
 {
     *bx = has_tree ? RT_CUDA_TREE_BX : RT_CUDA_NONE_BX;
@@ -91,7 +99,51 @@ int rt_cuda_grid(const RtCudaPlan *p, int w, int h, RtCudaGrid *g, RtError *err)
         return rt_fail(err, "cuda: a %dx%d image in %dx%d blocks has more than 2^32 work items", w, h, p->bx, p->by);
     g->ntiles = (uint32_t)tiles;
     g->total_items = (uint32_t)(tiles * g->tile_items);
+    g->run = g->period = 1;
     return 0;
+}
+
+/* The share's tile rows below `rows`: whole periods, then what the last,
+ * partial period holds of the run. */
+static uint32_t share_rows(const RtCudaShare *sh, int rows)
+{
+    const int full = rows / sh->period, rem = rows % sh->period - sh->first;
+    return (uint32_t)(full * sh->run + (rem <= 0 ? 0 : rem < sh->run ? rem : sh->run));
+}
+
+void rt_cuda_share_runs(const RtCudaShare *sh, int rows, int row_h, int h, size_t row_bytes, RtShareRuns *out)
+{
+    memset(out, 0, sizeof *out);
+    out->tile_rows = share_rows(sh, rows);
+    const int whole = h / row_h; /* tile rows not cut by the image's height */
+    const size_t tile_row = (size_t)row_h * row_bytes;
+    out->off = (size_t)sh->first * tile_row;
+    out->width = (size_t)sh->run * tile_row;
+    out->pitch = (size_t)sh->period * tile_row;
+    /* runs wholly inside the uncut rows: first + k * period + run <= whole */
+    out->count = whole >= sh->first + sh->run ? (size_t)((whole - sh->first - sh->run) / sh->period + 1) : 0;
+    /* at most one more run reaches past them: it starts after the last
+     * whole run ends, so the next one starts past the image */
+    const int start = sh->first + (int)out->count * sh->period;
+    if (start < rows) {
+        const int end_row = start + sh->run < rows ? start + sh->run : rows;
+        const int y1 = end_row * row_h < h ? end_row * row_h : h;
+        out->tail_off = (size_t)start * tile_row;
+        out->tail_bytes = (size_t)(y1 - start * row_h) * row_bytes;
+    }
+}
+
+uint32_t rt_cuda_grid_share(RtCudaGrid *g, const RtCudaShare *sh, int rows)
+{
+    const uint32_t n = share_rows(sh, rows);
+    g->first_row = (uint32_t)sh->first;
+    g->run = (uint32_t)sh->run;
+    g->period = (uint32_t)sh->period;
+    if (sh->period != 1)
+        g->units = NULL;
+    g->ntiles = n * (uint32_t)g->tiles_x;
+    g->total_items = g->ntiles * g->tile_items;
+    return n;
 }
 
 /* ---- The centre order ------------------------------------------------------

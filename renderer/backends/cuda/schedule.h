@@ -22,11 +22,46 @@ typedef struct RtCudaGrid {
     uint32_t ntiles;        /* tiles in the image */
     int32_t persistent;     /* 1: warps fetch 32 pixels at a time from a counter; 0: one block per tile */
     int32_t pairs;          /* 1: two lanes per pixel (grid schedule only) */
-    const uint32_t *units;  /* grid schedule: block b renders tile units[b] (the centre order); NULL: tile
-                             * first_tile + b */
-    uint32_t first_tile;    /* the launch's first tile (raster order) when units is NULL: 0 for the whole
-                             * image; a band of tile rows for the MPI backend's claims (cuda_session.h) */
+    const uint32_t *units;  /* grid schedule: block b renders tile units[b] (the centre order); NULL: the
+                             * launch's tile b in its share (rt_cuda_share_tile) */
+    uint32_t first_row;     /* the share of tile rows the launch renders (RtCudaShare): rows first_row + */
+    uint32_t run, period;   /* k * period + j for j < run; 0, 1, 1 for the whole image */
 } RtCudaGrid;
+
+/* A GPU's share of each frame's tile rows (the MPI backend's ranks): rows
+ * first + k * period + j, for k = 0, 1, ... and j < run, inside the image.
+ * Ranks that interleave their shares row by row (run 1, period P) get the
+ * image's expensive rows in equal parts, so GPUs of one kind finish
+ * together. The whole image is {0, 1, 1}. */
+typedef struct RtCudaShare {
+    int first, run, period;
+} RtCudaShare;
+
+/* The launch's tile n in raster order of the whole image: its row of tiles
+ * through the share, its column as it is (host and device, one formula). */
+#ifdef __CUDACC__
+__host__ __device__
+#endif
+static inline uint32_t rt_cuda_share_tile(const RtCudaGrid *g, uint32_t n)
+{
+    const uint32_t r = n / (uint32_t)g->tiles_x, x = n - r * (uint32_t)g->tiles_x;
+    return (g->first_row + (r / g->run) * g->period + r % g->run) * (uint32_t)g->tiles_x + x;
+}
+
+/* How a share's pixels lie in an image of `rows` tile rows of row_h pixel
+ * rows each (the last may be cut by the image's height h), each pixel row
+ * row_bytes long: `count` equal pieces `width` bytes long, `pitch` apart,
+ * from byte `off` (a 2D copy or an MPI vector), then one more piece of
+ * tail_bytes at tail_off (0: none). tile_rows is the share's rows. */
+typedef struct RtShareRuns {
+    size_t off, width, pitch, count;
+    size_t tail_off, tail_bytes;
+    uint32_t tile_rows;
+} RtShareRuns;
+void rt_cuda_share_runs(const RtCudaShare *sh, int rows, int row_h, int h, size_t row_bytes, RtShareRuns *out);
+/* The grid g restricted to share sh (units dropped unless sh is the whole
+ * image); 0 when the share has no rows in the image. */
+uint32_t rt_cuda_grid_share(RtCudaGrid *g, const RtCudaShare *sh, int rows);
 
 /* What the host decided for one render (the record prints it). */
 typedef struct RtCudaPlan {
@@ -38,6 +73,13 @@ typedef struct RtCudaPlan {
     int minb;               /* blocks per multiprocessor the kernel's register budget allows */
     int center;             /* grid schedule: tiles from the image's centre outwards */
 } RtCudaPlan;
+
+/* Frames in flight: 2, so that one frame's copy (and its kernel's last
+ * blocks) run under the next frame's kernel; RT_CUDA_MAX_SLOTS where the
+ * frame fills the GPU's resident threads fewer than RT_CUDA_DEEP_WAVES times
+ * (waves), so that frames too small to fill it share it. */
+#define RT_CUDA_MAX_SLOTS 4
+int rt_cuda_frames_in_flight(double waves);
 
 /* The block when --block is not given: tree or brute force. */
 void rt_cuda_default_block(int has_tree, int *bx, int *by);
