@@ -30,7 +30,7 @@ static const char *const known[][3] = {
     {"build_ms", "ms", "building the BVH"},
     {"write_ms", "ms", "writing the image"},
     {"upload_ms", "ms", "cuda: the scene to the GPU"},
-    {"download_ms", "ms", "cuda: the image back from the GPU"},
+    {"download_ms", "ms", "cuda, mpi-cuda: a frame's image back from the GPU"},
     {"wall_ms", "ms", "the run's wall time, as the harness measured it"},
     {"user_ms", "ms", "CPU time in user mode (wait4)"},
     {"sys_ms", "ms", "CPU time in the kernel (wait4)"},

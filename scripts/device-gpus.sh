@@ -6,6 +6,11 @@
 #           ranks taking turns on it
 #   gpus    configs/gpus-dragon.conf and configs/gpus-island.conf, the rank
 #           lists cut to the GPUs the machine has
+#   ab      the same two studies through `harness ab --config` against an
+#           older commit built beside this one (.devcarry/base.tar.gz, made
+#           here by `git archive --prefix=base/ OLD | gzip`), interleaved,
+#           ROUNDS rounds (default 5); then one run of each GPU case for its
+#           record keys (keys.txt)
 # CSVs, tables and logs go to $OUT (default /tmp/device-gpus). Carry
 # [".devcarry"]: the course scenes in .devcarry/scenes/course, and
 # .devcarry/include/xxhash.h where the machine lacks libxxhash-dev.
@@ -38,6 +43,24 @@ study() {
     echo "== $name"; cat "$OUT/$name-table.md"
 }
 
+# NAME RANKS: one run of each GPU case of gpus-NAME.conf, its timing keys
+keys() {
+    local conf=/tmp/gpus-$1.conf scene res dir
+    dir=$(sed -n 's/^scene_dir: //p' "$conf")
+    scene=$(find "$dir" -name "$(sed -n 's/^scenes: //p' "$conf").txt" | head -1)
+    for res in $(sed -n 's/^resolution: //p' "$conf"); do
+        for np in cuda $2; do
+            if [ "$np" = cuda ]; then run=($B/renderer/raytrace --backend cuda)
+            else run=(mpirun --bind-to none -np "$np" $B/renderer/raytrace --backend mpi-cuda); fi
+            echo "== $1 $res ${run[*]:0:4}"
+            "${run[@]}" -q -r "$res" "$scene" -o /tmp/keys.png | tr ' ' '\n' | grep -E \
+                '^(render_ms|render_ms_min|kernel_ms|download_ms|waves|in_flight|frames|first_ms|rank_[a-z_]+)=' |
+                tr '\n' ' '
+            echo
+        done
+    done | tee -a "$OUT/keys.txt"
+}
+
 for step in $steps; do
     case $step in
     test)
@@ -53,6 +76,22 @@ for step in $steps; do
         for c in configs/gpus-dragon.conf configs/gpus-island.conf; do
             study "$c" -e "s|^ranks:.*|ranks:$keep|"
         done ;;
-    *) echo "device-gpus: unknown step '$step' (test, shared, gpus)" >&2; exit 1 ;;
+    ab)
+        tar xzf .devcarry/base.tar.gz -C /tmp
+        (cd /tmp/base && { [ -f /tmp/build-base/build.ninja ] || meson setup /tmp/build-base "${args[@]}"; } &&
+            ninja -C /tmp/build-base renderer/raytrace) > "$OUT/base-build.log" 2>&1 ||
+            { tail -5 "$OUT/base-build.log"; exit 1; }
+        keep=""
+        for n in 1 2 4 8; do [ "$n" -le "$ngpu" ] && keep="$keep $n"; done
+        SCENEGEN=$B/renderer/scenegen scripts/gen-scenes.sh island-4m > /dev/null
+        for c in dragon island; do
+            sed -e "s|^scene_dir: \.\./shared/scenes/course|scene_dir: $course|" -e "s|^ranks:.*|ranks:$keep|" \
+                "configs/gpus-$c.conf" > "/tmp/gpus-$c.conf"
+            $B/harness/harness ab --config "/tmp/gpus-$c.conf" /tmp/build-base/renderer/raytrace \
+                $B/renderer/raytrace --rounds "${ROUNDS:-5}" > "$OUT/ab-$c.txt" 2> "$OUT/ab-$c.err" || true
+            grep -E '^(IMPROVEMENT|REGRESSION|INCONCLUSIVE|no change)' "$OUT/ab-$c.txt"
+            keys "$c" "$keep"
+        done ;;
+    *) echo "device-gpus: unknown step '$step' (test, shared, gpus, ab)" >&2; exit 1 ;;
     esac
 done
