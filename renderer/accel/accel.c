@@ -65,6 +65,13 @@
  * at least two chunks of references bin and partition them in parallel. */
 #define RT_BVH_TASK_MIN 4096
 #define RT_BVH_CHUNK 16384
+/* The default build threads: one per RT_BVH_PRIMS_PER_THREAD primitives, at
+ * most the threads OpenMP offers. On the 2-core VM (docs/performance.md,
+ * "Build threads") 2 threads lost below 16,000 primitives -- 100 of them
+ * took 10-400 ms instead of 0.3 ms, waiting on a second thread the other
+ * core's work delayed -- and gained from 64,000. A smaller build starts no
+ * thread. */
+#define RT_BVH_PRIMS_PER_THREAD 16384
 
 /* A large array p of n bytes, just allocated, in 2 MiB pages where the
  * kernel grants them (transparent huge pages on request: madvise mode): a
@@ -1252,7 +1259,10 @@ int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAc
     memset(a, 0, sizeof *a);
     a->kind = kind;
     a->build_threads = 1;
-    const int nt = rt_thread_count(threads);
+    const uint64_t nprims = (uint64_t)s->nspheres + s->ntriangles;
+    int nt = rt_thread_count(threads);
+    if (threads <= 0 && (uint64_t)nt > nprims / RT_BVH_PRIMS_PER_THREAD)
+        nt = nprims < 2 * (uint64_t)RT_BVH_PRIMS_PER_THREAD ? 1 : (int)(nprims / RT_BVH_PRIMS_PER_THREAD);
     uint32_t n = 0;
     const int on = huge_mode == 1 || (huge_mode < 0 && nt >= RT_HUGE_PAGES_THREADS);
     a->huge_pages = on;

@@ -5,7 +5,9 @@
  * chunked binning and partition, the 4-wide copy's subtree tasks from 65536
  * records) and with triangles long enough that spatial
  * splits cut some of them (checked: the build adds records). Scenes named on
- * the command line are compared too. */
+ * the command line are compared too. And the default thread count: one
+ * thread per 16,384 primitives at most (the OpenMP threads permitting), so a
+ * small build starts no thread. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -86,6 +88,23 @@ int main(int argc, char **argv)
     CHECK(rt_scene_parse_buffer("random", buf, len, &sc, NULL, NULL, &err) == 0, "random scene: %s", err.msg);
     free(buf);
     compare_threads("random", &sc, 1);
+    {
+        RtAccel a;
+        const int omp = rt_thread_count(0), want = omp < 4 ? omp : 4; /* 80,000 primitives: 4 */
+        CHECK(rt_accel_build_threads(&sc, RT_ACCEL_BVH, 0, &a, &err) == 0 && a.build_threads == want,
+              "random: the default build ran %d threads, expected %d", a.build_threads, want);
+        rt_accel_free(&a);
+    }
+    rt_scene_free(&sc);
+    buf = random_scene(100, &len);
+    CHECK(rt_scene_parse_buffer("small", buf, len, &sc, NULL, NULL, &err) == 0, "small scene: %s", err.msg);
+    free(buf);
+    {
+        RtAccel a;
+        CHECK(rt_accel_build_threads(&sc, RT_ACCEL_BVH, 0, &a, &err) == 0 && a.build_threads == 1,
+              "small: 100 primitives built on %d threads by default, expected 1", a.build_threads);
+        rt_accel_free(&a);
+    }
     rt_scene_free(&sc);
     for (int i = 1; i < argc; i++) {
         if (rt_scene_load(argv[i], &sc, NULL, NULL, &err) != 0) {
