@@ -10,7 +10,9 @@
 #           older commit built beside this one (.devcarry/base.tar.gz, made
 #           here by `git archive --prefix=base/ OLD | gzip`), interleaved,
 #           ROUNDS rounds (default 5); then one run of each GPU case for its
-#           record keys (keys.txt)
+#           record keys (keys.txt). STUDIES="dragon" or "island" runs one
+#           (the island's 4M-triangle scene is parsed on every run: about 8
+#           minutes on two GPUs)
 # CSVs, tables and logs go to $OUT (default /tmp/device-gpus). Carry
 # [".devcarry"]: the course scenes in .devcarry/scenes/course, and
 # .devcarry/include/xxhash.h where the machine lacks libxxhash-dev.
@@ -84,7 +86,7 @@ for step in $steps; do
         keep=""
         for n in 1 2 4 8; do [ "$n" -le "$ngpu" ] && keep="$keep $n"; done
         SCENEGEN=$B/renderer/scenegen scripts/gen-scenes.sh island-4m > /dev/null
-        for c in dragon island; do
+        for c in ${STUDIES:-dragon island}; do
             sed -e "s|^scene_dir: \.\./shared/scenes/course|scene_dir: $course|" -e "s|^ranks:.*|ranks:$keep|" \
                 "configs/gpus-$c.conf" > "/tmp/gpus-$c.conf"
             $B/harness/harness ab --config "/tmp/gpus-$c.conf" /tmp/build-base/renderer/raytrace \
