@@ -11,8 +11,8 @@
 #           here by `git archive --prefix=base/ OLD | gzip`), interleaved,
 #           ROUNDS rounds (default 5); then one run of each GPU case for its
 #           record keys (keys.txt). STUDIES="dragon" or "island" runs one
-#           (the island's 4M-triangle scene is parsed on every run: about 8
-#           minutes on two GPUs)
+#           (the island's 4M-triangle scene is parsed and built on every
+#           run: give it a call of its own)
 # CSVs, tables and logs go to $OUT (default /tmp/device-gpus). Carry
 # [".devcarry"]: the course scenes in .devcarry/scenes/course, and
 # .devcarry/include/xxhash.h where the machine lacks libxxhash-dev.
