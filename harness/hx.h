@@ -293,8 +293,20 @@ void hx_topo_print(const HxTopo *t, FILE *out);
 char *hx_omp_places(const HxTopo *t, const HxRun *r);
 /* Whether a run's pinning held: its planned cores against the cores its
  * threads reported (cores_actual): "yes", "partial", "no", "unknown" or
- * "n/a" (nothing planned). */
+ * "n/a" (nothing planned). Lists of several nodes ("0,1|0,1", a run spread
+ * over a Slurm job's nodes) are compared node by node. */
 const char *hx_pin_held(const char *planned, const char *actual);
+/* hx_pin_held for a row: a plan over several nodes is checked against the
+ * cores per node of the record's rank_node and rank_cores (extra), which
+ * then become the row's cores_actual. */
+const char *hx_pin_held_row(const char *planned, char **vals);
+/* Nodes of the Slurm job the harness runs in (SLURM_JOB_NUM_NODES), 1
+ * outside one. */
+int hx_slurm_nodes(void);
+/* The cores each node's ranks ran on, from the record's rank_node
+ * ("0/0/1/1") and rank_cores ("0/1/0/1"): "0,1|0,1", nodes in order, each
+ * sorted; malloc'd, NULL when the two do not fit together. */
+char *hx_cores_by_node(const char *rank_node, const char *rank_cores);
 
 /* ---- machine fingerprint (fingerprint.c) ---- */
 typedef struct {

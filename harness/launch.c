@@ -367,3 +367,52 @@ char *hx_find_raytrace(const HxConfig *cfg, const char *opt)
     }
     return hx_strdup("raytrace");
 }
+
+int hx_srun_lost_node(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, const char *status, char **why)
+{
+    *why = NULL;
+    int nodes = hx_slurm_nodes();
+    if (cfg->launcher != HX_LAUNCHER_SRUN || !hx_run_is_mpi(r->v) || nodes < 2 || !status ||
+        (strcmp(status, "error") != 0 && strcmp(status, "crash") != 0 && strcmp(status, "timeout") != 0))
+        return 0;
+    /* One task on each node; --overlap: the CPUs of a step still being
+     * cleaned up do not make it wait, so a live node answers at once and a
+     * dead one fails the launch (or holds it until the controller ends the
+     * job, which stops the harness). */
+    HxCommand c;
+    memset(&c, 0, sizeof c);
+    char n[64];
+    hx_strlist_push(&c.argv, "srun");
+    snprintf(n, sizeof n, "--nodes=%d", nodes);
+    hx_strlist_push(&c.argv, n);
+    snprintf(n, sizeof n, "--ntasks=%d", nodes);
+    hx_strlist_push(&c.argv, n);
+    const char *fixed[] = {"--ntasks-per-node=1", "--cpus-per-task=1", "--overlap", "--cpu-bind=none",
+                           "--mpi=none", "true"};
+    for (size_t i = 0; i < sizeof fixed / sizeof fixed[0]; i++)
+        hx_strlist_push(&c.argv, fixed[i]);
+    hx_command_terminate(&c);
+    HxChildResult res;
+    int spawned = hx_run_child(&c, topo, r, cfg->timeout_s, &res);
+    hx_reap_strays();
+    hx_command_free(&c);
+    int lost = 1;
+    HxBuf b = {0};
+    if (hx_stop_signal() || spawned != 0) {
+        lost = hx_stop_signal() != 0; /* no fork: nothing known about the nodes */
+    } else if (res.timed_out) {
+        hx_buf_printf(&b, "srun on each of the job's %d nodes did not finish in %g s", nodes, cfg->timeout_s);
+    } else if (!res.exited || res.code != 0) {
+        int len;
+        const char *e = hx_first_line(res.err.s, &len);
+        if (len)
+            hx_buf_printf(&b, "srun on each of the job's %d nodes failed: %.*s", nodes, len, e);
+        else
+            hx_buf_printf(&b, "srun on each of the job's %d nodes failed (exit %d)", nodes, res.code);
+    } else {
+        lost = 0; /* every node answers: the failure was the run's own */
+    }
+    hx_child_result_free(&res);
+    *why = b.s;
+    return lost;
+}

@@ -144,6 +144,7 @@ typedef struct {
     HxStrList done_ids, timed_out, deterministic, failures;
     HxRefTable refs;
     char *workdir, *version, *metric_info; /* command studies */
+    char *lost;                            /* why a node of the Slurm job is deemed lost */
     size_t nbusy, nstolen, npartial;       /* rows on a busy or stolen machine, with pinning not held */
     double max_others, max_steal;
     double t0, child_ms;
@@ -326,7 +327,12 @@ static const char *run_one(Study *st, const HxRun *r, char **vals, char **detail
     }
     if (r->refused) {
         HxBuf b = {0};
-        hx_buf_printf(&b, "%d workers > %d physical cores (oversubscribe: refuse)", r->workers, st->topo.ncores);
+        int nodes = st->cfg.launcher == HX_LAUNCHER_SRUN && hx_run_is_mpi(r->v) ? hx_slurm_nodes() : 1;
+        if (nodes > 1) /* srun deals the ranks out over the nodes */
+            hx_buf_printf(&b, "%d workers on %d nodes: more than a node's %d physical cores (oversubscribe: refuse)",
+                          r->workers, nodes, st->topo.ncores);
+        else
+            hx_buf_printf(&b, "%d workers > %d physical cores (oversubscribe: refuse)", r->workers, st->topo.ncores);
         *detail = b.s;
         return "refused";
     }
@@ -370,6 +376,10 @@ static const char *run_one(Study *st, const HxRun *r, char **vals, char **detail
         }
         note_noise(st, r, &before, &after, &res, vals);
         status = outcome(st, r, rundir, &res, vals, detail);
+        /* a node of the job lost, not the run failing: no row, the study
+         * stops, and a resumption runs it again */
+        if (hx_srun_lost_node(&st->cfg, &st->topo, r, status, &st->lost))
+            status = NULL;
     }
     hx_child_result_free(&res);
     if (rundir && !st->cfg.prog->keep)
@@ -409,9 +419,9 @@ static int run_plan(Study *st)
         if (!status) { /* interrupted: no row for a run cut short */
             free(detail);
             row_free(vals);
-            return 0;
+            return st->lost ? 1 : 0;
         }
-        const char *held = hx_pin_held(r->cores_planned, vals[hx_column_index("cores_actual")]);
+        const char *held = hx_pin_held_row(r->cores_planned, vals);
         hx_row_set(vals, "pin_held", held);
         st->npartial += !r->warmup && strcmp(status, "ok") == 0 && (!strcmp(held, "partial") || !strcmp(held, "no"));
         hx_row_set(vals, "status", status);
@@ -512,6 +522,9 @@ static int summary(const Study *st, int rc)
         fprintf(stderr, "harness run: stopped by %s: the run in progress was ended and not recorded; continue "
                         "with --resume\n", hx_stop_signal() == SIGINT ? "SIGINT" : "SIGTERM");
         rc = 128 + hx_stop_signal();
+    } else if (st->lost) {
+        fprintf(stderr, "harness run: a node of the Slurm job is lost (%s): the run in progress was not recorded "
+                        "and the study stops; continue with --resume once the node is back\n", st->lost);
     }
     const size_t *n = st->nstat;
     double total = hx_now_ms() - st->t0;
@@ -642,6 +655,7 @@ static void study_close(Study *st)
     free(st->workdir);
     free(st->version);
     free(st->metric_info);
+    free(st->lost);
     free(st->image);
     free(st->tmpdir);
     free(st->raytrace);

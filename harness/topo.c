@@ -12,7 +12,8 @@
  * OS. One worker per physical core: SMT siblings share execution units, so
  * putting two threads on one core would measure the core, not the scaling.
  * After a run, hx_pin_held checks the plan against the cores the renderer
- * reports. */
+ * reports; a run that srun spreads over a job's nodes is planned and
+ * checked node by node ("0,1|0,1"). */
 #define _GNU_SOURCE 1 /* sched_getaffinity, CPU_SET */
 #include "hx.h"
 
@@ -190,8 +191,7 @@ void hx_topo_free(HxTopo *t)
     memset(t, 0, sizeof *t);
 }
 
-/* Nodes of the Slurm job the harness runs in, 1 outside one. */
-static int slurm_nodes(void)
+int hx_slurm_nodes(void)
 {
     const char *s = getenv("SLURM_JOB_NUM_NODES");
     long n;
@@ -228,29 +228,60 @@ char *hx_rankfile(const HxTopo *t, const HxRun *r)
     return b.s;
 }
 
+/* The cores of each node's ranks when srun spreads P ranks of T threads
+ * over n nodes, nodes separated by '|' ("0,1|0,1"). srun's block
+ * distribution deals the ranks out evenly (the first P mod n nodes get one
+ * more) and numbers them node by node; on each node --cpu-bind=cores gives
+ * them consecutive cores, as on one node. The nodes are taken to be alike:
+ * the harness sees only its own. */
+static char *plan_per_node(const HxTopo *t, long P, long T, int n, int spread)
+{
+    HxBuf b = {0};
+    for (int k = 0; k < n; k++) {
+        long on = (P / n + (k < P % n)) * T;
+        hx_buf_put(&b, k ? "|" : "");
+        for (long w = 0; w < on; w++) {
+            int c = (int)(w % t->ncores); /* oversubscribed: wrap around */
+            hx_buf_printf(&b, "%s%d", w ? "," : "", t->core_os[spread ? t->spread_order[c] : c]);
+        }
+    }
+    return b.s;
+}
+
 void hx_plan_cores(const HxTopo *t, const HxConfig *cfg, HxPlan *plan)
 {
-    int nodes = cfg->launcher == HX_LAUNCHER_SRUN ? slurm_nodes() : 1;
+    int nodes = cfg->launcher == HX_LAUNCHER_SRUN ? hx_slurm_nodes() : 1;
     for (size_t i = 0; i < plan->n; i++) {
         HxRun *r = &plan->runs[i];
         free(r->cores);
         free(r->cores_planned);
         r->cores = NULL;
         r->ncores = 0;
-        /* srun spreads an MPI run over every node of the job; the harness
-         * only sees the first one, so it assumes the nodes are alike (whole
-         * nodes of one partition, as `harness slurm` asks for). */
-        int span = hx_run_is_mpi(r->v) ? nodes : 1;
-        r->oversubscribed = r->workers > t->ncores * span;
+        /* srun spreads an MPI run's ranks over the job's nodes (over as
+         * many nodes as it has ranks, when it has fewer) */
+        long P = 1, T = 1;
+        if (hx_run_is_mpi(r->v) && strcmp(r->v[HX_DIM_RANKS], "-") != 0)
+            hx_parse_int(r->v[HX_DIM_RANKS], 1, 4096, &P);
+        if (strcmp(r->v[HX_DIM_THREADS], "-") != 0)
+            hx_parse_int(r->v[HX_DIM_THREADS], 1, 4096, &T);
+        int span = P < nodes ? (int)P : nodes;
+        /* the fullest node's workers against the cores of one node */
+        long busiest = span > 1 ? (P + span - 1) / span * T : r->workers;
+        r->oversubscribed = busiest > t->ncores;
         r->refused = r->oversubscribed && !cfg->oversubscribe_allow;
-        /* Cores on other nodes cannot be named here, and raytrace's cores=
-         * would mix CPU ids of several nodes: no plan, pin_held n/a. */
-        if (strcmp(r->v[HX_DIM_PIN], "none") == 0 || r->refused || span > 1) {
+        int spread = strcmp(r->v[HX_DIM_PIN], "spread") == 0;
+        int gpu = hx_backend_gpu(r->v[HX_DIM_BACKEND]) && t->ngpus > 0;
+        if (strcmp(r->v[HX_DIM_PIN], "none") == 0 || r->refused) {
             r->cores_planned = hx_strdup("-");
             continue;
         }
-        int spread = strcmp(r->v[HX_DIM_PIN], "spread") == 0;
-        int gpu = hx_backend_gpu(r->v[HX_DIM_BACKEND]) && t->ngpus > 0;
+        if (span > 1) {
+            /* Planned per node; srun binds, the harness binds nothing. A
+             * command study's CPUs are watched on this node only, and GPU
+             * placement is per node too: no plan for those. */
+            r->cores_planned = gpu || cfg->prog ? hx_strdup("-") : plan_per_node(t, P, T, span, spread);
+            continue;
+        }
         r->ncores = r->workers;
         r->cores = hx_xmalloc((size_t)r->workers * sizeof(int));
         HxBuf b = {0};
@@ -435,25 +466,129 @@ static int count_distinct(const int *v, int n)
     return d;
 }
 
-/* yes: every reported core is planned and as many distinct cores were used
- * as planned; partial: planned cores only, but fewer of them (threads shared
- * a core); no: a thread ran outside the plan. */
-const char *hx_pin_held(const char *planned, const char *actual)
+/* One node's cores against its plan (lists of length pl and al): 0 yes,
+ * 1 partial, 2 no, -1 unknown (nothing reported, or not a list). */
+static int held_node(const char *planned, size_t pl, const char *actual, size_t al)
 {
-    if (!planned || strcmp(planned, "-") == 0)
-        return "n/a";
-    if (!actual || !*actual)
-        return "unknown";
+    char *ps = hx_strndup(planned, pl), *as = hx_strndup(actual, al);
     int p[4096], a[4096];
-    int np = parse_int_set(planned, p, 4096), na = parse_int_set(actual, a, 4096);
+    int np = parse_int_set(ps, p, 4096), na = parse_int_set(as, a, 4096);
+    free(ps);
+    free(as);
     if (np <= 0 || na <= 0)
-        return "unknown";
+        return -1;
     for (int i = 0; i < na; i++) {
         int in = 0;
         for (int k = 0; k < np; k++)
             in |= a[i] == p[k];
         if (!in)
-            return "no";
+            return 2;
     }
-    return count_distinct(a, na) == count_distinct(p, np) ? "yes" : "partial";
+    return count_distinct(a, na) == count_distinct(p, np) ? 0 : 1;
+}
+
+/* yes: every reported core is planned and as many distinct cores were used
+ * as planned; partial: planned cores only, but fewer of them (threads shared
+ * a core); no: a thread ran outside the plan. A plan of several nodes
+ * ("0,1|0,1") is checked node by node against cores reported per node:
+ * core 0 of one node is not core 0 of another. */
+const char *hx_pin_held(const char *planned, const char *actual)
+{
+    static const char *const word[] = {"yes", "partial", "no"};
+    if (!planned || strcmp(planned, "-") == 0)
+        return "n/a";
+    if (!actual || !*actual)
+        return "unknown";
+    int worst = 0;
+    for (const char *p = planned, *a = actual;; ) {
+        size_t pl = strcspn(p, "|"), al = strcspn(a, "|");
+        int v = held_node(p, pl, a, al);
+        if (v < 0)
+            return "unknown";
+        worst = v > worst ? v : worst;
+        if (!p[pl] || !a[al])
+            return p[pl] || a[al] ? "no" : word[worst]; /* ranks on other nodes than planned */
+        p += pl + 1;
+        a += al + 1;
+    }
+}
+
+static int cmp_int(const void *x, const void *y)
+{
+    return (*(const int *)x > *(const int *)y) - (*(const int *)x < *(const int *)y);
+}
+
+char *hx_cores_by_node(const char *rank_node, const char *rank_cores)
+{
+    if (!rank_node || !rank_cores || !*rank_node)
+        return NULL;
+    enum { MAX = 4096 };
+    int node[MAX], nranks = 0, nnodes = 0;
+    for (const char *p = rank_node; nranks < MAX; p++) {
+        char *end;
+        long v = strtol(p, &end, 10);
+        if (end == p || v < 0 || v >= MAX || (*end && *end != '/'))
+            return NULL;
+        node[nranks++] = (int)v;
+        nnodes = (int)v + 1 > nnodes ? (int)v + 1 : nnodes;
+        if (!*(p = end))
+            break;
+    }
+    HxBuf b = {0};
+    int *cores = hx_xmalloc(MAX * sizeof(int));
+    int ok = 1;
+    for (int k = 0; k < nnodes && ok; k++) {
+        int nc = 0, r = 0;
+        /* the cores of rank r are rank_cores' r-th '/'-separated field */
+        for (const char *f = rank_cores; ok; r++) {
+            size_t len = strcspn(f, "/");
+            if (r >= nranks) {
+                ok = 0;
+                break;
+            }
+            for (const char *c = f; node[r] == k && c < f + len && nc < MAX;) {
+                char *end;
+                long v = strtol(c, &end, 10);
+                if (end == c || end > f + len) {
+                    ok = 0;
+                    break;
+                }
+                cores[nc++] = (int)v;
+                c = *end == ',' ? end + 1 : end;
+            }
+            if (!f[len])
+                break;
+            f += len + 1;
+        }
+        ok &= r == nranks - 1;
+        qsort(cores, (size_t)nc, sizeof *cores, cmp_int);
+        hx_buf_put(&b, k ? "|" : "");
+        for (int i = 0; i < nc; i++)
+            if (i == 0 || cores[i] != cores[i - 1])
+                hx_buf_printf(&b, "%s%d", i ? "," : "", cores[i]);
+    }
+    free(cores);
+    if (!ok) {
+        hx_buf_free(&b);
+        return NULL;
+    }
+    return b.s ? b.s : hx_strdup("");
+}
+
+const char *hx_pin_held_row(const char *planned, char **vals)
+{
+    int ka = hx_column_index("cores_actual"), ke = hx_column_index("extra");
+    if (!planned || !strchr(planned, '|'))
+        return hx_pin_held(planned, vals[ka]);
+    /* raytrace's cores= is the union over every node's CPU numbers: the
+     * cores per node come from its rank_node and rank_cores instead */
+    char nodes[8192], cores[16384];
+    const char *ex = vals[ke] ? vals[ke] : "";
+    char *per = hx_kv_get(ex, "rank_node", nodes, sizeof nodes) && hx_kv_get(ex, "rank_cores", cores, sizeof cores)
+                    ? hx_cores_by_node(nodes, cores) : NULL;
+    if (!per)
+        return "unknown";
+    hx_row_set(vals, "cores_actual", per);
+    free(per);
+    return hx_pin_held(planned, vals[ka]);
 }

@@ -4,10 +4,12 @@
 # The CUDA toolkit is not in Debian 12's main archive under the same version on
 # every machine; when nvcc is missing the CUDA backend is simply not built.
 # slurm-wlm, slurm-client and munge are for tests/harness/test-slurm-real.sh,
-# which starts its own single-node cluster (installing them starts no daemon
-# that it uses); libpmix2 is the PMIx that srun --mpi=pmix starts Open MPI's
-# ranks with. libsqlite3-dev is the harness's history database; valgrind
-# (cachegrind) counts the instructions of the CI performance check.
+# which starts its own single-node cluster, and test-slurm-nodes.sh, whose
+# two nodes are network namespaces joined by a veth pair (iproute2's ip);
+# installing them starts no daemon that the tests use. libpmix2 is the PMIx
+# that srun --mpi=pmix starts Open MPI's ranks with. libsqlite3-dev is the
+# harness's history database; valgrind (cachegrind) counts the instructions
+# of the CI performance check.
 # The tools the tests run that a minbase Debian 12 lacks (it has only the
 # Essential packages: coreutils, util-linux, diffutils, grep, sed, mawk, ...):
 # procps (pgrep, ps: the leftover-process checks), python3 (JSON and CSV
@@ -21,7 +23,7 @@ set -euo pipefail
 pkgs=(meson ninja-build gcc pkg-config libpng-dev libhwloc-dev hwloc
       libopenmpi-dev openmpi-bin gnuplot-nox libxxhash-dev libassimp-dev assimp-testmodels
       libembree-dev slurm-wlm slurm-client munge libpmix2 libsqlite3-dev valgrind
-      procps python3 git time binutils
+      procps python3 git time binutils iproute2
       hpcc xz-utils stress-ng chromium)
 missing=()
 for p in "${pkgs[@]}"; do

@@ -8,61 +8,24 @@
 # and one larger than the node each get one line and exit 1.
 # Exit 77 (skip) only when Slurm cannot be started: not root, or the
 # packages are missing and apt-get cannot install them. No cgroups are
-# needed (slurm.conf and cgroup.conf below): a daemon that does not start
+# needed (slurm_conf_common in slurm-lib.sh): a daemon that does not start
 # fails the test with its log.
 # usage: test-slurm-real.sh HARNESS RAYTRACE
 set -u
-abs() { (cd "$(dirname "$1")" && echo "$(pwd)/$(basename "$1")"); }
+. "$(dirname "$0")/slurm-lib.sh"
 H=$(abs "$1") RT=$(abs "$2")
-skip() { echo "SKIP: $*"; exit 77; }
-fail() { echo "FAIL: $*"; exit 1; }
-
-[ "$(id -u)" -eq 0 ] || skip "not root: slurmd must run as root to start jobs"
-need="slurmctld slurmd sbatch squeue scancel sinfo srun munged munge"
-missing() { for c in $need; do command -v "$c" > /dev/null || return 0; done; return 1; }
-if missing; then
-  # the packages of scripts/install-deps.sh; no daemon is started by them here
-  export DEBIAN_FRONTEND=noninteractive
-  { timeout 600 apt-get install -y -qq --no-install-recommends slurm-wlm slurm-client munge ||
-    { timeout 300 apt-get update -qq && timeout 600 apt-get install -y -qq --no-install-recommends \
-        slurm-wlm slurm-client munge; }; } > /dev/null 2>&1
-  missing && skip "slurm-wlm/munge not installed and apt-get could not install them"
-fi
-"$RT" -V | grep -q 'mpi(not built)' && skip "raytrace was built without MPI"
+slurm_need "$RT"
 
 T=$(mktemp -d /tmp/hx-slurm-real-XXXXXX)
 chmod 755 "$T"
 export SLURM_CONF=$T/slurm.conf
-# Stop what this test started, by pid: jobs first (their steps would outlive
-# slurmd), then the daemons.
-cleanup() {
-  if [ -f "$T/slurmctld.pid" ]; then
-    scancel --quiet --user=root > /dev/null 2>&1
-    i=0; while [ $i -lt 20 ] && [ -n "$(squeue -h -o %i 2> /dev/null)" ]; do sleep 0.5; i=$((i + 1)); done
-  fi
-  pids=""
-  for p in slurmd.pid slurmctld.pid munge/munged.pid; do
-    [ -f "$T/$p" ] && pid=$(cat "$T/$p") && kill "$pid" 2> /dev/null && pids="$pids $pid"
-  done
-  # they save state on the way out: remove the folder once they are gone
-  i=0
-  while [ $i -lt 40 ]; do
-    alive=0; for pid in $pids; do kill -0 "$pid" 2> /dev/null && alive=1; done
-    [ $alive -eq 0 ] && break
-    sleep 0.25; i=$((i + 1))
-  done
-  rm -rf "$T"
-}
+# Stop what this test started, by pid: jobs first, then the daemons.
+cleanup() { slurm_cancel_all; slurm_kill_daemons; rm -rf "$T"; }
 trap cleanup EXIT
 trap 'exit 1' INT TERM HUP
-logs() { for f in "$T"/log/*.log "$T"/munge/munged.log; do echo "--- $f"; tail -20 "$f"; done 2> /dev/null; }
 
-# ---- munge: a key of our own and its own socket ----
-mkdir -m 700 "$T/munge" && mkdir "$T/state" "$T/spool" "$T/log" "$T/tmp"
-dd if=/dev/urandom of="$T/munge/munge.key" bs=1024 count=1 2> /dev/null && chmod 400 "$T/munge/munge.key"
-munged -f --socket="$T/munge/sock" --key-file="$T/munge/munge.key" --pid-file="$T/munge/munged.pid" \
-  --log-file="$T/munge/munged.log" --seed-file="$T/munge/seed" || { logs; fail "munged did not start"; }
-munge -S "$T/munge/sock" -n | unmunge -S "$T/munge/sock" > /dev/null || { logs; fail "munge does not work"; }
+munge_start
+mkdir "$T/spool"
 
 # ---- slurm.conf: two free ports, the node as slurmd -C sees it ----
 listening() { grep -q -i ":$(printf %04X "$1") [0-9A-F:]* 0A " /proc/net/tcp /proc/net/tcp6 2> /dev/null; }
@@ -73,67 +36,31 @@ case $node in NodeName=localhost\ CPUs=*) ;; *) fail "unexpected slurmd -C outpu
 cpus=$(echo "$node" | sed 's/.* CPUs=\([0-9]*\).*/\1/')
 # addresses given, not looked up: a machine without /etc/hosts (a bare
 # debootstrap chroot) cannot resolve even "localhost"
-cat > "$SLURM_CONF" <<CONF
+{ cat <<CONF
 ClusterName=raybench-test
 SlurmctldHost=localhost(127.0.0.1)
 SlurmctldPort=$port
 SlurmdPort=$((port + 1))
-SlurmUser=root
-SlurmdUser=root
-AuthType=auth/munge
-CredType=cred/munge
-AuthInfo=socket=$T/munge/sock
-StateSaveLocation=$T/state
 SlurmdSpoolDir=$T/spool
-SlurmctldPidFile=$T/slurmctld.pid
 SlurmdPidFile=$T/slurmd.pid
-SlurmctldLogFile=$T/log/slurmctld.log
 SlurmdLogFile=$T/log/slurmd.log
-# no cgroups (a container or chroot may not mount /sys/fs/cgroup): processes
-# tracked through /proc, tasks bound with sched_setaffinity (task/none
-# would ignore srun --cpu-bind, and the pinning checks below need it), no
-# accounting sampler
-ProctrackType=proctrack/linuxproc
-TaskPlugin=task/affinity
-SelectType=select/cons_tres
-SelectTypeParameters=CR_Core
-# none, as at many sites: the harness's script must ask for pmix itself
-MpiDefault=none
-JobAcctGatherType=jobacct_gather/none
-AccountingStorageType=accounting_storage/none
-ReturnToService=2
-# job ids and srun's PMIx folders (TmpFS/spmix_appdir_UID_JOB.STEP) of their
-# own, so that a second cluster on the machine never meets this one's
+# job ids of their own, so that srun's PMIx folders (named by job and step)
+# never meet those of a second cluster on the machine
 FirstJobId=$((port * 10))
-TmpFS=$T/tmp
-KillWait=5
-MinJobAge=300
-$node NodeAddr=127.0.0.1 NodeHostname=localhost State=UNKNOWN
-PartitionName=test Nodes=localhost Default=YES MaxTime=INFINITE State=UP
 CONF
-# Slurm 22.05's slurmd loads a cgroup plugin whatever the other plugins
-# are, and the default (autodetect) fails where /sys/fs/cgroup is not
-# mounted (a container, a chroot). Naming cgroup/v1 skips that probe; none
-# of the plugins above uses cgroups, so nothing is mounted or created.
-printf 'CgroupPlugin=cgroup/v1\nCgroupAutomount=no\n' > "$T/cgroup.conf"
-slurmctld -f "$SLURM_CONF" -c || { logs; fail "slurmctld did not start"; }
-slurmd -f "$SLURM_CONF" -N localhost || { logs; fail "slurmd did not start"; }
-i=0
-until [ "$(sinfo -h -n localhost -o %t 2> /dev/null)" = idle ]; do
-  i=$((i + 1)); [ $i -le 60 ] || { sinfo; logs; fail "the node did not come up idle in 30 s"; }
-  sleep 0.5
-done
+  slurm_conf_common
+  echo "$node NodeAddr=127.0.0.1 NodeHostname=localhost State=UNKNOWN"
+  echo "PartitionName=test Nodes=localhost Default=YES MaxTime=INFINITE State=UP"
+} > "$SLURM_CONF"
+slurmctld -f "$SLURM_CONF" -c || { slurm_logs; fail "slurmctld did not start"; }
+slurmd -f "$SLURM_CONF" -N localhost || { slurm_logs; fail "slurmd did not start"; }
+slurm_wait_idle localhost
 srun --mpi=list 2>&1 | grep -q pmix || fail "Slurm has no mpi/pmix plugin (srun --mpi=list)"
 
 # ---- the study: a scene written here, serial and MPI ranks x threads ----
-mkdir -p "$T/repo/build/harness" "$T/scenes"
+mkdir -p "$T/repo/build/harness"
 ln -s "$H" "$T/repo/build/harness/harness"
-{ printf 'film_resolution: 200 150\ncamera_pos: 0 1.5 8\ncamera_fwd: 0 0.1 1\ncamera_up: 0 1 0\n'
-  printf 'camera_fov_ha: 30\nbackground: .3 .5 .8\nambient_light: .1 .1 .1\nmax_depth: 6\n'
-  printf 'point_light: 5 8 5  1 1 1\nmaterial: .2 .2 .2 .5 .5 .5 .3 .3 .3 20 0 0 0 1\nsphere: 0 -1000 0 999\n'
-  for x in -3 -2 -1 0 1 2 3; do for z in -2 -1 0 1 2; do
-    printf 'material: .1 .1 .1 .4 .3 .2 .5 .5 .5 40 0 0 0 1\nsphere: %s 0.5 %s 0.45\n' $x $z
-  done; done; } > "$T/scenes/balls.txt"
+slurm_scene
 # accel none at 640x480: a few tenths of a second a run, so the study lasts
 # long enough to be cancelled half-way
 cat > "$T/repo/real.conf" <<CONF
@@ -191,13 +118,13 @@ PY
 }
 
 # ---- 1: the whole study through sbatch and srun ----
-submit real.conf > "$T/sub1.out" 2> "$T/sub1.err" || { cat "$T/sub1.err"; logs; fail "--submit failed"; }
+submit real.conf > "$T/sub1.out" 2> "$T/sub1.err" || { cat "$T/sub1.err"; slurm_logs; fail "--submit failed"; }
 cat "$T/sub1.err"
 grep -q '^harness slurm: job [0-9]* COMPLETED: 10/10 rows in results/real-slurm.csv' "$T/sub1.err" ||
   fail "no COMPLETED line"
 grep -q '### Per configuration' "$T/sub1.out" || fail "--submit printed no table"
 check_csv "$T/repo/results/real-slurm.csv"
-job=$(sed -n 's/^harness slurm: submitted .* as job \([0-9]*\) .*/\1/p' "$T/sub1.err")
+job=$(submitted_job "$T/sub1.err")
 log=$T/repo/slurm-$job.out
 grep -q 'export SLURM_MPI_TYPE=pmix' "$T/repo/results/real-slurm.sbatch" || fail "no SLURM_MPI_TYPE in the script"
 grep -q "^job $job: 1 node(s): localhost" "$log" || { cat "$log"; fail "job log"; }
@@ -213,7 +140,7 @@ while [ "$(($(cat "$csv" 2> /dev/null | wc -l) - 1))" -lt 2 ]; do
   i=$((i + 1)); [ $i -le 600 ] || { cat "$T/sub2.err"; fail "the study wrote no rows in 120 s"; }
   sleep 0.2
 done
-job=$(sed -n 's/^harness slurm: submitted .* as job \([0-9]*\) .*/\1/p' "$T/sub2.err")
+job=$(submitted_job "$T/sub2.err")
 [ -n "$job" ] || fail "no job id in: $(cat "$T/sub2.err")"
 scancel "$job" || fail "scancel $job"
 wait $sub && fail "--submit of a cancelled job exited 0"
@@ -224,7 +151,7 @@ done1=$(($(wc -l < "$csv") - 1))
 [ "$done1" -ge 2 ] && [ "$done1" -lt 10 ] || fail "cancelled with $done1 rows: not half-way"
 head -n $((done1 + 1)) "$csv" > "$T/before.csv"
 submit cut.conf > "$T/sub3.out" 2> "$T/sub3.err" || { cat "$T/sub3.err"; fail "the resubmission failed"; }
-job2=$(sed -n 's/^harness slurm: submitted .* as job \([0-9]*\) .*/\1/p' "$T/sub3.err")
+job2=$(submitted_job "$T/sub3.err")
 grep -q "$done1 skipped (resume)" "$T/repo/slurm-$job2.out" || { cat "$T/repo/slurm-$job2.out"; fail "no resume"; }
 head -n $((done1 + 1)) "$csv" | cmp -s - "$T/before.csv" || fail "the resubmission changed the first rows"
 check_csv "$csv"
@@ -249,7 +176,7 @@ metric sum: 'sum=([0-9.e+]+)' unit 1 better higher
 repeats: 2
 timeout: 60
 CONF
-submit cmd.conf > "$T/sub5.out" 2> "$T/sub5.err" || { cat "$T/sub5.err"; logs; fail "command study: --submit failed"; }
+submit cmd.conf > "$T/sub5.out" 2> "$T/sub5.err" || { cat "$T/sub5.err"; slurm_logs; fail "command study: --submit failed"; }
 grep -q '^harness slurm: job [0-9]* COMPLETED: 4/4 rows in results/cmd-slurm.csv' "$T/sub5.err" ||
   { cat "$T/sub5.err"; fail "command study: no COMPLETED line"; }
 python3 - "$T/repo/results/cmd-slurm.csv" <<'PY' || fail "command study's CSV"

@@ -1,5 +1,5 @@
 /* Unit tests of the harness internals: `test_harness GROUP` runs one group
- * (config, expand, stats, csv, compare) and exits non-zero on any failure. */
+ * (config, expand, stats, csv, compare, pin) and exits non-zero on any failure. */
 #include "hx.h"
 #include "run.h"
 
@@ -209,6 +209,56 @@ static void test_expand_gpus(void)
     hx_config_free(&cfg);
 }
 
+/* The run of plan with these backend, threads and ranks values. */
+static const HxRun *find_run(const HxPlan *plan, const char *be, const char *threads, const char *ranks)
+{
+    for (size_t i = 0; i < plan->n; i++) {
+        const HxRun *r = &plan->runs[i];
+        if (!strcmp(r->v[HX_DIM_BACKEND], be) && !strcmp(r->v[HX_DIM_THREADS], threads) &&
+            !strcmp(r->v[HX_DIM_RANKS], ranks))
+            return r;
+    }
+    fprintf(stderr, "no run %s threads=%s ranks=%s\n", be, threads, ranks);
+    exit(1);
+}
+
+/* srun in a 2-node job of fake 2-core nodes: an MPI run's ranks are dealt
+ * out over the nodes (the first one more when odd), and each node's cores
+ * are planned as on one node, nodes separated by '|'. A node's cores bound
+ * the run: one rank never spans nodes. OpenMP runs stay on the harness's. */
+static void test_expand_nodes(const HxTopo *t)
+{
+    HxConfig cfg;
+    HxPlan plan;
+    char err[512];
+    int rc = parse("scenes: a\nbackend: openmp mpi\nthreads: 1 2 4\nranks: 1 2 3\nrepeats: 1\n"
+                   "launcher: srun\n", &cfg, err, sizeof err);
+    CHECK(rc == 0);
+    hx_expand(&cfg, &plan);
+    setenv("SLURM_JOB_NUM_NODES", "2", 1);
+    hx_plan_cores(t, &cfg, &plan);
+    CHECK(find_run(&plan, "openmp", "4", "-")->refused);
+    CHECK(find_run(&plan, "mpi", "4", "1")->refused);
+    CHECK_STR(find_run(&plan, "mpi", "2", "1")->cores_planned, "0,1");
+    CHECK_STR(find_run(&plan, "mpi", "1", "2")->cores_planned, "0|0");
+    CHECK_STR(find_run(&plan, "mpi", "2", "2")->cores_planned, "0,1|0,1");
+    CHECK(find_run(&plan, "mpi", "2", "2")->ncores == 0); /* srun binds, not the harness */
+    CHECK_STR(find_run(&plan, "mpi", "1", "3")->cores_planned, "0,1|0");
+    CHECK(find_run(&plan, "mpi", "2", "3")->refused && find_run(&plan, "mpi", "4", "2")->refused);
+    cfg.oversubscribe_allow = 1;
+    hx_plan_cores(t, &cfg, &plan);
+    CHECK(find_run(&plan, "mpi", "2", "3")->oversubscribed);
+    CHECK_STR(find_run(&plan, "mpi", "2", "3")->cores_planned, "0,1,0,1|0,1");
+    /* with mpirun the job's node count is not used */
+    cfg.oversubscribe_allow = 0;
+    cfg.launcher = HX_LAUNCHER_MPIRUN;
+    hx_plan_cores(t, &cfg, &plan);
+    CHECK(find_run(&plan, "mpi", "2", "2")->refused);
+    unsetenv("SLURM_JOB_NUM_NODES");
+    hx_plan_free(&plan);
+    hx_config_free(&cfg);
+}
+
 static void test_expand(void)
 {
     HxConfig cfg;
@@ -271,28 +321,58 @@ static void test_expand(void)
     hx_plan_free(&plan);
     hx_config_free(&cfg);
 
-    /* srun in a 2-node job: an MPI run may use both nodes' cores (4 on the
-     * fake 2-core nodes); its cores cannot be named, so no plan. OpenMP runs
-     * stay on the harness's node. */
-    rc = parse("scenes: a\nbackend: openmp mpi\nthreads: 4\nranks: 1\nrepeats: 1\n"
-               "launcher: srun\n", &cfg, err, sizeof err);
-    CHECK(rc == 0);
-    hx_expand(&cfg, &plan);
-    setenv("SLURM_JOB_NUM_NODES", "2", 1);
-    hx_plan_cores(&t, &cfg, &plan);
-    CHECK(plan.n == 2);
-    CHECK_STR(plan.runs[0].v[HX_DIM_BACKEND], "openmp");
-    CHECK(plan.runs[0].refused);
-    CHECK(!plan.runs[1].oversubscribed && !plan.runs[1].refused);
-    CHECK_STR(plan.runs[1].cores_planned, "-");
-    /* with mpirun the job's node count is not used */
-    cfg.launcher = HX_LAUNCHER_MPIRUN;
-    hx_plan_cores(&t, &cfg, &plan);
-    CHECK(plan.runs[1].refused);
-    unsetenv("SLURM_JOB_NUM_NODES");
-    hx_plan_free(&plan);
-    hx_config_free(&cfg);
+    test_expand_nodes(&t);
     test_expand_gpus();
+}
+
+/* The pinning check: one node as planned, and runs over several nodes
+ * checked node by node from the record's rank_node and rank_cores. */
+static void test_pin(void)
+{
+    CHECK_STR(hx_pin_held("0,1", "1,0"), "yes");
+    CHECK_STR(hx_pin_held("0,1", "0"), "partial");
+    CHECK_STR(hx_pin_held("0,1", "0,2"), "no");
+    CHECK_STR(hx_pin_held("-", "0"), "n/a");
+    CHECK_STR(hx_pin_held("0", ""), "unknown");
+    /* core 0 of node 0 is not core 0 of node 1 */
+    CHECK_STR(hx_pin_held("0,1|0,1", "0,1|0,1"), "yes");
+    CHECK_STR(hx_pin_held("0,1|0,1", "0,1|1"), "partial"); /* node 1's two ranks on one core */
+    CHECK_STR(hx_pin_held("0|0", "0|1"), "no");
+    CHECK_STR(hx_pin_held("0,1|0,1", "0,1"), "no");        /* every rank on one node */
+    CHECK_STR(hx_pin_held("0|0", "0|0|0"), "no");
+    CHECK_STR(hx_pin_held("0|0", "0|"), "unknown");        /* node 1 reported nothing */
+    const struct { const char *node, *cores, *want; } by[] = {
+        {"0/0/1/1", "0/1/1/0", "0,1|0,1"}, {"0/1", "0,1/2,3", "0,1|2,3"}, {"0/0/1", "1/1/0", "1|0"},
+        {"0/1", "0/", "0|"}, {"0", "3", "3"},
+        {"0/1", "0/1/2", NULL}, {"0/1/1", "0/1", NULL}, {"0/x", "0/1", NULL}, {"", "0", NULL},
+    };
+    for (size_t i = 0; i < sizeof by / sizeof by[0]; i++) {
+        char *s = hx_cores_by_node(by[i].node, by[i].cores);
+        if (by[i].want ? !s || strcmp(s, by[i].want) != 0 : s != NULL) {
+            fprintf(stderr, "hx_cores_by_node(%s, %s) = %s, expected %s\n", by[i].node, by[i].cores,
+                    s ? s : "NULL", by[i].want ? by[i].want : "NULL");
+            failures++;
+        }
+        free(s);
+    }
+    /* a row: raytrace's cores= (the union over the nodes) gives way to the
+     * cores per node */
+    char **vals = calloc((size_t)hx_ncolumns, sizeof *vals);
+    int ka = hx_column_index("cores_actual");
+    hx_row_set(vals, "cores_actual", "0,1");
+    hx_row_set(vals, "extra", "mpi_schedule=dynamic;rank_cores=0/1/0/1;nodes=2;rank_node=0/0/1/1");
+    CHECK_STR(hx_pin_held_row("0,1|0,1", vals), "yes");
+    CHECK_STR(vals[ka], "0,1|0,1");
+    hx_row_set(vals, "extra", "rank_cores=0/0/0/1;nodes=2;rank_node=0/0/1/1");
+    CHECK_STR(hx_pin_held_row("0,1|0,1", vals), "partial");
+    hx_row_set(vals, "extra", "rank_cores=0/1"); /* no rank_node: the nodes cannot be told apart */
+    CHECK_STR(hx_pin_held_row("0|0", vals), "unknown");
+    hx_row_set(vals, "cores_actual", "0");
+    CHECK_STR(hx_pin_held_row("0,1", vals), "partial"); /* one node: cores_actual as reported */
+    CHECK_STR(vals[ka], "0");
+    for (int k = 0; k < hx_ncolumns; k++)
+        free(vals[k]);
+    free(vals);
 }
 
 /* hx_noise on made-up /proc/stat samples (100 clock ticks a second). */
@@ -594,7 +674,7 @@ static void test_compare(void)
 int main(int argc, char **argv)
 {
     if (argc != 2) {
-        fprintf(stderr, "usage: test_harness config|expand|stats|csv|compare\n");
+        fprintf(stderr, "usage: test_harness config|expand|stats|csv|compare|pin\n");
         return 2;
     }
     if (!mkdtemp(tmpdir)) {
@@ -618,6 +698,8 @@ int main(int argc, char **argv)
     }
     else if (strcmp(argv[1], "compare") == 0)
         test_compare();
+    else if (strcmp(argv[1], "pin") == 0)
+        test_pin();
     else {
         fprintf(stderr, "unknown group %s\n", argv[1]);
         return 2;
