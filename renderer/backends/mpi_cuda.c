@@ -267,13 +267,10 @@ static int render_mpi_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *er
     Share sh;
     memset(&sh, 0, sizeof sh);
     sh.rows = (double)rt_cuda_session_share(s, &mine) / rows;
-    RtShareRuns runs;
     RtMpiImage m;
     Dest d;
     open_image(job, s, out, &m, &d);
-    rt_cuda_share_runs(&mine, rows, row_h, job->view.cam.height,
-                       (size_t)job->view.cam.width * 3 * (d.floats ? sizeof(float) : 1), &runs);
-    const int failed = frames(s, &d, &runs, &fr, &sh, err);
+    const int failed = frames(s, &d, rt_cuda_session_runs(s, d.floats), &fr, &sh, err);
     rt_mpi_frame_end(&m);
     rt_cuda_session_unpin(s); /* (before the window's memory goes) */
     rt_mpi_image_close(&m, d.floats ? (void *)out->rgb : (void *)out->rgb8);

@@ -465,6 +465,8 @@ int rt_cuda_session_share(RtCudaSession *s, const RtCudaShare *sh)
     return (int)n;
 }
 
+const RtShareRuns *rt_cuda_session_runs(const RtCudaSession *s, int floats) { return floats ? &s->rf : &s->r8; }
+
 void rt_cuda_session_pin(RtCudaSession *s, void *host, size_t bytes)
 {
     if (s->npinned == RT_CUDA_PINS)

@@ -46,6 +46,9 @@ int rt_cuda_session_tile_rows(const RtCudaSession *s, int *row_h, int *wave_rows
 /* The tile rows this session renders of each frame from now on (schedule.h);
  * returns how many there are. */
 int rt_cuda_session_share(RtCudaSession *s, const RtCudaShare *sh);
+/* Where the share's pixels lie in the 8-bit image (floats: in the float
+ * image): the pieces the session copies down, and a caller puts on. */
+const RtShareRuns *rt_cuda_session_runs(const RtCudaSession *s, int floats);
 /* Page-locks a host buffer the frames are copied into (the copies then run
  * at the link's speed, several times faster than into pageable memory)
  * until rt_cuda_session_unpin; a buffer that cannot be locked is left as it
