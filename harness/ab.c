@@ -172,8 +172,16 @@ static int ab_run(const HxCommand *c, const AbRead *rd, int side, double *v, int
     if (rc != 0 || res.timed_out || !res.exited || res.code != 0) {
         int el;
         const char *e = hx_first_line(res.err.s, &el);
-        snprintf(why, n, "%s%s%.*s", rc ? "could not start" : res.timed_out ? "timed out" : !res.exited ? "killed by a signal"
-                 : "failed", el ? ": " : "", el, e);
+        char sig[32] = "";
+        if (rc == 0 && !res.timed_out && !res.exited) {
+            const char *sn = hx_signal_name(res.code);
+            if (sn)
+                snprintf(sig, sizeof sig, "killed by %s", sn);
+            else
+                snprintf(sig, sizeof sig, "killed by signal %d", res.code);
+        }
+        snprintf(why, n, "%s%s%.*s", rc ? "could not start" : res.timed_out ? "timed out" : *sig ? sig : "failed",
+                 el ? ": " : "", el, e);
         if (rc == 0 && res.exited && res.code != 0 && !el)
             snprintf(why, n, "exited with status %d", res.code);
         hx_child_result_free(&res);

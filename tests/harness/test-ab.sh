@@ -34,4 +34,6 @@ for bad in "'no-such-program-x' 'true'" "'false' 'true'" "'true' ''" "'true' 'sh
     [ "$(wc -l < bad.err)" -eq 1 ] && [ ! -s bad.out ] || { cat bad.out bad.err; fail "ab $bad: not one line before timing"; }
     echo "  ab $bad: $(cat bad.err)"
 done
+"$H" ab 'true' "sh -c 'kill -SEGV \$\$'" --rounds 3 > sig.out 2> sig.err && fail "accepted: a B killed by a signal"
+grep -q 'command B failed in the first, untimed round: killed by SIGSEGV' sig.err || { cat sig.err; fail "the signal is not named"; }
 echo "ok"
