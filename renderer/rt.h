@@ -267,7 +267,7 @@ typedef struct RtRenderOut {
     int ranks_used;
     int is_root;          /* 0 on MPI ranks other than 0: they print and write nothing */
     char cores[512];      /* CPUs the workers ran on, "0,1" */
-    char extra[1024];     /* extra record keys, " key=value ..." */
+    char extra[8192];     /* extra record keys, " key=value ...": per-rank keys of 64+ ranks */
 } RtRenderOut;
 
 typedef struct RtBackend {

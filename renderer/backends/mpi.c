@@ -49,6 +49,20 @@ static int g_inited, g_provided;
 static double g_load_ms;                      /* this rank's time in mpi_scene_load */
 static const char *g_scene_how = "every";     /* how the scene reached the ranks (every when P = 1) */
 
+/* Where one rank's frame went (the record's rank_* keys), from the barrier
+ * that starts it. */
+enum {
+    T_CLAIMS,   /* claims made (dynamic) */
+    T_CLAIM_MS, /* in claims */
+    T_PUT_MS,   /* in puts (dynamic, across nodes) */
+    T_WORK_MS,  /* to the end of its last tile */
+    T_END_MS,   /* to the image complete on rank 0: the frame's end (dynamic) or the gather (rows) */
+    T_N
+};
+typedef struct RankTimes {
+    double t[T_N];
+} RankTimes;
+
 void rt_mpi_die(const char *file, int line, const char *call, int code)
 {
     char s[MPI_MAX_ERROR_STRING];
@@ -129,6 +143,18 @@ int rt_mpi_test_rank(const char *var)
     return v && *v && atoi(v) == rt_mpi_rank;
 #else
     (void)var;
+    return 0;
+#endif
+}
+
+/* Test hook: the window of separate memory (MPI_Fetch_and_op claims and
+ * MPI_Put tiles, as across nodes) on one node: tests/cpu/mpi_fail.sh. */
+static int test_separate(void)
+{
+#if RT_TEST_HOOKS
+    const char *v = getenv("RT_MPI_TEST_SEPARATE");
+    return v && *v == '1';
+#else
     return 0;
 #endif
 }
@@ -244,7 +270,7 @@ static int mpi_scene_load(const char *path, const char *how, RtScene *scene, RtW
 
 /* ---------------------------------------------------------------- rows */
 
-static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th, float *rgb)
+static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th, float *rgb, RankTimes *rt)
 {
     const RtSceneView *v = &job->view;
     int w = v->cam.width, h = v->cam.height, P = rt_mpi_size;
@@ -259,24 +285,30 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
         displs[r] = y0 * w * 3;
     }
     int y0 = displs[rt_mpi_rank] / (w * 3), y1 = y0 + counts[rt_mpi_rank] / (w * 3);
+    RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD));
+    const double t0 = rt_now_ms();
     if (y1 > y0) {
         if (job->schedule == RT_SCHED_PIXELS)
             rt_cpu_render_pixels(pool, v, 0, y0, w, y1, rgb);
         else
             rt_cpu_render_tiles(pool, v, 0, y0, w, y1, tw, th, 0, rt_tile_count(w, y1 - y0, tw, th), rgb, NULL, NULL);
     }
+    rt->t[T_WORK_MS] = rt_now_ms() - t0;
     if (rt_mpi_rank == 0)
         RT_MPI_CHECK(MPI_Gatherv(MPI_IN_PLACE, 0, MPI_FLOAT, rgb, counts, displs, MPI_FLOAT, 0, MPI_COMM_WORLD));
     else
         RT_MPI_CHECK(MPI_Gatherv(rgb + displs[rt_mpi_rank], counts[rt_mpi_rank], MPI_FLOAT, NULL, NULL, NULL, MPI_FLOAT, 0,
                                  MPI_COMM_WORLD));
+    rt->t[T_END_MS] = rt_now_ms() - t0;
     free(counts);
 }
 
 /* ---------------------------------------------------------------- dynamic */
 
-/* Window layout on rank 0 (disp_unit 1): the claim counter, then the image. */
-#define RT_WIN_IMAGE 8 /* byte offset of the float RGB image */
+/* Window layout on rank 0 (disp_unit 1): the claim counter, then the image,
+ * a 128-byte line pair later (the adjacent-line prefetcher's pair), so that
+ * claims never contend with the pixels written beside them. */
+#define RT_WIN_IMAGE 128 /* byte offset of the image */
 
 void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared)
 {
@@ -299,6 +331,7 @@ void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared
         int disp;
         RT_MPI_CHECK(MPI_Win_shared_query(m->win, 0, &seg, &disp, &m->base));
         m->direct = 1;
+        m->atomic = 1;
     }
     m->img0 = (char *)m->base + RT_WIN_IMAGE;
     if (rt_mpi_rank == 0) {
@@ -323,8 +356,12 @@ int64_t rt_mpi_claim(RtMpiImage *m, int64_t total, int64_t min_claim, int64_t *s
     int64_t claim = (total - *seen) / (4 * (int64_t)rt_mpi_size);
     if (claim < min_claim)
         claim = min_claim;
-    RT_MPI_CHECK(MPI_Fetch_and_op(&claim, first, MPI_INT64_T, 0, 0, MPI_SUM, m->win));
-    RT_MPI_CHECK(MPI_Win_flush(0, m->win));
+    if (m->atomic) { /* nothing is published through the counter: relaxed */
+        *first = __atomic_fetch_add((int64_t *)m->base, claim, __ATOMIC_RELAXED);
+    } else {
+        RT_MPI_CHECK(MPI_Fetch_and_op(&claim, first, MPI_INT64_T, 0, 0, MPI_SUM, m->win));
+        RT_MPI_CHECK(MPI_Win_flush(0, m->win));
+    }
     if (*first >= total)
         return 0;
     *seen = *first + claim;
@@ -385,15 +422,21 @@ static MPI_Datatype tile_type(TileTypes *tt, int cw, int ch, int w)
  * leave them idle for long. Earlier claims are larger (rt_mpi_claim). */
 static int64_t tiles_per_claim(int threads) { return threads > 1 ? 4 * (int64_t)threads : 1; }
 
-static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int th, float *rgb, double *t_start)
+/* One rank's frame: claim, render, put, until no tile is left. On one node
+ * (every rank in rank 0's shared memory) a claim is one CPU atomic and the
+ * pixels go straight into rank 0's image; across nodes a claim is an
+ * MPI_Fetch_and_op and each tile an MPI_Put. The frame ends when every
+ * rank's pixels are in rank 0's image; the copy into main's buffer after it
+ * is not part of the frame. */
+static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int th, float *rgb, RankTimes *rt)
 {
     const RtSceneView *v = &job->view;
     int w = v->cam.width, h = v->cam.height;
     int64_t ntiles = rt_tile_count(w, h, tw, th);
     RtMpiImage m;
-    rt_mpi_image_open(&m, (size_t)w * (size_t)h * 3 * sizeof(float), rgb, 0);
+    rt_mpi_image_open(&m, (size_t)w * (size_t)h * 3 * sizeof(float), rgb, rt_mpi_local_size == rt_mpi_size && !test_separate());
     rt_mpi_frame_start(&m);
-    *t_start = rt_now_ms();
+    const double t0 = rt_now_ms();
 
     float *dst = m.direct ? (float *)m.img0 : rgb;
     const int64_t min_claim = tiles_per_claim(pool->nthreads);
@@ -401,20 +444,67 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
     TileTypes tt;
     tt.n = 0;
     /* Which rank renders a tile never changes the image. */
-    while ((count = rt_mpi_claim(&m, ntiles, min_claim, &seen, &first)) > 0) {
+    for (;;) {
+        double t = rt_now_ms();
+        count = rt_mpi_claim(&m, ntiles, min_claim, &seen, &first);
+        rt->t[T_CLAIM_MS] += rt_now_ms() - t;
+        if (count <= 0)
+            break;
+        rt->t[T_CLAIMS]++;
         rt_cpu_render_tiles(pool, v, 0, 0, w, h, tw, th, (int)first, (int)count, dst, NULL, NULL);
-        for (int t = (int)first; !m.direct && t < first + count; t++) {
+        if (m.direct)
+            continue;
+        t = rt_now_ms();
+        for (int k = (int)first; k < first + count; k++) {
             int x0, y0, x1, y1;
-            rt_tile_rect(w, h, tw, th, t, &x0, &y0, &x1, &y1);
+            rt_tile_rect(w, h, tw, th, k, &x0, &y0, &x1, &y1);
             MPI_Datatype ty = tile_type(&tt, x1 - x0, y1 - y0, w);
             size_t off = ((size_t)y0 * (size_t)w + (size_t)x0) * 3;
             RT_MPI_CHECK(MPI_Put(rgb + off, 1, ty, 0, (MPI_Aint)(RT_WIN_IMAGE + off * sizeof(float)), 1, ty, m.win));
         }
+        rt->t[T_PUT_MS] += rt_now_ms() - t;
     }
+    rt->t[T_WORK_MS] = rt_now_ms() - t0;
     rt_mpi_frame_end(&m);
+    rt->t[T_END_MS] = rt_now_ms() - t0;
     rt_mpi_image_close(&m, rgb);
     for (int i = 0; i < tt.n; i++)
         MPI_Type_free(&tt.t[i]);
+}
+
+/* Appends " key=v0/v1/..." of time `f` of every rank. */
+static size_t rank_key(char *buf, size_t size, size_t len, const char *key, const RankTimes *all, int f,
+                       const char *fmt)
+{
+    if (len < size)
+        len += (size_t)snprintf(buf + len, size - len, " %s=", key);
+    for (int r = 0; r < rt_mpi_size && len < size; r++) {
+        len += (size_t)snprintf(buf + len, size - len, "%s", r ? "/" : "");
+        if (len < size)
+            len += (size_t)snprintf(buf + len, size - len, fmt, all[r].t[f]);
+    }
+    return len;
+}
+
+/* The per-rank keys (collective; rank 0 gets them in buf). */
+static void rank_keys(const RankTimes *mine, int dynamic, char *e, size_t size)
+{
+    RankTimes *all = rt_mpi_rank == 0 ? malloc(sizeof *all * (size_t)rt_mpi_size) : NULL;
+    if (rt_mpi_rank == 0 && !all)
+        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
+    RT_MPI_CHECK(MPI_Gather(mine->t, T_N, MPI_DOUBLE, all, T_N, MPI_DOUBLE, 0, MPI_COMM_WORLD));
+    if (rt_mpi_rank != 0)
+        return;
+    size_t len = 0;
+    e[0] = '\0';
+    if (dynamic) {
+        len = rank_key(e, size, len, "rank_claims", all, T_CLAIMS, "%.0f");
+        len = rank_key(e, size, len, "rank_claim_ms", all, T_CLAIM_MS, "%.3f");
+        len = rank_key(e, size, len, "rank_put_ms", all, T_PUT_MS, "%.3f");
+    }
+    len = rank_key(e, size, len, "rank_work_ms", all, T_WORK_MS, "%.3f");
+    rank_key(e, size, len, "rank_end_ms", all, T_END_MS, "%.3f");
+    free(all);
 }
 
 /* ---------------------------------------------------------------- render */
@@ -442,17 +532,16 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
         return -1;
     }
 
-    double t0 = 0.0;
-    if (job->mpi_schedule == RT_MPI_ROWS) {
-        RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD));
-        t0 = rt_now_ms();
-        render_rows(job, &pool, tw, th, out->rgb);
-    } else {
-        render_dynamic(job, &pool, tw, th, out->rgb, &t0);
-    }
-    /* rank 0's time ends when the whole image is in its buffer; the other
-     * ranks' when their last pixels left (their minimum shows imbalance) */
-    double ms = rt_now_ms() - t0;
+    RankTimes times;
+    memset(&times, 0, sizeof times);
+    const int dynamic = job->mpi_schedule != RT_MPI_ROWS;
+    if (dynamic)
+        render_dynamic(job, &pool, tw, th, out->rgb, &times);
+    else
+        render_rows(job, &pool, tw, th, out->rgb, &times);
+    /* render_ms: the slowest rank's time to the image complete on rank 0;
+     * render_ms_min: the earliest a rank ran out of work (the imbalance) */
+    double ms = times.t[T_END_MS], work = times.t[T_WORK_MS];
 
     RtCounters mine, sum;
     char cores[sizeof out->cores];
@@ -463,14 +552,16 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     RT_MPI_CHECK(MPI_Reduce(&mine, &sum, 5, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD));
     double ms_max, ms_min, load_max;
     RT_MPI_CHECK(MPI_Reduce(&ms, &ms_max, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD));
-    RT_MPI_CHECK(MPI_Reduce(&ms, &ms_min, 1, MPI_DOUBLE, MPI_MIN, 0, MPI_COMM_WORLD));
+    RT_MPI_CHECK(MPI_Reduce(&work, &ms_min, 1, MPI_DOUBLE, MPI_MIN, 0, MPI_COMM_WORLD));
     RT_MPI_CHECK(MPI_Reduce(&g_load_ms, &load_max, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD));
     char *all = rt_mpi_rank == 0 ? malloc(sizeof cores * (size_t)rt_mpi_size) : NULL;
     if (rt_mpi_rank == 0 && !all)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
     RT_MPI_CHECK(MPI_Gather(cores, (int)sizeof cores, MPI_CHAR, all, (int)sizeof cores, MPI_CHAR, 0, MPI_COMM_WORLD));
-    char nodes[400];
+    char nodes[1024];
     rt_mpi_rank_nodes(nodes, sizeof nodes);
+    char keys[sizeof out->extra / 2];
+    rank_keys(&times, dynamic, keys, sizeof keys);
 
     out->threads_used = threads;
     out->ranks_used = rt_mpi_size;
@@ -482,7 +573,7 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     out->render_ms_min = ms_min;
     /* cores: the union (the harness's pinning check); rank_cores: per rank,
      * ranks separated by '/', e.g. 0/1 or 0,1/2,3 for 2 ranks x 2 threads */
-    char per_rank[400];
+    char per_rank[4096];
     size_t len = 0;
     per_rank[0] = '\0';
     out->cores[0] = '\0';
@@ -499,11 +590,11 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     free(all);
     snprintf(out->extra, sizeof out->extra,
              " mpi_schedule=%s schedule=%s mpi_scene=%s load_ms_max=%.3f tiles_per_claim=%lld"
-             " rank_cores=%s nodes=%d rank_node=%s",
+             " rank_cores=%s nodes=%d rank_node=%s%s",
              job->mpi_schedule == RT_MPI_ROWS ? "rows" : "dynamic",
              job->schedule == RT_SCHED_PIXELS ? "pixels" : "tiles",
              g_scene_how, load_max,
-             (long long)tiles_per_claim(threads), per_rank, rt_mpi_nodes, nodes);
+             (long long)tiles_per_claim(threads), per_rank, rt_mpi_nodes, nodes, keys);
     if (job->progress)
         job->progress(job->progress_ctx, 1, 1);
     return 0;

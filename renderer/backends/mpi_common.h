@@ -48,6 +48,7 @@ typedef struct RtMpiImage {
     void *base;     /* rank 0's window (the counter at its start) */
     void *img0;     /* rank 0's image, where this rank may write it directly */
     int direct;     /* 1: write img0 directly; 0: MPI_Put into it */
+    int atomic;     /* 1: claim with a CPU atomic on the counter (shared memory) */
     size_t bytes;   /* the image's size */
 } RtMpiImage;
 
@@ -56,8 +57,9 @@ typedef struct RtMpiImage {
  * init is NULL), locked for the passive target epochs of frames. Rank 0
  * writes its own pixels directly where the memory model allows. shared (the
  * same on every rank) says every rank runs on one node: the window is then
- * shared memory (MPI_Win_allocate_shared) and every rank writes its pixels
- * straight into rank 0's image: no puts. */
+ * shared memory (MPI_Win_allocate_shared), every rank writes its pixels
+ * straight into rank 0's image (no puts) and claims with one CPU atomic on
+ * the counter (no MPI call, no lock). */
 void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared);
 /* Collective: the counter back to 0; returns when every rank may claim. */
 void rt_mpi_frame_start(RtMpiImage *m);

@@ -94,4 +94,20 @@ for how in every bcast; do
             { echo "FAIL: mpi --cache ($how, $want): image $(key "$rec" image_fnv1a), serial $(key "$serial" image_fnv1a)"; fails=$((fails + 1)); }
     done
 done
+
+# The cross-node path on one node (RT_MPI_TEST_SEPARATE: claims by
+# MPI_Fetch_and_op, tiles by MPI_Put) and the shared one (CPU atomics,
+# pixels written in place): the serial image, claims on three ranks, and
+# time in puts (ranks but 0, which writes its window) only on the first.
+for sep in 1 0; do
+    rec=$(RT_MPI_TEST_SEPARATE=$sep timeout 60 "$mpirun" --quiet --oversubscribe -np 3 "$rt" -q --backend mpi -r 64x48 \
+          -o "$tmp/m.ppm" "$good" 2> "$tmp/err") || { echo "FAIL: separate=$sep: $(cat "$tmp/err")"; fails=$((fails + 1)); }
+    echo "separate=$sep: rank_claims=$(key "$rec" rank_claims) rank_put_ms=$(key "$rec" rank_put_ms) rank_end_ms=$(key "$rec" rank_end_ms)"
+    [ "$(key "$rec" image_fnv1a)" = "$(key "$serial" image_fnv1a)" ] || { echo "FAIL: separate=$sep: not the serial image"; fails=$((fails + 1)); }
+    key "$rec" rank_claims | grep -Eq '^[0-9]+/[0-9]+/[0-9]+$' && [ "$(key "$rec" rank_claims | tr '/' '\n' | awk '{ s += $1 } END { print s + 0 }')" -gt 0 ] ||
+        { echo "FAIL: separate=$sep: rank_claims"; fails=$((fails + 1)); }
+    puts=$(key "$rec" rank_put_ms | tr '/' '\n' | awk '$1 > 0' | wc -l)
+    if [ $sep = 1 ] && [ "$puts" = 0 ]; then echo "FAIL: separate: no time in puts"; fails=$((fails + 1)); fi
+    if [ $sep = 0 ] && [ "$puts" != 0 ]; then echo "FAIL: shared: time in puts"; fails=$((fails + 1)); fi
+done
 [ "$fails" = 0 ]
