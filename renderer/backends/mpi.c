@@ -351,20 +351,32 @@ void rt_mpi_frame_start(RtMpiImage *m)
     RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD));
 }
 
-int64_t rt_mpi_claim(RtMpiImage *m, int64_t total, int64_t min_claim, int64_t *seen, int64_t *first)
+/* The counter now, and the counter before adding n to it. Nothing is
+ * published through the counter: relaxed atomics. (A look and an add rather
+ * than a compare-and-swap: Open MPI 4.1's osc/rdma crashes in
+ * MPI_Compare_and_swap on one node.) */
+static int64_t counter_add(RtMpiImage *m, int64_t n)
 {
-    int64_t claim = (total - *seen) / (4 * (int64_t)rt_mpi_size);
-    if (claim < min_claim)
-        claim = min_claim;
-    if (m->atomic) { /* nothing is published through the counter: relaxed */
-        *first = __atomic_fetch_add((int64_t *)m->base, claim, __ATOMIC_RELAXED);
-    } else {
-        RT_MPI_CHECK(MPI_Fetch_and_op(&claim, first, MPI_INT64_T, 0, 0, MPI_SUM, m->win));
-        RT_MPI_CHECK(MPI_Win_flush(0, m->win));
-    }
+    int64_t was;
+    if (m->atomic)
+        return n ? __atomic_fetch_add((int64_t *)m->base, n, __ATOMIC_RELAXED)
+                 : __atomic_load_n((int64_t *)m->base, __ATOMIC_RELAXED);
+    RT_MPI_CHECK(MPI_Fetch_and_op(&n, &was, MPI_INT64_T, 0, 0, n ? MPI_SUM : MPI_NO_OP, m->win));
+    RT_MPI_CHECK(MPI_Win_flush(0, m->win));
+    return was;
+}
+
+int64_t rt_mpi_claim(RtMpiImage *m, int64_t total, int64_t min_claim, int64_t *first)
+{
+    /* The claim is sized from a look at the counter just before it is
+     * added, never from this rank's last claim: a rank that last looked
+     * early would otherwise take a large claim at the end of the frame and
+     * finish last. */
+    int64_t now = counter_add(m, 0), claim = (total - now) / (4 * (int64_t)rt_mpi_size);
+    claim = claim < min_claim ? min_claim : claim;
+    *first = now >= total ? now : counter_add(m, claim);
     if (*first >= total)
         return 0;
-    *seen = *first + claim;
     return total - *first < claim ? total - *first : claim;
 }
 
@@ -440,13 +452,13 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
 
     float *dst = m.direct ? (float *)m.img0 : rgb;
     const int64_t min_claim = tiles_per_claim(pool->nthreads);
-    int64_t seen = 0, first, count; /* seen: the counter as this rank last saw it */
+    int64_t first, count;
     TileTypes tt;
     tt.n = 0;
     /* Which rank renders a tile never changes the image. */
     for (;;) {
         double t = rt_now_ms();
-        count = rt_mpi_claim(&m, ntiles, min_claim, &seen, &first);
+        count = rt_mpi_claim(&m, ntiles, min_claim, &first);
         rt->t[T_CLAIM_MS] += rt_now_ms() - t;
         if (count <= 0)
             break;
