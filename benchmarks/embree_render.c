@@ -5,7 +5,7 @@
  *   embree-render [-r WxH] [-o IMAGE] [--runs N] SCENE
  *
  * Everything but the ray queries is raybench's: its parser, camera, and the
- * Whitted loop of core/rt_shade.h with RENDERING-RULES' shading, over the
+ * Whitted loop of core/rt_path_tmpl.h with RENDERING-RULES' shading, over the
  * same 32x32 tiles as the serial backend on one thread. Each closest-hit and
  * shadow query goes to Embree 3 (rtcIntersect1 / rtcOccluded1, one ray at a
  * time, as raybench's CPU path traces them) on its high-quality tree with
@@ -54,7 +54,9 @@ static int embree_trace(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, in
 }
 
 #define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) embree_trace(s, o, d, tmax, any, hit)
-#include "core/rt_shade.h"
+#define RT_PATH_NAME(f) f
+#define RT_PATH_FN static inline
+#include "core/rt_path_tmpl.h"
 
 static int fail(const char *msg)
 {

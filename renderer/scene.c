@@ -18,7 +18,7 @@
 #endif
 
 #include "rt.h"
-#include "core/rt_shade.h" /* rt_quantize: one rounding for every backend */
+#include "core/rt_quantize.h"
 
 int rt_fail(RtError *err, const char *fmt, ...)
 {

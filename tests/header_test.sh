@@ -2,8 +2,10 @@
 # header_test.sh CC NVCC HEADER... - every shared RT_HD header compiles ALONE,
 # as strict C11 and through nvcc (pbrt-v4's CPU/GPU rule): no VLAs, compound
 # literals, designated initializers, bare restrict or implicit void* casts,
-# and no missing includes. One extra unit launches a kernel that calls the
-# shading loop, so the device code of every function really gets compiled.
+# and no missing includes. The shading loop's template (rt_path_tmpl.h) must
+# refuse to compile without its parameters; one extra unit instantiates it
+# and launches a kernel that calls it, so the device code of every function
+# really gets compiled.
 # NVCC may be "none": then only the C half runs.
 set -u
 cc=$1 nvcc=$2
@@ -24,10 +26,17 @@ for h in "$@"; do
         fi
     fi
 done
+dir=$(dirname "$1")
+printf '#include "rt_path_tmpl.h"\n' > "$tmp/p.c"
+if "$cc" -std=c11 -I"$dir" -c "$tmp/p.c" -o "$tmp/p.o" 2> "$tmp/p.err" || ! grep -q 'define RT_PATH_TRACE' "$tmp/p.err"; then
+    echo "FAIL: rt_path_tmpl.h without its parameters does not stop at its #error"; fails=$((fails + 1))
+fi
 if [ "$nvcc" != none ]; then
-    dir=$(dirname "$1")
     cat > "$tmp/k.cu" <<'CU'
-#include "rt_shade.h"
+#define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) rt_trace_ray(s, o, d, tmax, any, hit, cnt)
+#define RT_PATH_NAME(f) f
+#define RT_PATH_FN static inline RT_HD
+#include "rt_path_tmpl.h"
 __global__ void k(RtSceneView s, float *rgb, RtCounters *c)
 {
     RtCounters mine = {0, 0, 0, 0, 0};

@@ -84,7 +84,9 @@ static int wm_trace(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int an
 }
 
 #define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) wm_trace(s, o, d, tmax, any, hit, cnt, light)
-#include "core/rt_shade.h"
+#define RT_PATH_NAME(f) f
+#define RT_PATH_FN static inline
+#include "core/rt_path_tmpl.h"
 
 static void wm_trace_pixel(const RtSceneView *s, RtRay primary, WmPixel *px)
 {

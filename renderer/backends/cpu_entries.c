@@ -1,32 +1,24 @@
 /* cpu_entries.c - the CPU traversal's entries, one per instruction set,
  * and their table (cpu_trace.h): each a ray query and a tile and a pixel
- * renderer with the traversal of cpu_traverse.h inlined. A translation unit
- * of its own: with these large always-inline instantiations beside it, GCC
- * stopped inlining rt_trace_ray's primitive tests into rt_cpu_trace (the
- * brute-force path), 20% more instructions there. */
+ * renderer with the traversal of cpu_traverse.h inlined. A unit of its own:
+ * beside these large always-inline instantiations, GCC stops inlining
+ * rt_trace_ray's primitive tests into rt_cpu_trace (cpu_trace.c, the
+ * brute-force path). */
 #include "cpu_traverse.h"
 
-/* The whole pixel loop per instruction set: rt_shade_path.h instantiated
- * with the entry's traversal inlined as its query, so a tile renders with
- * no call per ray (3-14% of a course mesh's render on the 2-core VM,
- * against calling the entry per ray). */
-#include "core/rt_shade.h"
-#undef RT_PATH_TRACE
-#define RT_PATH_FN CPU_INLINE
+/* The pixel loop (core/rt_path_tmpl.h) per instruction set, with the entry's
+ * traversal inlined as its query, so a tile renders with no call per ray. */
 #define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) trace_wide(s, o, d, tmax, any, hit, cnt, node_c, leaf_c)
 #define RT_PATH_NAME(f) f##_c
-#include "core/rt_shade_path.h"
-#undef RT_PATH_TRACE
-#undef RT_PATH_NAME
+#define RT_PATH_FN CPU_INLINE
+#include "core/rt_path_tmpl.h"
 #if RT_SSE
 #define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) \
     trace_wide(s, o, d, tmax, any, hit, cnt, node_sse2, leaf_sse2)
 #define RT_PATH_NAME(f) f##_simd
-#include "core/rt_shade_path.h"
-#undef RT_PATH_TRACE
-#undef RT_PATH_NAME
+#define RT_PATH_FN CPU_INLINE
+#include "core/rt_path_tmpl.h"
 #endif
-#undef RT_PATH_FN
 
 /* An entry: its query, tile and pixel, each with its traversal inlined. */
 #define CPU_ENTRY(isa, target, node, leaf, path)                                                                  \

@@ -8,7 +8,7 @@
  * thread. One loop, two callers: neither backend shades or tiles differently.
  *
  * Every loop calls rt_cpu_render_pixel / rt_cpu_render_tile (cpu_trace.h:
- * core/rt_shade.h's pixel and tile with the CPU traversal inlined); a
+ * core/rt_path_tmpl.h's pixel and tile with the CPU traversal inlined); a
  * pixel's colour and counters depend only on (scene, i, j), so any split of
  * the image over threads or ranks gives the serial image bit for bit and the
  * same integer counter sums. */
@@ -19,8 +19,7 @@
 #include <string.h>
 
 #include "rt.h"
-#include "cpu_trace.h" /* before rt_shade.h: the traversal it traces with */
-#include "core/rt_shade.h" /* the CPU backends render tiles with the shared shading code */
+#include "cpu_trace.h"
 #ifdef _OPENMP
 #include <omp.h>
 #endif

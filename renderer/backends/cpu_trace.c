@@ -9,7 +9,13 @@
 #include <string.h>
 
 #include "cpu_trace.h"
-#include "core/rt_shade.h" /* rt_render_tile/pixel through rt_cpu_trace: the fallback */
+
+/* The loop for scenes without the CPU's copy of the tree (rt_cpu_render_tile
+ * and rt_cpu_render_pixel below): every ray through rt_cpu_trace. */
+#define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) rt_cpu_trace(s, o, d, tmax, any, hit, cnt)
+#define RT_PATH_NAME(f) f##_fallback
+#define RT_PATH_FN static inline
+#include "core/rt_path_tmpl.h"
 
 /* ---- the CPU's copy of the tree ---------------------------------------- */
 
@@ -142,7 +148,7 @@ int rt_cpu_trace(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, 
 void rt_cpu_render_tile(const RtSceneView *s, int x0, int y0, int x1, int y1, float *rgb, RtCounters *cnt)
 {
     if (!s->cpu_wide) {
-        rt_render_tile(s, x0, y0, x1, y1, rgb, cnt);
+        rt_render_tile_fallback(s, x0, y0, x1, y1, rgb, cnt);
         return;
     }
     rt_cpu_current()->tile(s, x0, y0, x1, y1, rgb, cnt);
@@ -151,7 +157,7 @@ void rt_cpu_render_tile(const RtSceneView *s, int x0, int y0, int x1, int y1, fl
 void rt_cpu_render_pixel(const RtSceneView *s, int i, int j, float *rgb, RtCounters *cnt)
 {
     if (!s->cpu_wide) {
-        rt_render_pixel(s, i, j, RT_ANY_HIT, rgb, cnt);
+        rt_render_pixel_fallback(s, i, j, RT_ANY_HIT, rgb, cnt);
         return;
     }
     rt_cpu_current()->pixel(s, i, j, rgb, cnt);

@@ -21,7 +21,7 @@ typedef struct RtCpuIsa {
     const char *name;     /* as --isa and the record's isa= say it */
     RtCpuTraceFn trace;
     int (*supported)(void);
-    /* rt_render_tile and rt_render_pixel (core/rt_shade.h, shadow rays
+    /* rt_render_tile and rt_render_pixel (core/rt_path_tmpl.h, shadow rays
      * RT_ANY_HIT) with this entry's traversal inlined */
     void (*tile)(const RtSceneView *s, int x0, int y0, int x1, int y1, float *rgb, RtCounters *cnt);
     void (*pixel)(const RtSceneView *s, int i, int j, float *rgb, RtCounters *cnt);
@@ -41,22 +41,16 @@ typedef struct RtCpuLeaf4 {
 /* The table, reference first; n receives its length. */
 const RtCpuIsa *rt_cpu_isa_table(int *n);
 
-/* The query every CPU backend's shading calls (RT_PATH_TRACE): the selected
- * entry (rt_cpu_isa_select) on scenes with the CPU's copy of the tree
- * (rt_cpu_prepare); brute force, a tree too large for the wide copy, and no
- * memory for the copy, through rt_trace_ray (the same hits). */
+/* One ray through the selected entry (rt_cpu_isa_select) on scenes with the
+ * CPU's copy of the tree (rt_cpu_prepare); brute force, a tree too large for
+ * the wide copy, and no memory for the copy, through rt_trace_ray (the same
+ * hits). */
 int rt_cpu_trace(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit, RtCounters *cnt);
 
 /* What every CPU backend renders with: rt_render_tile and rt_render_pixel
- * of core/rt_shade.h through the selected entry (its tile and pixel), or,
+ * of core/rt_path_tmpl.h through the selected entry (its tile and pixel), or,
  * for scenes without the CPU's copy of the tree, through rt_cpu_trace. */
 void rt_cpu_render_tile(const RtSceneView *s, int x0, int y0, int x1, int y1, float *rgb, RtCounters *cnt);
 void rt_cpu_render_pixel(const RtSceneView *s, int i, int j, float *rgb, RtCounters *cnt);
-
-/* The shading of the CPU backends (core/rt_shade.h, included after this)
- * traces through it. */
-#ifndef RT_PATH_TRACE
-#define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) rt_cpu_trace(s, o, d, tmax, any, hit, cnt)
-#endif
 
 #endif

@@ -4,8 +4,7 @@
 #include <string.h>
 
 #include "rt.h"
-#include "cpu_trace.h" /* before rt_shade.h: the traversal it traces with */
-#include "core/rt_shade.h"
+#include "cpu_trace.h"
 
 static int render_serial(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 {

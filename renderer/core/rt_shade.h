@@ -1,5 +1,8 @@
-/* rt_shade.h - Whitted shading without recursion, and the tile loop every
- * backend shares (RENDERING-RULES "Shading").
+/* rt_shade.h - the steps of Whitted shading without recursion
+ * (RENDERING-RULES "Shading") that trace no ray: a hit's surface, a light's
+ * contribution, the pending-ray stack. The loop that traces the rays
+ * (rt_trace_path, rt_render_pixel, rt_render_tile) is the template
+ * rt_path_tmpl.h, instantiated once per ray query by the unit that uses it.
  *
  * trace(ray, depth) is unrolled into an explicit stack of pending rays, each
  * carrying the product of the ks/kt weights on its path. Popping a ray adds
@@ -106,7 +109,7 @@ static inline RT_HD int rt_light_sample(const RtSceneView *s, const RtSurface *s
 
 /* The start of a hit's local colour (ka * ambient_light) and where its
  * shadow rays leave from (just above the surface, along the normal), for
- * rt_trace_path below and for tests that trace a hit's rays one by one. */
+ * rt_trace_path and for tests that trace a hit's rays one by one. */
 static inline RT_HD RtVec3 rt_ambient_term(const RtSceneView *s, const RtMaterial *m)
 {
     return rt_mul(rt_v3_load(m->ka), s->ambient);
@@ -170,33 +173,6 @@ static inline RT_HD RtPending rt_path_pop(const RtSceneView *s, RtPending *stack
     else
         cnt->secondary_rays++;
     return r;
-}
-
-/* How rt_trace_path traces each ray: light is -1 for a closest-hit ray, else
- * the light of a shadow ray. A tool that studies the rays (a model of the
- * GPU's warps, experiments/) defines it before including this file. */
-#ifndef RT_PATH_TRACE
-#define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) rt_trace_ray(s, o, d, tmax, any, hit, cnt)
-#endif
-/* rt_trace_path, rt_render_pixel and rt_render_tile with RT_PATH_TRACE */
-#define RT_PATH_NAME(f) f
-#define RT_PATH_FN static inline RT_HD
-#include "rt_shade_path.h"
-#undef RT_PATH_NAME
-#undef RT_PATH_FN
-
-/* Output rule: clamp to [0,1], times 255, round to nearest. */
-static inline RT_HD uint8_t rt_quantize(float c)
-{
-    if (!(c > 0.0f)) /* also maps a NaN (an unwritten, poisoned pixel) to 0 */
-        return 0;
-#if defined(__CUDA_ARCH__)
-    /* a multiply and an add, each rounded, as the C build does them
-     * (-ffp-contract=off): nvcc would fuse them into one FMA */
-    return (uint8_t)__fadd_rn(__fmul_rn(rt_clamp01(c), 255.0f), 0.5f);
-#else
-    return (uint8_t)(rt_clamp01(c) * 255.0f + 0.5f);
-#endif
 }
 
 #endif

@@ -13,7 +13,12 @@
 #include <unistd.h>
 
 #include "rt.h"
-#include "core/rt_shade.h"
+
+/* render_small's loop, every ray through rt_trace_ray */
+#define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) rt_trace_ray(s, o, d, tmax, any, hit, cnt)
+#define RT_PATH_NAME(f) f
+#define RT_PATH_FN static inline
+#include "core/rt_path_tmpl.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -15,12 +15,16 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* rt_render_tile below: the image of the binary traversal, the reference */
-#define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) rt_trace_ray(s, o, d, tmax, any, hit, cnt)
 #include "backends/cpu_trace.h"
 #include "check.h"
 #include "core/rt_shade.h"
 #include "scene_fixture.h"
+
+/* rt_render_tile_binary: the image of the binary traversal, the reference */
+#define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) rt_trace_ray(s, o, d, tmax, any, hit, cnt)
+#define RT_PATH_NAME(f) f##_binary
+#define RT_PATH_FN static inline
+#include "core/rt_path_tmpl.h"
 
 static void poison(RtHit *h)
 {
@@ -122,7 +126,7 @@ static void check_renders(const char *path, const RtSceneView *v, const RtCpuIsa
     memset(&c0, 0, sizeof c0);
     for (size_t i = 0; i < n; i++)
         ref[i] = NAN;
-    rt_render_tile(v, 0, 0, w, h, ref, &cr);
+    rt_render_tile_binary(v, 0, 0, w, h, ref, &cr);
     for (int e = 0; e < nisa; e++)
         for (int way = 0; way < 2; way++) {
             for (size_t i = 0; i < n; i++)

@@ -1,7 +1,8 @@
 /* kernels.cuh - the CUDA backend's device code, included once by cuda.cu:
  * one thread per pixel (or two, with pixel pairs), each running the shared
- * iterative Whitted code (rt_render_pixel -> rt_trace_path -> rt_trace_ray,
- * core/rt_*.h, compiled here by nvcc: one implementation for CPU and GPU).
+ * iterative Whitted code (rt_render_pixel -> rt_trace_path -> rt_cuda_trace:
+ * core/rt_path_tmpl.h instantiated here, compiled by nvcc: one
+ * implementation for CPU and GPU).
  *
  * In both schedules (schedule.h) the block shape BXxBY is the pixel tile a
  * block covers, so a warp covers a 32-pixel piece of a tile (8x4 pixels for
@@ -16,26 +17,30 @@
 #define RT_WIDE_LEAF_VOTE(has_leaf, any) __all_sync(__activemask(), (has_leaf))
 #endif
 
-#define rt_trace_ray rt_trace_ray_binary
 #include "core/rt_traverse.h"
-#undef rt_trace_ray
 
-/* What rt_shade.h calls: the 4-wide tree that rt_accel_build collapses from
+/* The GPU's ray query: the 4-wide tree that rt_accel_build collapses from
  * the binary one, when there is one; else the binary traversal (brute force,
  * and trees past the wide tree's 2^28 primitives). */
-static inline RT_HD int rt_trace_ray(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit,
-                                     RtCounters *cnt)
+static inline RT_HD int rt_cuda_trace(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit,
+                                      RtCounters *cnt)
 {
     if (s->wide)
         return rt_trace_ray_wide(s, o, d, tmax, any, hit, cnt);
-    return rt_trace_ray_binary(s, o, d, tmax, any, hit, cnt);
+    return rt_trace_ray(s, o, d, tmax, any, hit, cnt);
 }
 
 extern "C" {
 #include "rt.h"
-/* the shading loop, after the dispatcher above: its rt_trace_ray calls bind to it */
+#include "core/rt_quantize.h"
 #include "core/rt_shade.h"
 #include "schedule.h"
+
+/* The shading loop the kernels run (rt_render_pixel), through rt_cuda_trace */
+#define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) rt_cuda_trace(s, o, d, tmax, any, hit, cnt)
+#define RT_PATH_NAME(f) f
+#define RT_PATH_FN static inline RT_HD
+#include "core/rt_path_tmpl.h"
 }
 
 enum { RT_NCOUNTERS = 5 }; /* fields of RtCounters, all uint64_t, in order */
@@ -72,7 +77,7 @@ static __device__ __forceinline__ int rt_cuda_unit_pixel(const RtSceneView &view
  * ambient term, the children); at each hit it hands the surface to the odd
  * lane, which traces that hit's shadow rays (rt_light_sample, one light per
  * iteration) while the even lane already traces the next closest hit. Both
- * lanes go through one rt_trace_ray call per iteration (any = the lane's
+ * lanes go through one rt_cuda_trace call per iteration (any = the lane's
  * role). The even lane waits only while the odd one still has lights of the
  * previous hit. The pixel is the sum of the two lanes' colours: the same
  * terms as rt_trace_path, added in another order. Whole warps only. */
@@ -156,7 +161,7 @@ static __device__ __forceinline__ void rt_cuda_pair_item(const RtSceneView &view
         if (!has)
             continue;
         RtHit h;
-        const int hit = rt_trace_ray(s, r.o, r.d, dist, (int)odd, &h, cnt);
+        const int hit = rt_cuda_trace(s, r.o, r.d, dist, (int)odd, &h, cnt);
         if (odd) {
             if (!hit)
                 color = rt_add(color, rt_mul(job.w, c));

@@ -1,11 +1,24 @@
-/* rt_shade_path.h - the pixel and tile loop of rt_shade.h, written once for
- * every ray query: rt_shade.h includes it with RT_PATH_TRACE (the query),
- * RT_PATH_NAME (how its functions are named) and RT_PATH_FN (how they are
- * declared) at their defaults, which gives rt_trace_path, rt_render_pixel
- * and rt_render_tile; backends/cpu_trace.c includes it again per
- * instruction set, with the CPU traversal inlined as the query, so a tile
- * renders without a call per ray. No include guard, on purpose: each
- * inclusion instantiates the functions under the names RT_PATH_NAME gives. */
+/* rt_path_tmpl.h - the pixel and tile loop (rt_trace_path, rt_render_pixel,
+ * rt_render_tile), written once for every ray query. A template, as dav1d's
+ * *_tmpl.c: each unit that shades instantiates it by defining
+ *   RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light)  the ray query, with
+ *                    rt_trace_ray's contract; light is -1 for a closest-hit
+ *                    ray, else the light of the shadow ray (for tools that
+ *                    study the rays);
+ *   RT_PATH_NAME(f)  the name function f gets in this instantiation;
+ *   RT_PATH_FN       how the functions are declared;
+ * and then including this file, which takes the three away again, so one
+ * unit may instantiate it twice. The instantiations: backends/cpu_entries.c
+ * (one per instruction set, the traversal inlined so that a tile renders
+ * without a call per ray), backends/cpu_trace.c (scenes without the CPU's
+ * copy of the tree), backends/cuda/kernels.cuh (the GPU), and tests and
+ * tools with queries of their own. No include guard: each inclusion is one
+ * instantiation. */
+#if !defined(RT_PATH_TRACE) || !defined(RT_PATH_NAME) || !defined(RT_PATH_FN)
+#error "rt_path_tmpl.h: define RT_PATH_TRACE, RT_PATH_NAME and RT_PATH_FN, then include it"
+#endif
+
+#include "rt_shade.h"
 
 /* The colour of one primary ray, unclamped: trace() of RENDERING-RULES with
  * the recursion unrolled into the pending-ray stack. Each popped ray is traced
@@ -85,3 +98,6 @@ RT_PATH_FN void RT_PATH_NAME(rt_render_tile)(const RtSceneView *s, int x0, int y
             RT_PATH_NAME(rt_render_pixel)(s, i, j, RT_ANY_HIT, rgb, cnt);
 }
 
+#undef RT_PATH_TRACE
+#undef RT_PATH_NAME
+#undef RT_PATH_FN
