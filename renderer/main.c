@@ -29,7 +29,7 @@ typedef struct Options {
     int max_depth;      /* -1: from the scene */
     int threads;
     int build_threads;  /* 0: every allowed CPU */
-    int huge_pages;     /* 1 on, 0 off, -1 auto (rt_accel_huge_pages) */
+    int huge_pages;     /* 1 on, 0 off, -1 auto (RtBvhSettings.huge_pages) */
     int tile_w, tile_h;
     RtSchedule schedule;
     RtMpiSchedule mpi_schedule;
@@ -538,8 +538,10 @@ static int prepare(Run *r, RtError *err)
         return -1;
     }
     t0 = rt_now_ms();
-    rt_accel_huge_pages(o->huge_pages);
-    if (!loaded && rt_accel_build_threads(&r->scene, o->accel, o->build_threads, &r->accel, err) != 0)
+    RtBvhSettings bvh = rt_bvh_settings_default();
+    bvh.threads = o->build_threads;
+    bvh.huge_pages = o->huge_pages;
+    if (!loaded && rt_accel_build_with(&r->scene, o->accel, &bvh, &r->accel, err) != 0)
         return -1;
     r->build_ms = rt_now_ms() - t0;
     /* The tree's invariants (tests/unit run them on every build): with

@@ -121,23 +121,51 @@ typedef struct RtAccel {
     uint32_t depth;      /* deepest leaf */
     uint32_t leaves;
     int build_threads;   /* threads the build ran on */
-    int huge_pages;      /* the build asked for 2 MiB pages (rt_accel_huge_pages) */
+    int huge_pages;      /* the build asked for 2 MiB pages (RtBvhSettings.huge_pages) */
     double sah_cost;     /* the tree's SAH cost (0 for none): its quality */
     int mapped;          /* the arrays are in the scene's cache mapping: not freed here */
 } RtAccel;
 
-/* Builds the accelerator on `threads` threads (0: as many as OpenMP gives,
- * by default one per allowed CPU); the same tree on any number of them. */
-int rt_accel_build_threads(const RtScene *scene, RtAccelKind kind, int threads, RtAccel *accel, RtError *err);
-/* Whether later builds ask for 2 MiB pages for their large arrays
- * (madvise(MADV_HUGEPAGE)): 1 yes, 0 no, -1 (the default) when they run on
- * RT_HUGE_PAGES_THREADS threads or more, where page faults contend most.
- * The same tree either way (raytrace --huge-pages). */
-#define RT_HUGE_PAGES_THREADS 8
-void rt_accel_huge_pages(int mode);
+/* The BVH build's settings, one struct a build (as Embree's
+ * RTCBuildSettings): rt_bvh_settings_default() fills in the defaults, a
+ * caller changes the fields it needs. threads and huge_pages change only
+ * the build's speed; the others shape the tree. A value outside its range
+ * (settings.c) fails the build. */
+typedef struct RtBvhSettings {
+    int threads;            /* build threads; <= 0 (default 0): one per prims_per_thread
+                             * primitives, at most the threads OpenMP offers */
+    int prims_per_thread;   /* 16384 (docs/performance.md, "Build threads") */
+    int huge_pages;         /* the large arrays in 2 MiB pages (madvise(MADV_HUGEPAGE)):
+                             * 1 on, 0 off, -1 (default) from huge_pages_threads build
+                             * threads (raytrace --huge-pages); the same tree either way */
+    int huge_pages_threads; /* 8 (docs/performance.md, "Large scenes") */
+    int bins;               /* SAH bins per axis: 32 (2..32) */
+    int sah_depth;          /* the SAH split above this depth, the object median
+                             * below (it halves the count, bounding the depth): 44 */
+    int leaf_max;           /* records per leaf: RT_BVH_LEAF_MAX (1..RT_BVH_LEAF_MAX) */
+    int wide_merge;         /* a subtree of at most this many records left over in the
+                             * 4-wide copy is one leaf there: 4 (1..8) */
+    int spatial_min;        /* spatial splits only in nodes of at least this many
+                             * references: 128, */
+    int spatial_share;      /* and of at least 1/spatial_share of the scene's: 2048, */
+    float spatial_overlap;  /* whose best object split's children overlap by more than
+                             * this fraction of the node's area: 0.1 */
+    int task_min;           /* subtrees of at least this many references are tasks: 4096 */
+    int wide_task_min;      /* the same in the 4-wide copy, in records: 65536 */
+    int chunk;              /* references per chunk of a large node's parallel binning
+                             * and partition: 16384 (64..2^30) */
+} RtBvhSettings;
+RtBvhSettings rt_bvh_settings_default(void);
+/* Builds the accelerator with `settings` (NULL: the defaults); the same tree
+ * on any number of threads. 0, or -1 with err. */
+int rt_accel_build_with(const RtScene *scene, RtAccelKind kind, const RtBvhSettings *settings, RtAccel *accel,
+                        RtError *err);
+/* The same with the default settings, and with those but `threads`. */
 int rt_accel_build(const RtScene *scene, RtAccelKind kind, RtAccel *accel, RtError *err);
+int rt_accel_build_threads(const RtScene *scene, RtAccelKind kind, int threads, RtAccel *accel, RtError *err);
 void rt_accel_free(RtAccel *accel);
-/* Leaves of the binary tree hold at most this many records. */
+/* Leaves of the binary tree hold at most this many records (the bound
+ * rt_bvh_check holds every tree to; RtBvhSettings.leaf_max may be lower). */
 #define RT_BVH_LEAF_MAX 4
 /* Checks the BVH invariants (accel/check.c), in parallel over subtrees:
  * every record slot in exactly one leaf, every primitive in at least one

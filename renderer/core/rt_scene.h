@@ -76,7 +76,7 @@ typedef struct RtBvhNode {
 } RtBvhNode;
 
 /* A node of the 4-wide BVH: the binary tree collapsed (rt_accel_build does
- * it, accel.c), each node holding the boxes of up to four children -- the
+ * it, accel/wide.c), each node holding the boxes of up to four children -- the
  * binary tree's own boxes, unchanged -- in SoA order, so a node is one
  * 128-byte cache line and one visit tests four boxes, independently (Wald et
  * al., "Getting rid of packets", 2008; the GPU's traversal, docs/gpu.md). */

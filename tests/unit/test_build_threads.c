@@ -1,5 +1,5 @@
 /* test_build_threads.c - the BVH build makes the same tree on any number of
- * threads (renderer/accel/accel.c): the binary nodes, the primitive records
+ * threads (renderer/accel/): the binary nodes, the primitive records
  * in leaf order and the 4-wide copy are compared byte for byte between 1, 2,
  * 3 and 7 threads, on a scene large enough for every parallel path (tasks,
  * chunked binning and partition, the 4-wide copy's subtree tasks from 65536
@@ -65,17 +65,18 @@ static void compare_threads(const char *name, const RtScene *sc, int want_splits
         rt_accel_free(&a);
     }
     /* with the 2 MiB page hint forced on (auto leaves it off below
-     * RT_HUGE_PAGES_THREADS; it marks the arrays of 4 MiB and more: the node
-     * arrays here), on 3 threads: the same tree */
+     * RtBvhSettings.huge_pages_threads; it marks the arrays of 4 MiB and
+     * more: the node arrays here), on 3 threads: the same tree */
     CHECK(!ref.huge_pages, "%s: one build thread asked for huge pages by default", name);
-    rt_accel_huge_pages(1);
-    if (rt_accel_build_threads(sc, RT_ACCEL_BVH, 3, &a, &err) == 0) {
+    RtBvhSettings set = rt_bvh_settings_default();
+    set.threads = 3;
+    set.huge_pages = 1;
+    if (rt_accel_build_with(sc, RT_ACCEL_BVH, &set, &a, &err) == 0) {
         CHECK(a.huge_pages && same(&ref, &a), "%s: the tree with huge pages differs", name);
         rt_accel_free(&a);
     } else {
         CHECK(0, "%s: build with huge pages: %s", name, err.msg);
     }
-    rt_accel_huge_pages(-1);
     rt_accel_free(&ref);
 }
 

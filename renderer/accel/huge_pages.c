@@ -1,0 +1,33 @@
+/* huge_pages.c - the build's large arrays in 2 MiB pages where the kernel
+ * grants them (transparent huge pages on request: madvise mode). A fresh
+ * array then costs one page fault per 2 MiB instead of one per 4 KiB, and
+ * the top nodes' reference arrays are fresh at every level; with many build
+ * threads those faults contend (docs/performance.md, "Large scenes"). A
+ * hint only: the tree is the same with or without it. */
+#include <stdlib.h>
+#include <sys/mman.h>
+
+#include "build_internal.h"
+
+#define HUGE_PAGE ((uintptr_t)2 << 20)
+
+/* Marks the whole 2 MiB pages inside array p of n bytes, just allocated,
+ * when `on` (the build's choice: bvh_huge_pages_on). Returns p. */
+void *bvh_huge_hint(void *p, size_t n, int on)
+{
+#ifdef MADV_HUGEPAGE
+    if (p && on && n >= 2 * HUGE_PAGE) {
+        const uintptr_t a = ((uintptr_t)p + HUGE_PAGE - 1) & ~(HUGE_PAGE - 1);
+        const uintptr_t e = ((uintptr_t)p + n) & ~(HUGE_PAGE - 1);
+        if (e > a)
+            (void)madvise((void *)a, e - a, MADV_HUGEPAGE);
+    }
+#else
+    (void)n;
+    (void)on;
+#endif
+    return p;
+}
+
+/* malloc(n), in 2 MiB pages when `on`. */
+void *bvh_alloc(size_t n, int on) { return bvh_huge_hint(malloc(n), n, on); }

@@ -1,0 +1,158 @@
+/* partition.c - a node's references and its children's: their bounds, the
+ * children's arrays, the object split's partition and the object-median
+ * fallback. In a large node the bounds and the object partition run over
+ * fixed chunks of references in parallel (RtBvhSettings.chunk): bounds
+ * merge by min and max, exact in any order, and the partition keeps the
+ * serial order, so the tree is the same on any number of threads. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "build_internal.h"
+
+/* The bounds of refs[i0..i1): their boxes (bc[0]) and their centroids (bc[1]). */
+static void bounds_range(const Ref *refs, uint32_t i0, uint32_t i1, Box *bc)
+{
+    box_empty(&bc[0]);
+    box_empty(&bc[1]);
+    for (uint32_t i = i0; i < i1; i++) {
+        float c[3] = {ref_cent(&refs[i], 0), ref_cent(&refs[i], 1), ref_cent(&refs[i], 2)};
+        box_grow(&bc[0], &refs[i].box);
+        box_grow_pt(&bc[1], c);
+    }
+}
+
+/* The bounds of refs[0..count): their boxes (bb) and their centroids (cb). */
+void bvh_bounds(const Builder *b, const Ref *refs, uint32_t count, Box *bb, Box *cb)
+{
+    const uint32_t chunk = (uint32_t)b->set->chunk;
+    const int nc = nchunks(count, chunk);
+    Box (*part)[2] = nc > 1 ? malloc((size_t)nc * sizeof *part) : NULL;
+    Box bc[2];
+    if (!part) {
+        bounds_range(refs, 0, count, bc);
+    } else {
+#pragma omp taskloop grainsize(1)
+        for (int c = 0; c < nc; c++) {
+            uint32_t i0, i1;
+            chunk_range(count, chunk, c, &i0, &i1);
+            bounds_range(refs, i0, i1, part[c]);
+        }
+        box_empty(&bc[0]);
+        box_empty(&bc[1]);
+        for (int c = 0; c < nc; c++) {
+            box_grow(&bc[0], &part[c][0]);
+            box_grow(&bc[1], &part[c][1]);
+        }
+        free(part);
+    }
+    *bb = bc[0];
+    *cb = bc[1];
+}
+
+/* The children's reference arrays of a node of count references, allocated
+ * once (a second call keeps them); 0 (and b->oom) when out of memory. */
+int bvh_halves(Builder *b, uint32_t count, Ref **left, Ref **right)
+{
+    if (*left)
+        return 1;
+    *left = bvh_alloc((size_t)count * sizeof **left, b->huge);
+    *right = bvh_alloc((size_t)count * sizeof **right, b->huge);
+    if (*left && *right)
+        return 1;
+    free(*left);
+    free(*right);
+    *left = *right = NULL;
+    b->oom = 1;
+    return 0;
+}
+
+static int obj_left(const Ref *r, const Box *cb, const Split *obj, float scale)
+{
+    return bin_of(ref_cent(r, obj->axis), cb->lo[obj->axis], scale, 0, obj->nbins - 1) <= obj->bin;
+}
+
+/* The object split's partition, serial: the references in their order. */
+static void object_partition_serial(const Ref *refs, uint32_t count, const Box *cb, const Split *obj, float scale,
+                                    Ref *left, uint32_t *nl_out, Ref *right, uint32_t *nr_out)
+{
+    uint32_t nl = 0, nr = 0;
+    for (uint32_t i = 0; i < count; i++) {
+        if (obj_left(&refs[i], cb, obj, scale))
+            left[nl++] = refs[i];
+        else
+            right[nr++] = refs[i];
+    }
+    *nl_out = nl;
+    *nr_out = nr;
+}
+
+/* The object split's partition, in the references' order: over chunks in
+ * parallel in a large node (each chunk's share of either side first
+ * counted, so every chunk knows where its references go). */
+void bvh_object_partition(const Builder *b, const Ref *refs, uint32_t count, const Box *cb, const Split *obj,
+                          Ref *left, uint32_t *nl_out, Ref *right, uint32_t *nr_out)
+{
+    const float scale = (float)obj->nbins / (cb->hi[obj->axis] - cb->lo[obj->axis]);
+    const uint32_t chunk = (uint32_t)b->set->chunk;
+    const int nc = nchunks(count, chunk);
+    uint32_t *nleft = nc > 1 ? malloc((size_t)nc * sizeof *nleft) : NULL;
+    uint32_t nl = 0;
+    if (!nleft) {
+        object_partition_serial(refs, count, cb, obj, scale, left, nl_out, right, nr_out);
+        return;
+    }
+#pragma omp taskloop grainsize(1)
+    for (int c = 0; c < nc; c++) {
+        uint32_t i0, i1, k = 0;
+        chunk_range(count, chunk, c, &i0, &i1);
+        for (uint32_t i = i0; i < i1; i++)
+            k += (uint32_t)obj_left(&refs[i], cb, obj, scale);
+        nleft[c] = k;
+    }
+    for (int c = 0; c < nc; c++) { /* exclusive prefix sums: each chunk's first slot on the left */
+        const uint32_t k = nleft[c];
+        nleft[c] = nl;
+        nl += k;
+    }
+#pragma omp taskloop grainsize(1)
+    for (int c = 0; c < nc; c++) {
+        uint32_t i0, i1;
+        chunk_range(count, chunk, c, &i0, &i1);
+        uint32_t l = nleft[c], r = i0 - nleft[c];
+        for (uint32_t i = i0; i < i1; i++) {
+            if (obj_left(&refs[i], cb, obj, scale))
+                left[l++] = refs[i];
+            else
+                right[r++] = refs[i];
+        }
+    }
+    free(nleft);
+    *nl_out = nl;
+    *nr_out = count - nl;
+}
+
+/* Comparators for the median fallback, one per axis (tasks sort at once,
+ * so the axis cannot be a global). */
+static int cmp_ref_axis(const void *x, const void *y, int axis)
+{
+    float a = ref_cent(x, axis), c = ref_cent(y, axis);
+    return a < c ? -1 : (a > c ? 1 : 0);
+}
+static int cmp_ref0(const void *x, const void *y) { return cmp_ref_axis(x, y, 0); }
+static int cmp_ref1(const void *x, const void *y) { return cmp_ref_axis(x, y, 1); }
+static int cmp_ref2(const void *x, const void *y) { return cmp_ref_axis(x, y, 2); }
+
+/* The object median on `axis` (extent: the centroids' extent there; none,
+ * and the references stay in their order): the first half of the sorted
+ * references to the left, which halves the count and so bounds the depth. */
+void bvh_median_partition(Ref *refs, uint32_t count, int axis, float extent, Ref *left, uint32_t *nl_out, Ref *right,
+                          uint32_t *nr_out)
+{
+    if (extent > 0.0f)
+        qsort(refs, count, sizeof *refs, axis == 0 ? cmp_ref0 : (axis == 1 ? cmp_ref1 : cmp_ref2));
+    const uint32_t nl = count / 2, nr = count - nl;
+    memcpy(left, refs, nl * sizeof *refs);
+    memcpy(right, refs + nl, nr * sizeof *refs);
+    *nl_out = nl;
+    *nr_out = nr;
+}
