@@ -13,8 +13,8 @@
 #           record keys (keys.txt). STUDIES="dragon" or "island" runs one
 #           (the island's 4M-triangle scene is parsed and built on every
 #           run: give it a call of its own)
-# CSVs, tables and logs go to $OUT (default /tmp/device-gpus). Carry
-# [".devcarry"]: the course scenes in .devcarry/scenes/course, and
+# NINJA_TARGETS limits the build (default: everything). CSVs, tables and
+# logs go to $OUT (default /tmp/device-gpus). Carry [".devcarry"]: the course scenes in .devcarry/scenes/course, and
 # .devcarry/include/xxhash.h where the machine lacks libxxhash-dev.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -27,7 +27,7 @@ course=$PWD/.devcarry/scenes/course
 args=(-Dgpu_arch=9.0 "-Dcourse_dir=$course")
 [ -f /usr/include/xxhash.h ] || args+=("-Dc_args=-I$PWD/.devcarry/include")
 [ -f $B/build.ninja ] || meson setup $B "${args[@]}" > "$OUT/setup.log"
-ninja -C $B > "$OUT/build.log"
+ninja -C $B ${NINJA_TARGETS:-} > "$OUT/build.log"
 ngpu=$(nvidia-smi -L | grep -c '^GPU ')
 nvidia-smi -L > "$OUT/gpus.txt"
 nvidia-smi topo -m >> "$OUT/gpus.txt" 2>&1 || true
