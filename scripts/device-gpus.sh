@@ -14,8 +14,9 @@
 #           (the island's 4M-triangle scene is parsed and built on every
 #           run: give it a call of its own)
 # NINJA_TARGETS limits the build (default: everything). CSVs, tables and
-# logs go to $OUT (default /tmp/device-gpus). Carry [".devcarry"]: the course scenes in .devcarry/scenes/course, and
-# .devcarry/include/xxhash.h where the machine lacks libxxhash-dev.
+# logs go to $OUT (default /tmp/device-gpus). Carry [".devcarry"]: the
+# course scenes in .devcarry/scenes/course, and .devcarry/include/xxhash.h
+# where the machine lacks libxxhash-dev.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-/tmp/device-gpus}
