@@ -1,5 +1,5 @@
 /* embree_build.c - Intel Embree's BVH build of a raybench scene's triangles,
- * timed, for the build comparison in scripts/bench-build.sh
+ * timed, for the build comparison in scripts/bench-large.sh
  * (docs/performance.md, "Large scenes").
  *
  *   embree-build [--threads N] [--repeats R] SCENE
