@@ -19,6 +19,7 @@
 #include <string.h>
 
 #include "embree_scene.h"
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf) /* rt_traverse.h asks for it; Embree traces here */
 #include "core/rt_traverse.h" /* RtHit, RT_T_MIN */
 
 static RTCScene g_scene; /* the query target of embree_trace (one thread) */

@@ -1,14 +1,10 @@
-/* main.c - the raytrace command: options -> scene -> accel -> backend ->
- * image + one machine-readable record line on stdout. */
-#include <errno.h>
-#include <getopt.h>
-#include <limits.h>
+/* main.c - the raytrace command: options (cli/options.c) -> scene -> accel ->
+ * backend -> image + one machine-readable record line on stdout. */
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 #ifdef __GLIBC__
@@ -19,277 +15,8 @@
 #include "rt.h"
 #include "rt_commit.h" /* RT_COMMIT: renderer/meson.build */
 #include "raybench/record_schema.h"
-
-typedef struct Options {
-    const char *scene;
-    const char *output;
-    const char *backend;
-    RtAccelKind accel;
-    int width, height;  /* 0: from the scene */
-    int max_depth;      /* -1: from the scene */
-    int threads;
-    int build_threads;  /* 0: every allowed CPU */
-    int huge_pages;     /* 1 on, 0 off, -1 auto (RtBvhSettings.huge_pages) */
-    int tile_w, tile_h;
-    RtSchedule schedule;
-    RtMpiSchedule mpi_schedule;
-    int block_x, block_y;
-    int device;
-    int share_gpu;      /* mpi-cuda: ranks may share a GPU */
-    int runs;           /* 0: the backend's default */
-    int warmup_runs;    /* -1: unset */
-    double warmup_ms;   /* -1: unset */
-    int quiet;
-    int verify;
-    int calibrate;
-    const char *mpi_scene; /* NULL: the mpi backend's default */
-    const char *cache;     /* scene cache directory; NULL: none */
-    const char *isa;       /* CPU traversal's instruction set; NULL: the best this CPU runs */
-} Options;
-
-static const char *prog = "raytrace";
-
-static void usage(FILE *fp)
-{
-    fprintf(fp,
-            "Usage: %s [OPTIONS] SCENE|MODEL\n"
-            "Renders a scene file (docs/scene-format.md) with Whitted ray tracing; a model file (OBJ,\n"
-            "PLY, STL, glTF, ...) alone with a camera that frames it.\n\n"
-            "  -o, --output FILE        image to write (.png, .bmp, .ppm); default: the scene's output_image\n"
-            "  -b, --backend NAME       serial (default), openmp, mpi, cuda, mpi-cuda (a GPU per rank)\n"
-            "  -a, --accel NAME         bvh (default) or none (every ray against every primitive)\n"
-            "  -r, --resolution WxH     override film_resolution\n"
-            "  -d, --max-depth N        override max_depth (0..%d)\n"
-            "  -t, --threads N          worker threads (openmp; per rank with mpi)\n"
-            "      --build-threads N    threads that parse the scene and build the BVH (default: every CPU\n"
-            "                           the process may use; the same scene and tree on any number)\n"
-            "      --huge-pages on|off|auto  the BVH build's large arrays in 2 MiB pages; auto (default):\n"
-            "                           on with 8 or more build threads (the same tree either way)\n"
-            "      --tile WxH           tile size in pixels (default 32x32 serial, 16x16 openmp/mpi)\n"
-            "      --schedule S         openmp: tiles (dynamic, default) or pixels (the report's collapse(2) static)\n"
-            "      --mpi-schedule S     mpi: dynamic (default) or rows (the report's block rows + Gatherv)\n"
-            "      --mpi-scene HOW      mpi: every (each rank parses, as the report) or bcast (rank 0 parses\n"
-            "                           and broadcasts the arrays); default in docs/cpu-backends.md\n"
-            "      --block BXxBY        cuda: thread block shape (default chosen by measurement)\n"
-            "      --device N           cuda: device index (default 0); mpi-cuda: the first rank's on each\n"
-            "                           node, the next rank's N+1, ...\n"
-            "      --share-gpu          mpi-cuda: let a node's ranks share its GPUs when it has fewer GPUs\n"
-            "                           than ranks (default: that is an error)\n"
-            "      --runs N             timed renders, render_ms their median (default 1; cuda 21 launches,\n"
-            "                           fewer past 4 s of kernel time)\n"
-            "      --warmup N|Tms       untimed renders first: N of them, or as many as take T ms, at least\n"
-            "                           one (default 0; cuda 50ms)\n"
-            "      --cache DIR          keep the parsed scene and its BVH in DIR (a folder of your own), keyed\n"
-            "                           by the files read, the options and this program; a later run loads it\n"
-            "      --max-model-triangles N  refuse a model that expands to more than N triangles (instanced\n"
-            "                           nodes counted; default 50000000)\n"
-            "      --verify             check the BVH's invariants, poison the image first and fail unless\n"
-            "                           every pixel is written\n"
-            "      --calibrate          time a fixed CPU workload before rendering (record key calib_ms)\n"
-            "      --isa NAME           CPU traversal: c, sse2, avx2 or avx512 (default: the best this CPU runs;\n"
-            "                           the same images and counters with any; record key isa)\n"
-            "  -q, --quiet              no progress output (warnings and errors still go to stderr)\n"
-            "  -h, --help               this text\n"
-            "  -V, --version            version and the backends in this build\n\n"
-            "Prints one line 'record: key=value ...' on stdout (see docs/record.md).\n",
-            prog, RT_MAX_DEPTH);
-}
-
-/* --warmup: a count, or a time in milliseconds with the suffix ms. */
-static int parse_warmup(const char *s, int *runs, double *ms)
-{
-    char buf[32];
-    const size_t n = strlen(s);
-    if (n > 2 && n < sizeof buf && strcmp(s + n - 2, "ms") == 0) {
-        int v;
-        memcpy(buf, s, n - 2);
-        buf[n - 2] = '\0';
-        if (rt_parse_int(buf, 0, 600000, &v) != 0)
-            return -1;
-        *ms = v;
-        *runs = -1;
-        return 0;
-    }
-    *ms = -1.0;
-    return rt_parse_int(s, 0, 1000, runs);
-}
-
-static int opt_error(const char *opt, const char *val, const char *why)
-{
-    fprintf(stderr, "%s: option %s '%s': %s\n", prog, opt, val, why);
-    return -1;
-}
-
-enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE,
-       OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE, OPT_ISA, OPT_SHARE_GPU, OPT_HUGE_PAGES,
-       OPT_MAX_MODEL_TRIS };
-
-static void print_version(void)
-{
-    printf("raytrace (raybench) %s\nbackends:", RT_VERSION);
-    const RtBackend *const *b = rt_backend_list();
-    for (int i = 0; b[i]; i++)
-        printf(" %s%s", b[i]->name, b[i]->unavailable ? "(not built)" : "");
-    printf("\nbuild: %s\ncommit: %s\n", RT_BUILD_FLAGS, RT_COMMIT);
-}
-
-/* --cache, --max-model-triangles, --build-threads, --huge-pages, --runs and --warmup. */
-static int parse_load_timing(int c, const char *arg, Options *o)
-{
-    switch (c) {
-    case OPT_HUGE_PAGES:
-        if (strcmp(arg, "on") != 0 && strcmp(arg, "off") != 0 && strcmp(arg, "auto") != 0)
-            return opt_error("--huge-pages", arg, "expected on, off or auto");
-        o->huge_pages = strcmp(arg, "on") == 0 ? 1 : strcmp(arg, "off") == 0 ? 0 : -1;
-        return 0;
-    case OPT_CACHE:
-        if (!*arg)
-            return opt_error("--cache", arg, "expected a directory");
-        if (rt_cache_unavailable())
-            return opt_error("--cache", arg, rt_cache_unavailable());
-        o->cache = arg;
-        return 0;
-    case OPT_MAX_MODEL_TRIS: {
-        char *end;
-        errno = 0;
-        const unsigned long long n = strtoull(arg, &end, 10);
-        if (errno || end == arg || *end || arg[0] == '-' || rt_model_set_max_triangles((uint64_t)n) != 0)
-            return opt_error("--max-model-triangles", arg, "expected a positive integer");
-        return 0;
-    }
-    case OPT_BUILD_THREADS:
-        if (rt_parse_int(arg, 1, 4096, &o->build_threads) != 0)
-            return opt_error("--build-threads", arg, "expected an integer from 1 to 4096");
-        return 0;
-    case OPT_RUNS:
-        if (rt_parse_int(arg, 1, 1000, &o->runs) != 0)
-            return opt_error("--runs", arg, "expected an integer from 1 to 1000");
-        return 0;
-    default:
-        if (parse_warmup(arg, &o->warmup_runs, &o->warmup_ms) != 0)
-            return opt_error("--warmup", arg, "expected a count from 0 to 1000, or a time such as 50ms (at most 600000ms)");
-        return 0;
-    }
-}
-
-/* --isa: a name in the CPU traversal's table that this CPU runs. */
-static int parse_isa(const char *arg, Options *o)
-{
-    RtError e;
-    if (rt_cpu_isa_select(arg, &e) != 0) {
-        fprintf(stderr, "%s: ", prog), rt_say(e.msg);
-        return -1;
-    }
-    o->isa = arg;
-    return 0;
-}
-
-static int parse_options(int argc, char **argv, Options *o)
-{
-    static const struct option longopts[] = {
-        {"output", required_argument, NULL, 'o'},     {"backend", required_argument, NULL, 'b'},
-        {"accel", required_argument, NULL, 'a'},      {"resolution", required_argument, NULL, 'r'},
-        {"max-depth", required_argument, NULL, 'd'},  {"threads", required_argument, NULL, 't'},
-        {"tile", required_argument, NULL, OPT_TILE},  {"schedule", required_argument, NULL, OPT_SCHEDULE},
-        {"mpi-schedule", required_argument, NULL, OPT_MPI_SCHEDULE},
-        {"mpi-scene", required_argument, NULL, OPT_MPI_SCENE},
-        {"block", required_argument, NULL, OPT_BLOCK}, {"device", required_argument, NULL, OPT_DEVICE},
-        {"runs", required_argument, NULL, OPT_RUNS},  {"warmup", required_argument, NULL, OPT_WARMUP},
-        {"build-threads", required_argument, NULL, OPT_BUILD_THREADS}, {"cache", required_argument, NULL, OPT_CACHE},
-        {"max-model-triangles", required_argument, NULL, OPT_MAX_MODEL_TRIS},
-        {"huge-pages", required_argument, NULL, OPT_HUGE_PAGES},
-        {"verify", no_argument, NULL, OPT_VERIFY},    {"calibrate", no_argument, NULL, OPT_CALIBRATE},    {"quiet", no_argument, NULL, 'q'},
-        {"isa", required_argument, NULL, OPT_ISA},    {"share-gpu", no_argument, NULL, OPT_SHARE_GPU},
-        {"help", no_argument, NULL, 'h'},             {"version", no_argument, NULL, 'V'},
-        {NULL, 0, NULL, 0}};
-    memset(o, 0, sizeof *o);
-    o->backend = "serial";
-    o->accel = RT_ACCEL_BVH;
-    o->max_depth = -1;
-    o->warmup_runs = -1;
-    o->warmup_ms = -1.0;
-    o->huge_pages = -1;
-    int c;
-    opterr = 0;
-    while ((c = getopt_long(argc, argv, ":o:b:a:r:d:t:qhV", longopts, NULL)) != -1) {
-        switch (c) {
-        case 'o': o->output = optarg; break;
-        case 'b': o->backend = optarg; break;
-        case 'a':
-            if (rt_accel_parse(optarg, &o->accel) != 0)
-                return opt_error("--accel", optarg, "expected none or bvh");
-            break;
-        case 'r':
-            if (rt_parse_wxh(optarg, RT_MAX_SIDE, &o->width, &o->height) != 0)
-                return opt_error("--resolution", optarg, "expected WxH with 1 <= W,H <= 32768");
-            if ((unsigned long long)o->width * (unsigned long long)o->height > RT_MAX_PIXELS)
-                return opt_error("--resolution", optarg, "more than 2^28 pixels");
-            break;
-        case 'd':
-            if (rt_parse_int(optarg, 0, RT_MAX_DEPTH, &o->max_depth) != 0)
-                return opt_error("--max-depth", optarg, "expected an integer from 0 to 32");
-            break;
-        case 't':
-            if (rt_parse_int(optarg, 1, 4096, &o->threads) != 0)
-                return opt_error("--threads", optarg, "expected an integer from 1 to 4096");
-            break;
-        case OPT_TILE:
-            if (rt_parse_wxh(optarg, 4096, &o->tile_w, &o->tile_h) != 0)
-                return opt_error("--tile", optarg, "expected WxH with 1 <= W,H <= 4096");
-            break;
-        case OPT_SCHEDULE:
-            if (strcmp(optarg, "tiles") == 0) o->schedule = RT_SCHED_TILES;
-            else if (strcmp(optarg, "pixels") == 0) o->schedule = RT_SCHED_PIXELS;
-            else return opt_error("--schedule", optarg, "expected tiles or pixels");
-            break;
-        case OPT_MPI_SCHEDULE:
-            if (strcmp(optarg, "dynamic") == 0) o->mpi_schedule = RT_MPI_DYNAMIC;
-            else if (strcmp(optarg, "rows") == 0) o->mpi_schedule = RT_MPI_ROWS;
-            else return opt_error("--mpi-schedule", optarg, "expected dynamic or rows");
-            break;
-        case OPT_MPI_SCENE:
-            if (strcmp(optarg, "every") != 0 && strcmp(optarg, "bcast") != 0)
-                return opt_error("--mpi-scene", optarg, "expected every or bcast");
-            o->mpi_scene = optarg;
-            break;
-        case OPT_BLOCK:
-            if (rt_parse_wxh(optarg, 1024, &o->block_x, &o->block_y) != 0 || o->block_x * o->block_y > 1024)
-                return opt_error("--block", optarg, "expected BXxBY with at most 1024 threads");
-            break;
-        case OPT_DEVICE:
-            if (rt_parse_int(optarg, 0, 1023, &o->device) != 0)
-                return opt_error("--device", optarg, "expected a device index");
-            break;
-        case OPT_CACHE: case OPT_BUILD_THREADS: case OPT_RUNS: case OPT_WARMUP: case OPT_HUGE_PAGES:
-        case OPT_MAX_MODEL_TRIS:
-            if (parse_load_timing(c, optarg, o) != 0)
-                return -1;
-            break;
-        case OPT_VERIFY: o->verify = 1; break;
-        case OPT_SHARE_GPU: o->share_gpu = 1; break;
-        case OPT_CALIBRATE: o->calibrate = 1; break;
-        case OPT_ISA:
-            if (parse_isa(optarg, o) != 0)
-                return -1;
-            break;
-        case 'q': o->quiet = 1; break;
-        case 'h': usage(stdout); exit(0);
-        case 'V': print_version(); exit(0);
-        case ':':
-            fprintf(stderr, "%s: option %s needs a value\n", prog, argv[optind - 1]);
-            return -1;
-        default:
-            fprintf(stderr, "%s: unknown option '%s' (see --help)\n", prog, argv[optind - 1]);
-            return -1;
-        }
-    }
-    if (optind != argc - 1) {
-        fprintf(stderr, "%s: expected exactly one scene file (see --help)\n", prog);
-        return -1;
-    }
-    o->scene = argv[optind];
-    return 0;
-}
+#include "backends/backends.h"
+#include "cli/options.h"
 
 typedef struct Progress {
     int enabled;
@@ -379,49 +106,19 @@ static int quiet_rank_exit(int other_rank)
     return 1;
 }
 
-/* Parses the options on every rank; under mpirun only rank 0 may say what
- * is wrong with them, or print --help and --version (stdout and stderr are
- * silenced meanwhile on the others). */
-static int parse_on_every_rank(int argc, char **argv, Options *o, int other_rank)
-{
-    int saved_stderr = -1, saved_stdout = -1;
-    if (other_rank) {
-        fflush(stdout);
-        fflush(stderr);
-        saved_stdout = dup(STDOUT_FILENO);
-        saved_stderr = dup(STDERR_FILENO);
-        FILE *null = fopen("/dev/null", "w");
-        if (null) {
-            dup2(fileno(null), STDOUT_FILENO);
-            dup2(fileno(null), STDERR_FILENO);
-            fclose(null);
-        }
-    }
-    int parsed = parse_options(argc, argv, o);
-    if (other_rank) {
-        fflush(stdout);
-        fflush(stderr);
-        dup2(saved_stdout, STDOUT_FILENO);
-        dup2(saved_stderr, STDERR_FILENO);
-        close(saved_stdout);
-        close(saved_stderr);
-    }
-    return parsed;
-}
-
 /* The backend --backend names, or NULL after saying why not (rank 0). */
 static const RtBackend *pick_backend(const Options *o, int other_rank)
 {
     const RtBackend *be = rt_backend_find(o->backend);
     if (!be) {
         if (!other_rank)
-            fprintf(stderr, "%s: option --backend '%s': unknown backend (serial, openmp, mpi, cuda)\n", prog,
+            fprintf(stderr, "%s: option --backend '%s': unknown backend (serial, openmp, mpi, cuda)\n", cli_prog,
                     o->backend);
         return NULL;
     }
     if (be->unavailable) {
         if (!other_rank)
-            fprintf(stderr, "%s: --backend %s: %s\n", prog, be->name, be->unavailable);
+            fprintf(stderr, "%s: --backend %s: %s\n", cli_prog, be->name, be->unavailable);
         return NULL;
     }
     return be;
@@ -456,7 +153,7 @@ static int cache_load(Run *r, RtError *err)
     RtError why;
     int loaded = rt_cache_load(r->o->cache, r->o->scene, r->o->accel, &r->scene, &r->accel, r->cache_key, &why);
     if (loaded < 0)
-        rt_fail(err, "%s: %.1000s", prog, why.msg);
+        rt_fail(err, "%s: %.1000s", cli_prog, why.msg);
     /* a folder refused on any rank fails every rank, together */
     if (r->col ? r->col->agree(loaded < 0, err) != 0 : loaded < 0) {
         if (loaded == 1) {
@@ -466,7 +163,7 @@ static int cache_load(Run *r, RtError *err)
         return -1;
     }
     if (loaded == 0 && why.msg[0] && r->is_root)
-        fprintf(stderr, "%s: warning: ", prog), rt_say(why.msg);
+        fprintf(stderr, "%s: warning: ", cli_prog), rt_say(why.msg);
     RtError scratch = {""};
     if (r->col && r->col->agree(!loaded, &scratch) != 0 && loaded) {
         rt_accel_free(&r->accel);
@@ -488,7 +185,7 @@ static void cache_store(Run *r, const RtScene *parsed)
     st.line_res = parsed->line_res;
     RtError cerr;
     if (rt_cache_store(r->o->cache, &st, &r->accel, r->cache_key, &cerr) != 0)
-        fprintf(stderr, "%s: warning: ", prog), rt_say(cerr.msg); /* the run goes on */
+        fprintf(stderr, "%s: warning: ", cli_prog), rt_say(cerr.msg); /* the run goes on */
 }
 
 /* The scene loaded with the overrides applied, the camera checked, the
@@ -740,7 +437,7 @@ static void record_values(const Run *r, RecValue *v, char *tile)
     const Options *o = r->o;
     const RtRenderOut *out = &r->out;
     const uint64_t rays = rt_counters_rays(&out->counters);
-    const int tw = o->tile_w ? o->tile_w : (strcmp(r->be->name, "serial") == 0 ? 32 : 16);
+    const int tw = o->tile_w ? o->tile_w : rt_backend_tile(r->be);
     snprintf(tile, 32, "%dx%d", tw, o->tile_h ? o->tile_h : tw);
     rec_scene(v, r->scene.name);
     rec_width(v, r->cam.width);
@@ -836,12 +533,12 @@ int main(int argc, char **argv)
 #ifdef __GLIBC__
     /* The BVH build frees and allocates each level's reference arrays; from
      * the heap they reuse pages already mapped, where glibc's default maps
-     * fresh ones above a few MiB and faults every page in again (build 3-10%
-     * faster on 16 threads: docs/performance.md, "Large scenes"). */
+     * fresh ones above a few MiB and faults every page in again (the
+     * measurement: docs/performance.md, "Large scenes"). */
     mallopt(M_MMAP_THRESHOLD, 32 << 20);
     mallopt(M_TRIM_THRESHOLD, 1 << 30);
 #endif
-    if (parse_on_every_rank(argc, argv, &o, other_rank) != 0)
+    if (cli_parse(argc, argv, &o, other_rank) != 0)
         return quiet_rank_exit(other_rank);
     const RtBackend *be = pick_backend(&o, other_rank);
     if (!be)
@@ -855,7 +552,7 @@ int main(int argc, char **argv)
     if (signal(SIGTERM, on_stop_signal) == SIG_IGN)
         signal(SIGTERM, SIG_IGN);
     if (be->init && be->init(&argc, &argv, &err) != 0) {
-        fprintf(stderr, "%s: ", prog), rt_say(err.msg);
+        fprintf(stderr, "%s: ", cli_prog), rt_say(err.msg);
         return 1;
     }
     if (be->prewarm) /* (the GPU's context while the scene loads) */

@@ -27,36 +27,57 @@ int rt_fail(RtError *err, const char *fmt, ...)
 #define RT_MAX_SIDE 32768
 #define RT_MAX_PIXELS (1ull << 28)
 
-typedef struct RtScene {
-    /* flat arrays (see core/rt_scene.h) */
-    RtVec3 *vertices;   uint32_t nvertices, cap_vertices;
-    RtVec3 *normals;    uint32_t nnormals, cap_normals;
-    RtSphere *spheres;  uint32_t nspheres, cap_spheres;
-    RtTriangle *triangles; uint32_t ntriangles, cap_triangles;
-    RtMaterial *materials; uint32_t nmaterials, cap_materials;
-    RtLight *lights;    uint32_t nlights, cap_lights;
-    /* settings as read (camera vectors unnormalized) */
-    RtVec3 camera_pos, camera_fwd, camera_up;
-    float fov_ha;       /* degrees, half the horizontal... as the format names it */
-    int32_t width, height;
-    int32_t max_depth;
-    RtVec3 background, ambient;
-    char output[4096];  /* output_image */
-    char name[256];     /* scene name: file name without directory and extension */
-    char path[4096];    /* file it came from */
-    /* lines that set camera values (0: default), for error messages */
-    int line_fwd, line_up, line_fov, line_res, line_depth, line_output;
-    int models;         /* mesh: lines read */
-    /* The bytes the scene was made of: the hash of the scene file as parsed
-     * (rt_content_hash), and every other file read for it (models and the
-     * files they reference), each with the hash of the bytes read. The scene
-     * cache keys the first and checks the others; MPI ranks agree on all. */
-    uint8_t file_hash[16];
-    struct RtDep *deps; uint32_t ndeps;
-    /* the scene cache's mapping the arrays live in (rt_cache_load); NULL: malloc'd */
-    void *cache_map;
+/* The render settings as read (camera vectors unnormalized): with the
+ * arrays, all a scene cache entry stores and the MPI broadcast sends. */
+#define RT_SCENE_SETTINGS_MEMBERS                                                \
+    RtVec3 camera_pos, camera_fwd, camera_up;                                    \
+    float fov_ha; /* degrees, half the horizontal... as the format names it */   \
+    int32_t width, height;                                                       \
+    int32_t max_depth;                                                           \
+    RtVec3 background, ambient;                                                  \
+    char output[4096]; /* output_image */
+typedef struct RtSceneSettings {
+    RT_SCENE_SETTINGS_MEMBERS
+} RtSceneSettings;
+
+/* Where a scene came from: the file, the lines that set values (for
+ * messages), the files read for it and its own memory. file_hash is the
+ * hash of the scene file's bytes as parsed (rt_content_hash); deps every
+ * other file read for it (models and the files they reference), each with
+ * the hash of the bytes read: the scene cache keys the first and checks the
+ * others, MPI ranks agree on all. Never stored or sent as bytes: whoever
+ * loads a scene fills it; a cache entry and the MPI broadcast carry, each
+ * by name, only what the key, the ranks' agreement and the messages need. */
+#define RT_SCENE_SOURCE_MEMBERS                                                            \
+    char name[256];  /* scene name: file name without directory and extension */          \
+    char path[4096]; /* file it came from */                                               \
+    int line_fwd, line_up, line_fov, line_res, line_depth, line_output; /* 0: default */   \
+    int models;      /* mesh: lines read */                                                \
+    uint8_t file_hash[16];                                                                 \
+    struct RtDep *deps; uint32_t ndeps;                                                    \
+    void *cache_map; /* the cache entry the arrays live in (rt_cache_load); NULL: malloc'd */ \
     size_t cache_len;
+typedef struct RtSceneSource {
+    RT_SCENE_SOURCE_MEMBERS
+} RtSceneSource;
+
+/* The arrays (core/rt_scene.h's RT_SCENE_ARRAYS), then the settings and the
+ * source, each of those reachable member by member (scene->width) and as
+ * one struct (scene->settings): the same member list twice in a union, as
+ * Linux's struct_group, so the two are one layout. */
+#define RT_SCENE_ARRAY_(T, name) T *name; uint32_t n##name, cap_##name;
+typedef struct RtScene {
+    RT_SCENE_ARRAYS(RT_SCENE_ARRAY_)
+    union {
+        struct { RT_SCENE_SETTINGS_MEMBERS };
+        RtSceneSettings settings;
+    };
+    union {
+        struct { RT_SCENE_SOURCE_MEMBERS };
+        RtSceneSource source;
+    };
 } RtScene;
+#undef RT_SCENE_ARRAY_
 
 typedef void (*RtWarnFn)(void *ctx, const char *msg);
 
@@ -188,7 +209,8 @@ RtSceneView rt_scene_view(const RtScene *scene, const RtAccel *accel, const RtCa
 int rt_model_append(const char *file, const float xf[12], uint32_t material, RtScene *scene, RtError *err);
 /* Whether path names a model file this build reads (not a .txt scene). */
 int rt_model_supported(const char *path);
-/* A scene around one model: a camera that frames it, a light, a material. */
+/* A scene around one model: a camera that frames it, a light, a material
+ * (io/scene_load.c, which makes `raytrace MODEL` a scene). */
 int rt_model_scene(const char *path, RtScene *scene, RtError *err);
 /* The most triangles one model may expand to (instanced nodes counted
  * before any expansion; default 50,000,000; --max-model-triangles): 0, or

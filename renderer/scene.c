@@ -1,4 +1,4 @@
-/* scene.c - camera set-up, the shading view, and small shared helpers. */
+/* scene.c - camera set-up, the shading view, freeing a scene, and small shared helpers. */
 #define _GNU_SOURCE
 #include <errno.h>
 #include <fcntl.h>
@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -90,21 +91,42 @@ RtSceneView rt_scene_view(const RtScene *s, const RtAccel *a, const RtCamera *ca
     v.nnodes = a->nnodes;
     v.wide = a->nwide ? a->wide : NULL;
     v.nwide = a->nwide;
-    v.vertices = s->vertices;
-    v.normals = s->normals;
-    v.spheres = s->spheres;
-    v.triangles = s->triangles;
-    v.materials = s->materials;
-    v.lights = s->lights;
-    v.nspheres = s->nspheres;
-    v.ntriangles = s->ntriangles;
-    v.nmaterials = s->nmaterials;
-    v.nlights = s->nlights;
+#define VIEW_ARRAY(T, name) v.name = s->name, v.n##name = s->n##name;
+    RT_SCENE_ARRAYS(VIEW_ARRAY)
+#undef VIEW_ARRAY
     v.cam = *cam;
     v.background = s->background;
     v.ambient = s->ambient;
     v.max_depth = s->max_depth;
     return v;
+}
+
+void rt_scene_free(RtScene *s)
+{
+    if (s->cache_map) {
+        munmap(s->cache_map, s->cache_len);
+    } else {
+#define FREE_ARRAY(T, name) free(s->name);
+        RT_SCENE_ARRAYS(FREE_ARRAY)
+#undef FREE_ARRAY
+    }
+    rt_scene_free_deps(s);
+    memset(s, 0, sizeof *s);
+}
+
+void rt_scene_name(RtScene *s, const char *path)
+{
+    const char *b = strrchr(path, '/');
+    b = b ? b + 1 : path;
+    snprintf(s->name, sizeof s->name, "%s", b);
+    char *dot = strrchr(s->name, '.');
+    if (dot && dot != s->name)
+        *dot = '\0';
+    /* The name goes into a space-separated record line. */
+    for (char *c = s->name; *c; c++)
+        if (*c == ' ' || *c == '\t' || *c == '=')
+            *c = '_';
+    snprintf(s->path, sizeof s->path, "%s", path);
 }
 
 double rt_now_ms(void)

@@ -12,6 +12,7 @@
 #endif
 
 #include "build_internal.h"
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf) /* rt_traverse.h asks for it; no ray is traced here */
 #include "core/rt_traverse.h" /* RT_BVH_MAX_DEPTH: the traversal stack bounds the build */
 
 /* A node's children: their reference arrays and counts. */

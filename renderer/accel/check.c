@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include "rt.h"
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf) /* rt_traverse.h asks for it; no ray is traced here */
 #include "core/rt_traverse.h" /* RT_BVH_MAX_DEPTH: the traversal stacks' bound */
 
 #define FRONTIER 512 /* subtrees handed to the threads */

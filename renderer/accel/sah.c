@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "build_internal.h"
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf) /* rt_traverse.h asks for it; no ray is traced here */
 #include "core/rt_traverse.h" /* RT_SSE */
 
 /* The tree's SAH cost sums fixed chunks of nodes in order: fixed here, not

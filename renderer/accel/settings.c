@@ -3,6 +3,7 @@
  * threads, its 2 MiB pages). Each build reads its own settings, so builds
  * running at once never decide for each other. */
 #include "build_internal.h"
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf) /* rt_traverse.h asks for it; no ray is traced here */
 #include "core/rt_traverse.h" /* RT_BVH_MAX_DEPTH: the traversal stack bounds the build */
 
 RtBvhSettings rt_bvh_settings_default(void)

@@ -4,6 +4,7 @@
  * listed, with the reason, so that asking for it gives a clear message. */
 #include <string.h>
 
+#include "backends.h"
 #include "config.h"
 #include "rt.h"
 
@@ -72,4 +73,11 @@ const RtBackend *rt_backend_find(const char *name)
         if (strcmp(backends[i]->name, name) == 0)
             return backends[i];
     return NULL;
+}
+
+/* The CPU backends' own tiles; the GPU backends tile by --block and record
+ * the threaded loop's default. */
+int rt_backend_tile(const RtBackend *be)
+{
+    return be == &rt_backend_serial ? RT_SERIAL_TILE : RT_OMP_TILE;
 }

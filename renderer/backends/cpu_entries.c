@@ -7,7 +7,8 @@
 #include "cpu_traverse.h"
 
 /* The pixel loop (core/rt_path_tmpl.h) per instruction set, with the entry's
- * traversal inlined as its query, so a tile renders with no call per ray. */
+ * traversal inlined as its query, so a tile renders with no call per ray
+ * (what that saves: docs/cpu-backends.md, "Traversal and dispatch"). */
 #define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) trace_wide(s, o, d, tmax, any, hit, cnt, node_c, leaf_c)
 #define RT_PATH_NAME(f) f##_c
 #define RT_PATH_FN CPU_INLINE

@@ -12,6 +12,9 @@
 #define RT_CPU_TRACE_H
 
 #include "rt.h"
+/* The CPU's leaf vote (rt_traverse.h): one ray, no warp to wait for, so it
+ * tests a leaf at once. */
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf)
 #include "core/rt_traverse.h"
 
 typedef int (*RtCpuTraceFn)(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, RtHit *hit,

@@ -1,7 +1,8 @@
 /* mpi_common.h - what the two MPI backends share (mpi.c: ranks on the CPU;
- * mpi_cuda.c: a GPU on each rank): start and end, agreeing on failures, and
- * the dynamic scheme's shared image -- the claim counter and the image in
- * one MPI window on rank 0 (docs/cpu-backends.md, "MPI"). */
+ * mpi_cuda.c: a GPU on each rank), defined in mpi_common.c: start and end,
+ * agreeing on failures, the scene on every rank, and the dynamic scheme's
+ * shared image -- the claim counter and the image in one MPI window on rank
+ * 0 (docs/cpu-backends.md, "MPI"). */
 #ifndef RT_MPI_COMMON_H
 #define RT_MPI_COMMON_H
 
@@ -16,6 +17,13 @@ extern int rt_mpi_rank, rt_mpi_size;
  * number of nodes; set by rt_mpi_init. */
 extern int rt_mpi_local_rank, rt_mpi_local_size, rt_mpi_node, rt_mpi_nodes;
 extern MPI_Comm rt_mpi_node_comm;
+/* The thread support MPI_Init_thread provided (MPI_THREAD_*). */
+extern int rt_mpi_thread_level;
+/* This rank's time in the collective's scene_load, and how the scene
+ * reached the ranks ("bcast" or "every"; "every" when P = 1): the record's
+ * load_ms_max and mpi_scene. */
+extern double rt_mpi_load_ms;
+extern const char *rt_mpi_scene_how;
 
 /* Names the failed call with MPI's error string, then MPI_Abort (never a hang). */
 void rt_mpi_die(const char *file, int line, const char *call, int code);
@@ -35,14 +43,18 @@ void rt_mpi_finalize(void);
  * the lowest failing rank's message (RtCollective.agree). */
 int rt_mpi_agree(int failed, RtError *err);
 /* Test hooks: 1 when environment variable var names this rank, in
- * raytrace-testhooks only (mpi.c built with RT_TEST_HOOKS); else 0. */
+ * raytrace-testhooks only (mpi_common.c built with RT_TEST_HOOKS); else 0. */
 int rt_mpi_test_rank(const char *var);
 /* Collective: rank 0's buf gets each rank's node number, ranks separated by
  * '/' (the record's rank_node: "0/0/1/1"). */
 void rt_mpi_rank_nodes(char *buf, size_t size);
 extern const RtCollective rt_mpi_collective;
 
-/* The shared image of the dynamic scheme. */
+/* The shared image of the dynamic scheme. The window on rank 0 (disp_unit
+ * 1) holds the claim counter, then the image at byte RT_WIN_IMAGE, a
+ * 128-byte line pair later (the adjacent-line prefetcher's pair), so that
+ * claims never contend with the pixels written beside them. */
+#define RT_WIN_IMAGE 128
 typedef struct RtMpiImage {
     MPI_Win win;
     void *base;     /* rank 0's window (the counter at its start) */

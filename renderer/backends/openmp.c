@@ -1,9 +1,9 @@
 /* openmp.c - the OpenMP backend: the shared tile loop (cpu_tiles.h) on T
  * threads of one process.
  *
- *   --schedule tiles  (default) tiles of --tile WxH (default 16x16, see
- *                     docs/cpu-backends.md for the measurement) handed out
- *                     dynamically: the load-balanced scheme.
+ *   --schedule tiles  (default) tiles of --tile WxH (default RT_OMP_TILE,
+ *                     backends.h) handed out dynamically: the load-balanced
+ *                     scheme.
  *   --schedule pixels the report's scheme: `collapse(2)` static over pixels.
  *
  * Threads: --threads N, else OMP_NUM_THREADS, else every CPU of the process's
@@ -11,14 +11,9 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "backends.h" /* RT_OMP_TILE */
 #include "cpu_tiles.h"
 #include "rt.h"
-
-/* 16x16 measured best on the dragon among 8x8, 16x16, 32x32 and 64x16, at 2
- * and at 16 threads (docs/cpu-backends.md): large enough
- * that the per-tile scheduling cost vanishes, small enough (768 tiles for
- * 512x384) that the last tiles do not leave threads idle. */
-#define RT_OMP_TILE 16
 
 static int render_openmp(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 {

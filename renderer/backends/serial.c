@@ -3,6 +3,7 @@
  * bit-identically). */
 #include <string.h>
 
+#include "backends.h"
 #include "rt.h"
 #include "cpu_trace.h"
 
@@ -11,7 +12,7 @@ static int render_serial(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     (void)err;
     const RtSceneView *v = &job->view;
     int w = v->cam.width, h = v->cam.height;
-    int tw = job->tile_w > 0 ? job->tile_w : 32, th = job->tile_h > 0 ? job->tile_h : 32;
+    int tw = job->tile_w > 0 ? job->tile_w : RT_SERIAL_TILE, th = job->tile_h > 0 ? job->tile_h : RT_SERIAL_TILE;
     int ntiles = rt_tile_count(w, h, tw, th);
     RtCounters cnt;
     memset(&cnt, 0, sizeof cnt);

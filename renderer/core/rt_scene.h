@@ -90,17 +90,25 @@ typedef struct RtBvh4Node {
     uint32_t pad[3];
 } RtBvh4Node;         /* 128 bytes */
 
+/* The scene's flat arrays, listed once: X(element type, name) each. The
+ * scene (rt.h's RtScene) holds `T *name; uint32_t nname, cap_name;`, the
+ * view below `const T *name; uint32_t nname;`, and the scene's free, its
+ * cache entry, the MPI broadcast and the CUDA upload iterate the list. */
+#define RT_SCENE_ARRAYS(X)   \
+    X(RtVec3, vertices)      \
+    X(RtVec3, normals)       \
+    X(RtSphere, spheres)     \
+    X(RtTriangle, triangles) \
+    X(RtMaterial, materials) \
+    X(RtLight, lights)
+
+#define RT_VIEW_ARRAY_(T, name) const T *name; uint32_t n##name;
 typedef struct RtSceneView {
     const RtPrim *prims;          /* nprims records, in BVH order for bvh */
     const RtBvhNode *nodes;       /* nnodes nodes; NULL/0: brute force */
     const RtBvh4Node *wide;       /* nwide nodes of the 4-wide copy (root 0); NULL: none */
-    const RtVec3 *vertices;       /* vertex pool */
-    const RtVec3 *normals;        /* normal pool */
-    const RtSphere *spheres;      /* nspheres */
-    const RtTriangle *triangles;  /* ntriangles */
-    const RtMaterial *materials;  /* nmaterials */
-    const RtLight *lights;        /* nlights */
-    uint32_t nprims, nnodes, nwide, nspheres, ntriangles, nmaterials, nlights;
+    RT_SCENE_ARRAYS(RT_VIEW_ARRAY_) /* the vertex and normal pools, spheres, triangles, materials, lights */
+    uint32_t nprims, nnodes, nwide;
     RtCamera cam;
     RtVec3 background;            /* colour of rays that hit nothing */
     RtVec3 ambient;               /* ambient light intensity */
@@ -110,6 +118,7 @@ typedef struct RtSceneView {
     const RtBvh4Node *cpu_wide;
     const struct RtCpuLeaf4 *cpu_leaves;
 } RtSceneView;
+#undef RT_VIEW_ARRAY_
 
 /* Exact, deterministic work counters (machine-independent). */
 typedef struct RtCounters {

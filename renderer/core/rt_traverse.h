@@ -3,7 +3,22 @@
  *
  * Determinism: the closest hit is the smallest t > RT_T_MIN, ties going to the
  * lower global primitive index. Brute force and BVH call the same
- * rt_prim_intersect on the same records, so they find bit-identical hits. */
+ * rt_prim_intersect on the same records, so they find bit-identical hits.
+ *
+ * A unit defines, before including this,
+ *   RT_WIDE_LEAF_VOTE(has_leaf, any)  whether a ray of the 4-wide traversal
+ *                    with a leaf aside (has_leaf) stops going through inner
+ *                    nodes and tests it (rt_trace_ray_wide): on the CPU at
+ *                    once (backends/cpu_trace.h), on the GPU when every
+ *                    active lane of the warp has one (backends/cuda/kernels.cuh).
+ *                    `any` lets a backend treat shadow rays apart (none does:
+ *                    docs/gpu.md). Units that run no wide traversal define
+ *                    the CPU's.
+ * No default: which vote a unit's traversal takes never depends on what it
+ * included first. */
+#ifndef RT_WIDE_LEAF_VOTE
+#error "define RT_WIDE_LEAF_VOTE(has_leaf, any) before including rt_traverse.h (see above)"
+#endif
 #ifndef RT_TRAVERSE_H
 #define RT_TRAVERSE_H
 
@@ -383,7 +398,8 @@ done:
  * rt_wide_key, tmin = 0), sorts the entered ones by entry distance (for
  * RT_ANY_HIT_SLOT: takes them in slot order), goes on with the nearest (the
  * first) and stacks the others with their distances; leaf children
- * are primitive ranges, put aside until RT_WIDE_LEAF_VOTE says to test them.
+ * are primitive ranges, put aside until RT_WIDE_LEAF_VOTE (above) says to
+ * test them.
  * Same hits as rt_trace_ray: the closest t, ties to the lower index, any hit
  * strictly closer than tmax. node_visits counts wide nodes and leaves (fewer
  * than the binary tree's). The GPU's default traversal (docs/gpu.md); its
@@ -392,13 +408,6 @@ done:
 #define RT_WIDE_MISS_KEY 0xffffffffu
 #define RT_WIDE_DONE 0xffffffffu /* no node left (has the leaf bit; never a reference) */
 
-/* Whether a ray with a leaf aside (has_leaf) stops going through inner nodes
- * and tests it: on the CPU at once; kernels.cuh defines it before including this
- * as a vote of the warp's active lanes (all have a leaf aside). `any` lets a
- * backend treat shadow rays apart (none does: docs/gpu.md). */
-#ifndef RT_WIDE_LEAF_VOTE
-#define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf)
-#endif
 
 static inline RT_HD uint32_t rt_float_bits(float f)
 {

@@ -1,7 +1,7 @@
 /* model.c - triangle meshes from model files (OBJ, PLY, STL, glTF and the
- * other formats Assimp reads): the scene format's `mesh:` line, and
- * `raytrace MODEL`, which frames a model with a default camera, lights and
- * material (docs/scene-format.md, "Models"). */
+ * other formats Assimp reads), appended to a scene: for the scene format's
+ * `mesh:` line, and for `raytrace MODEL`, which scene_load.c frames with a
+ * default camera, lights and material (docs/scene-format.md, "Models"). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -308,48 +308,3 @@ const char *rt_model_unavailable(void) { return "this build cannot read models (
 int rt_model_set_max_triangles(uint64_t n) { return n ? 0 : -1; }
 
 #endif
-
-/* ---- raytrace MODEL ----------------------------------------------------------
- * A scene around one model: a 3/4 view from the front, above and to the
- * right, far enough that the bounding sphere fills the frame; a white key
- * light from the upper left, ambient light, a grey material with a
- * highlight. */
-static void frame_model(RtScene *s)
-{
-    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (uint32_t i = 0; i < s->nvertices; i++) {
-        const float v[3] = {s->vertices[i].x, s->vertices[i].y, s->vertices[i].z};
-        for (int k = 0; k < 3; k++) {
-            lo[k] = v[k] < lo[k] ? v[k] : lo[k];
-            hi[k] = v[k] > hi[k] ? v[k] : hi[k];
-        }
-    }
-    const RtVec3 c = rt_v3(0.5f * (lo[0] + hi[0]), 0.5f * (lo[1] + hi[1]), 0.5f * (lo[2] + hi[2]));
-    float r = 0.5f * sqrtf((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                           (hi[2] - lo[2]) * (hi[2] - lo[2]));
-    r = r > 0.0f ? r : 1.0f;
-    const RtVec3 dir = rt_normalize(rt_v3(0.55f, 0.45f, 1.0f)); /* from the model towards the camera */
-    s->fov_ha = 25.0f;
-    const float dist = 1.15f * r / sinf(s->fov_ha * 3.14159265f / 180.0f);
-    s->camera_pos = rt_madd(c, dir, dist);
-    s->camera_fwd = dir; /* the camera looks along minus camera_fwd */
-    s->camera_up = rt_v3(0.0f, 1.0f, 0.0f);
-    s->width = 800;
-    s->height = 600;
-    s->background = rt_v3(0.12f, 0.14f, 0.18f);
-    s->ambient = rt_v3(0.18f, 0.18f, 0.2f);
-}
-
-int rt_model_scene(const char *path, RtScene *s, RtError *err)
-{
-    static const char text[] = "material: .3 .3 .3 .65 .65 .62 .25 .25 .25 40 0 0 0 1\n"
-                               "directional_light: .95 .95 .9 .6 -.8 -.5\n";
-    if (rt_scene_parse_buffer(path, text, sizeof text - 1, s, NULL, NULL, err) != 0)
-        return -1;
-    static const float id[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-    if (rt_model_append(path, id, 1, s, err) != 0)
-        return -1;
-    frame_model(s);
-    snprintf(s->output, sizeof s->output, "%s.png", s->name);
-    return 0;
-}

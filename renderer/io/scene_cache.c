@@ -8,8 +8,10 @@
  * the scene read (models and what they reference) is listed in the entry
  * with the hash of the bytes read, and a load misses unless each still
  * hashes the same (ccache's manifest idea). The file is a header (counts,
- * array offsets, the hash of the payload), the scene struct and the arrays,
- * each at a 64-byte offset. The payload hash finds damage, not tampering:
+ * array offsets, the hash of the payload, the scene file's hash and the
+ * settings' line numbers), the render settings (RtSceneSettings) and the
+ * arrays, each at a 64-byte offset; none of the scene's source (RtSceneSource:
+ * names, pointers) is stored as bytes, the loader fills it. The payload hash finds damage, not tampering:
  * every index the renderer follows and the trees' shape are checked as for
  * --verify before an entry is used, and one that fails is removed and built
  * again. The folder must be the user's own and closed to others (as ssh
@@ -39,7 +41,7 @@
 #endif
 
 #define RT_CACHE_MAGIC "RBCACHE1"
-#define RT_CACHE_FORMAT 3u /* (3: the dependency list) */
+#define RT_CACHE_FORMAT 4u /* (3: the dependency list; 4: the settings alone, not the scene struct) */
 #define RT_CACHE_ALIGN 64u
 /* Pieces of 4 MB: a few hundred MB of arrays hash on every core (64 MB
  * pieces left all but three threads idle on the 3.6M-triangle scene). */
@@ -49,18 +51,26 @@
  * 0.6 GB). */
 #define RT_CACHE_MAX_ENTRY (1ull << 36)
 
-enum { A_VERTS, A_NORMALS, A_SPHERES, A_TRIS, A_MATS, A_LIGHTS, A_PRIMS, A_NODES, A_WIDE, A_DEPS, A_COUNT };
-static const size_t elem[A_COUNT] = {sizeof(RtVec3),     sizeof(RtVec3),  sizeof(RtSphere), sizeof(RtTriangle),
-                                     sizeof(RtMaterial), sizeof(RtLight), sizeof(RtPrim),   sizeof(RtBvhNode),
+/* The entry's arrays: the scene's (in RT_SCENE_ARRAYS order), the
+ * accelerator's and the packed dependency list. */
+#define ARRAY_INDEX(T, name) A_##name,
+enum { RT_SCENE_ARRAYS(ARRAY_INDEX) A_PRIMS, A_NODES, A_WIDE, A_DEPS, A_COUNT };
+#undef ARRAY_INDEX
+#define ARRAY_ELEM(T, name) sizeof(T),
+static const size_t elem[A_COUNT] = {RT_SCENE_ARRAYS(ARRAY_ELEM) sizeof(RtPrim), sizeof(RtBvhNode),
                                      sizeof(RtBvh4Node), 1};
+#undef ARRAY_ELEM
 
 typedef struct CacheHeader {
     char magic[8];
-    uint32_t format, header_size, scene_size; /* sizeof checks: another layout never loads */
+    uint32_t format, header_size, settings_size; /* sizeof checks: another layout never loads */
     uint32_t counts[A_COUNT];
     uint64_t offset[A_COUNT];
     uint64_t file_size, payload_hash;
-    uint8_t key[16];
+    uint8_t file_hash[16]; /* the scene's: the bytes it was parsed from */
+    /* the lines that set the settings (line_fwd, line_up, line_fov,
+     * line_res, line_depth, line_output), for messages after a load */
+    int32_t lines[6];
     /* the accelerator's scalars */
     int32_t kind;
     uint32_t nsplit, depth, leaves;
@@ -367,10 +377,13 @@ static void cache_key(CacheDir *cd, const uint8_t file[16], RtAccelKind kind, ch
 static void arrays(const RtScene *s, const RtAccel *a, const char *deps, size_t ndeps, const void **p,
                    uint64_t *bytes, uint32_t *count)
 {
-    const void *ptr[A_COUNT] = {s->vertices, s->normals, s->spheres, s->triangles, s->materials,
-                                s->lights,   a->prims,   a->nodes,   a->wide,      deps};
-    const uint32_t n[A_COUNT] = {s->nvertices, s->nnormals, s->nspheres, s->ntriangles,         s->nmaterials,
-                                 s->nlights,   a->nprims,   a->nnodes,   a->wide ? a->nwide : 0, (uint32_t)ndeps};
+#define ARRAY_PTR(T, name) s->name,
+#define ARRAY_COUNT(T, name) s->n##name,
+    const void *ptr[A_COUNT] = {RT_SCENE_ARRAYS(ARRAY_PTR) a->prims, a->nodes, a->wide, deps};
+    const uint32_t n[A_COUNT] = {RT_SCENE_ARRAYS(ARRAY_COUNT) a->nprims, a->nnodes, a->wide ? a->nwide : 0,
+                                 (uint32_t)ndeps};
+#undef ARRAY_PTR
+#undef ARRAY_COUNT
     for (int i = 0; i < A_COUNT; i++) {
         p[i] = ptr[i];
         count[i] = n[i];
@@ -378,15 +391,15 @@ static void arrays(const RtScene *s, const RtAccel *a, const char *deps, size_t 
     }
 }
 
-/* The entry's hash: of the header (its own hash field zeroed), the scene
- * struct and every array. */
-static uint64_t payload_hash(const CacheHeader *hdr, const void *scene_struct, const void **p, const uint64_t *bytes)
+/* The entry's hash: of the header (its own hash field zeroed), the
+ * settings and every array. */
+static uint64_t payload_hash(const CacheHeader *hdr, const void *settings, const void **p, const uint64_t *bytes)
 {
     CacheHeader h0 = *hdr;
     h0.payload_hash = 0;
     XXH128_hash_t h[2 + A_COUNT];
     h[0] = XXH3_128bits(&h0, sizeof h0);
-    h[1] = XXH3_128bits(scene_struct, sizeof(RtScene));
+    h[1] = XXH3_128bits(settings, sizeof(RtSceneSettings));
     for (int i = 0; i < A_COUNT; i++)
         h[2 + i] = hash_big(p[i], (size_t)bytes[i]);
     return XXH3_64bits(h, sizeof h);
@@ -395,37 +408,44 @@ static uint64_t payload_hash(const CacheHeader *hdr, const void *scene_struct, c
 /* Everything a header must satisfy before its offsets are followed. */
 static int header_ok(const CacheHeader *h, size_t len)
 {
-    if (len < sizeof *h + sizeof(RtScene) || memcmp(h->magic, RT_CACHE_MAGIC, 8) != 0 ||
-        h->format != RT_CACHE_FORMAT || h->header_size != sizeof *h || h->scene_size != sizeof(RtScene) ||
-        h->file_size != len)
+    const size_t head = sizeof *h + sizeof(RtSceneSettings);
+    if (len < head || memcmp(h->magic, RT_CACHE_MAGIC, 8) != 0 || h->format != RT_CACHE_FORMAT ||
+        h->header_size != sizeof *h || h->settings_size != sizeof(RtSceneSettings) || h->file_size != len)
         return 0;
     for (int i = 0; i < A_COUNT; i++)
-        if (h->offset[i] % RT_CACHE_ALIGN || h->offset[i] < sizeof *h + sizeof(RtScene) || h->offset[i] > len ||
+        if (h->offset[i] % RT_CACHE_ALIGN || h->offset[i] < head || h->offset[i] > len ||
             (uint64_t)h->counts[i] * elem[i] > len - h->offset[i])
             return 0;
     return 1;
 }
 
-/* The scene and accelerator an entry's bytes hold, pointing into m. */
+/* The lines that set the settings, into an entry's header and back. */
+static void lines_store(int32_t *l, const RtScene *s)
+{
+    l[0] = s->line_fwd, l[1] = s->line_up, l[2] = s->line_fov;
+    l[3] = s->line_res, l[4] = s->line_depth, l[5] = s->line_output;
+}
+
+static void lines_load(RtScene *s, const int32_t *l)
+{
+    s->line_fwd = l[0], s->line_up = l[1], s->line_fov = l[2];
+    s->line_res = l[3], s->line_depth = l[4], s->line_output = l[5];
+}
+
+/* The scene and accelerator an entry's bytes hold, pointing into m; of
+ * the source only the file's hash and the lines (the loader names it). */
 static void entry_views(char *m, RtScene *scene, RtAccel *accel)
 {
     const CacheHeader *h = (const CacheHeader *)m;
-    memcpy(scene, m + sizeof *h, sizeof *scene);
-    void **sp[6] = {(void **)&scene->vertices, (void **)&scene->normals,   (void **)&scene->spheres,
-                    (void **)&scene->triangles, (void **)&scene->materials, (void **)&scene->lights};
-    uint32_t *np[6] = {&scene->nvertices, &scene->nnormals,   &scene->nspheres,
-                       &scene->ntriangles, &scene->nmaterials, &scene->nlights};
-    uint32_t *cp[6] = {&scene->cap_vertices, &scene->cap_normals,   &scene->cap_spheres,
-                       &scene->cap_triangles, &scene->cap_materials, &scene->cap_lights};
-    for (int i = 0; i < 6; i++) {
-        *sp[i] = m + h->offset[i];
-        *np[i] = *cp[i] = h->counts[i];
-    }
-    scene->deps = NULL, scene->ndeps = 0;
-    scene->cache_map = NULL, scene->cache_len = 0;
+    memset(scene, 0, sizeof *scene);
+    memcpy(&scene->settings, m + sizeof *h, sizeof scene->settings);
     scene->output[sizeof scene->output - 1] = '\0';
-    scene->name[sizeof scene->name - 1] = '\0';
-    scene->path[sizeof scene->path - 1] = '\0';
+#define ARRAY_VIEW(T, name) \
+    scene->name = (T *)(m + h->offset[A_##name]), scene->n##name = scene->cap_##name = h->counts[A_##name];
+    RT_SCENE_ARRAYS(ARRAY_VIEW)
+#undef ARRAY_VIEW
+    memcpy(scene->file_hash, h->file_hash, 16);
+    lines_load(scene, h->lines);
     memset(accel, 0, sizeof *accel);
     accel->kind = (RtAccelKind)h->kind;
     accel->prims = (RtPrim *)(m + h->offset[A_PRIMS]);
@@ -543,8 +563,7 @@ int rt_cache_load(const char *dir, const char *scene_path, RtAccelKind kind, RtS
         memset(accel, 0, sizeof *accel);
         return 0;
     }
-    rt_scene_name(scene, scene_path);
-    scene->models = 0;
+    rt_scene_name(scene, scene_path); /* (the rest of the source: entry_views) */
     if (rt_model_supported(scene_path)) /* raytrace MODEL: the image is named after this file */
         snprintf(scene->output, sizeof scene->output, "%s.png", scene->name);
     scene->cache_map = m;
@@ -552,12 +571,12 @@ int rt_cache_load(const char *dir, const char *scene_path, RtAccelKind kind, RtS
     return 1;
 }
 
-/* Writes the header, the scene struct and the arrays to f. */
-static int write_all(FILE *f, CacheHeader *h, const RtScene *scene, const void **p, const uint64_t *bytes)
+/* Writes the header, the settings and the arrays to f. */
+static int write_all(FILE *f, CacheHeader *h, const RtSceneSettings *settings, const void **p, const uint64_t *bytes)
 {
     static const char zero[RT_CACHE_ALIGN] = {0};
-    int ok = fwrite(h, sizeof *h, 1, f) == 1 && fwrite(scene, sizeof *scene, 1, f) == 1;
-    uint64_t at = sizeof *h + sizeof *scene;
+    int ok = fwrite(h, sizeof *h, 1, f) == 1 && fwrite(settings, sizeof *settings, 1, f) == 1;
+    uint64_t at = sizeof *h + sizeof *settings;
     for (int i = 0; i < A_COUNT && ok; i++) {
         ok = fwrite(zero, 1, h->offset[i] - at, f) == h->offset[i] - at &&
              (bytes[i] == 0 || fwrite(p[i], 1, bytes[i], f) == bytes[i]);
@@ -591,13 +610,16 @@ static void sweep_stale(int fd)
 static void make_header(CacheHeader *h, const RtScene *scene, const RtAccel *accel, const void **p,
                         uint64_t *bytes, const char *deps, size_t ndeps)
 {
+    const RtSceneSettings *settings = &scene->settings;
     memset(h, 0, sizeof *h);
     arrays(scene, accel, deps, ndeps, p, bytes, h->counts);
     memcpy(h->magic, RT_CACHE_MAGIC, 8);
     h->format = RT_CACHE_FORMAT;
     h->header_size = sizeof *h;
-    h->scene_size = sizeof *scene;
-    uint64_t at = sizeof *h + sizeof *scene;
+    h->settings_size = sizeof *settings;
+    memcpy(h->file_hash, scene->file_hash, 16);
+    lines_store(h->lines, scene);
+    uint64_t at = sizeof *h + sizeof *settings;
     for (int i = 0; i < A_COUNT; i++) {
         at = (at + RT_CACHE_ALIGN - 1) / RT_CACHE_ALIGN * RT_CACHE_ALIGN;
         h->offset[i] = at;
@@ -609,7 +631,7 @@ static void make_header(CacheHeader *h, const RtScene *scene, const RtAccel *acc
     h->depth = accel->depth;
     h->leaves = accel->leaves;
     h->sah_cost = accel->sah_cost;
-    h->payload_hash = payload_hash(h, scene, p, bytes);
+    h->payload_hash = payload_hash(h, settings, p, bytes);
 }
 
 int rt_cache_store(const char *dir, const RtScene *scene, const RtAccel *accel, char *key, RtError *err)
@@ -625,12 +647,10 @@ int rt_cache_store(const char *dir, const RtScene *scene, const RtAccel *accel, 
         cache_close(&cd);
         return rt_fail(err, "scene cache: out of memory");
     }
-    RtScene copy = *scene; /* (no pointers of this process in the file) */
-    copy.deps = NULL, copy.ndeps = 0, copy.cache_map = NULL, copy.cache_len = 0;
     const void *p[A_COUNT];
     uint64_t bytes[A_COUNT];
     CacheHeader h;
-    make_header(&h, &copy, accel, p, bytes, deps, ndeps);
+    make_header(&h, scene, accel, p, bytes, deps, ndeps);
     char name[64];
     snprintf(name, sizeof name, "%s.rbc", key);
     RtAtomicFile af;
@@ -638,7 +658,7 @@ int rt_cache_store(const char *dir, const RtScene *scene, const RtAccel *accel, 
     if (rc == 0) {
         const int fd2 = dup(af.fd);
         FILE *f = fd2 >= 0 ? fdopen(fd2, "wb") : NULL;
-        int ok = f && write_all(f, &h, &copy, p, bytes);
+        int ok = f && write_all(f, &h, &scene->settings, p, bytes);
         if (f)
             ok = fclose(f) == 0 && ok;
         else if (fd2 >= 0)

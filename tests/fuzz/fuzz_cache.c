@@ -14,7 +14,9 @@
 
 #include "rt.h"
 
-/* render_small's loop, every ray through rt_trace_ray */
+/* render_small's loop, every ray through rt_trace_ray (rt_traverse.h's leaf
+ * vote, the CPU's, goes unused) */
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf)
 #define RT_PATH_TRACE(s, o, d, tmax, any, hit, cnt, light) rt_trace_ray(s, o, d, tmax, any, hit, cnt)
 #define RT_PATH_NAME(f) f
 #define RT_PATH_FN static inline

@@ -9,7 +9,7 @@
  *
  * The header is private to io/scene_cache.c, so the arrays are found in the
  * entry's bytes by their known contents (each must occur exactly once at a
- * 64-byte offset), and the scene struct by its path string. */
+ * 64-byte offset), and the render settings by their output name. */
 #define _GNU_SOURCE
 #include <errno.h>
 #include <stddef.h>
@@ -102,7 +102,7 @@ static long find_array(const char *m, size_t len, const void *want, size_t n, co
 
 /* Where the pieces of the entry are. */
 typedef struct {
-    long verts, normals, tris, lights, prims, nodes, wide, scene;
+    long verts, normals, tris, lights, prims, nodes, wide, settings;
 } Layout;
 
 static RtScene S;
@@ -120,28 +120,27 @@ static int locate(void)
     L.prims = find_array(entry, entry_len, A.prims, A.nprims * sizeof *A.prims, "primitive records");
     L.nodes = find_array(entry, entry_len, A.nodes, A.nnodes * sizeof *A.nodes, "BVH nodes");
     L.wide = find_array(entry, entry_len, A.wide, A.nwide * sizeof *A.wide, "wide nodes");
-    /* the scene struct: by its path (unique: no model files), then checked */
-    L.scene = -1;
-    const size_t pl = strlen(S.path) + 1;
+    /* the settings: by their output name (unique in the entry), then checked */
+    L.settings = -1;
+    const size_t ol = strlen(S.output) + 1;
     int found = 0;
-    for (size_t o = 0; o + pl <= entry_len; o++)
-        if (memcmp(entry + o, S.path, pl) == 0 && o >= offsetof(RtScene, path)) {
-            L.scene = (long)(o - offsetof(RtScene, path));
+    for (size_t o = 0; o + ol <= entry_len; o++)
+        if (memcmp(entry + o, S.output, ol) == 0 && o >= offsetof(RtSceneSettings, output)) {
+            L.settings = (long)(o - offsetof(RtSceneSettings, output));
             found++;
         }
-    CHECK(found == 1, "the scene's path found %d times", found);
-    if (found == 1) {
-        const RtScene *fs = (const RtScene *)(entry + L.scene); /* (64-aligned: the struct follows the header) */
-        RtScene copy;
-        memcpy(&copy, fs, sizeof copy);
+    CHECK(found == 1, "the scene's output name found %d times", found);
+    if (found == 1 && (size_t)L.settings + sizeof(RtSceneSettings) <= entry_len) {
+        RtSceneSettings copy;
+        memcpy(&copy, entry + L.settings, sizeof copy);
         CHECK(copy.max_depth == S.max_depth && memcmp(&copy.camera_pos, &S.camera_pos, sizeof S.camera_pos) == 0 &&
-                  copy.width == S.width && copy.nspheres == S.nspheres,
-              "the scene struct is not where its path says");
+                  copy.width == S.width && copy.height == S.height,
+              "the settings are not where their output name says");
     } else {
-        L.scene = -1;
+        L.settings = -1;
     }
     return L.verts < 0 || L.normals < 0 || L.tris < 0 || L.lights < 0 || L.prims < 0 || L.nodes < 0 ||
-                   L.wide < 0 || L.scene < 0
+                   L.wide < 0 || L.settings < 0
                ? -1
                : 0;
 }
@@ -234,7 +233,7 @@ static void t_vertex(char *b) { AT(b, L.tris, RtTriangle)[0].v[2] = S.nvertices;
 static void t_sphere_bit(char *b) { AT(b, L.prims, RtPrim)[a_triangle_prim()].id |= RT_PRIM_SPHERE_BIT; }
 static void t_prim_past(char *b) { AT(b, L.prims, RtPrim)[a_triangle_prim()].id = S.nspheres + S.ntriangles; }
 static void t_light(char *b) { AT(b, L.lights, RtLight)[1].type = 7; }
-static void t_depth(char *b) { AT(b, L.scene, RtScene)->max_depth = 99; }
+static void t_depth(char *b) { AT(b, L.settings, RtSceneSettings)->max_depth = 99; }
 
 static const struct {
     const char *name;

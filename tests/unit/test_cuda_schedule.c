@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include "check.h"
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf) /* rt_traverse.h asks for it; no ray is traced here */
 #include "core/rt_traverse.h"
 #include "backends/cuda/schedule.h"
 

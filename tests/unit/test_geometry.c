@@ -5,6 +5,8 @@
 #include <string.h>
 
 #include "check.h"
+/* the CPU's leaf vote (rt_traverse.h): a leaf at once */
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf)
 #include "core/rt_traverse.h" /* the traversals and intersections under test */
 #include "rt.h"
 

@@ -11,6 +11,8 @@
 #include <string.h>
 
 #include "check.h"
+/* the CPU's leaf vote (rt_traverse.h): a leaf at once */
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf)
 #include "core/rt_shade.h"
 #include "rt.h"
 #include "scene_fixture.h"

@@ -39,8 +39,9 @@ typedef struct RtCudaPart {
  * form (P_IMAGE8), the ray counters and the work counter (P_COUNTERS, one
  * RT_CUDA_CSLOT each) -- per frame in flight (CudaRun.slots): one frame's
  * kernel runs while another's kernel ends or its bytes are copied down. */
-enum { P_PRIMS, P_NODES, P_WIDE, P_VERTS, P_NORMALS, P_SPHERES, P_TRIS, P_MATS, P_LIGHTS, P_IMAGE, P_IMAGE8,
-       P_COUNTERS, P_ORDER, P_COUNT };
+#define PART_INDEX(T, name) P_##name,
+enum { P_PRIMS, P_NODES, P_WIDE, RT_SCENE_ARRAYS(PART_INDEX) P_IMAGE, P_IMAGE8, P_COUNTERS, P_ORDER, P_COUNT };
+#undef PART_INDEX
 enum { RT_CUDA_CSLOT = 64, RT_CUDA_WORK = 48 }; /* a slot's counters: the ray counters, the work counter at 48 */
 
 /* Everything one render acquires (cuda_release frees it) and measures. */
@@ -228,7 +229,6 @@ fail:
 static int cuda_parts(CudaRun *c, RtError *err)
 {
     const RtSceneView *hv = &c->job->view;
-    const RtScene *sc = c->job->scene;
     RtCudaPart *pt = c->parts;
     int failed = 0;
     if (c->plan.slot && (c->slot_wide = rt_cuda_slot_order(hv, err, &failed)) == NULL && failed)
@@ -241,12 +241,9 @@ static int cuda_parts(CudaRun *c, RtError *err)
     pt[P_NODES].host = hv->nodes;      pt[P_NODES].bytes = hv->wide ? 0 : (size_t)hv->nnodes * sizeof(RtBvhNode);
     pt[P_WIDE].host = c->slot_wide ? c->slot_wide : hv->wide;
     pt[P_WIDE].bytes = hv->wide ? (size_t)hv->nwide * sizeof(RtBvh4Node) : 0;
-    pt[P_VERTS].host = hv->vertices;   pt[P_VERTS].bytes = (size_t)sc->nvertices * sizeof(RtVec3);
-    pt[P_NORMALS].host = hv->normals;  pt[P_NORMALS].bytes = (size_t)sc->nnormals * sizeof(RtVec3);
-    pt[P_SPHERES].host = hv->spheres;  pt[P_SPHERES].bytes = (size_t)hv->nspheres * sizeof(RtSphere);
-    pt[P_TRIS].host = hv->triangles;   pt[P_TRIS].bytes = (size_t)hv->ntriangles * sizeof(RtTriangle);
-    pt[P_MATS].host = hv->materials;   pt[P_MATS].bytes = (size_t)hv->nmaterials * sizeof(RtMaterial);
-    pt[P_LIGHTS].host = hv->lights;    pt[P_LIGHTS].bytes = (size_t)hv->nlights * sizeof(RtLight);
+#define PART_HOST(T, name) pt[P_##name].host = hv->name, pt[P_##name].bytes = (size_t)hv->n##name * sizeof(T);
+    RT_SCENE_ARRAYS(PART_HOST) /* every scene array goes up whole */
+#undef PART_HOST
     pt[P_IMAGE].bytes = (size_t)c->slots * c->npix * 3 * sizeof(float);
     pt[P_IMAGE8].bytes = (size_t)c->slots * c->npix * 3;
     pt[P_COUNTERS].bytes = (size_t)c->slots * RT_CUDA_CSLOT;
@@ -297,12 +294,9 @@ static int cuda_upload(CudaRun *c, RtError *err)
         dv->prims = (const RtPrim *)(a + c->parts[P_PRIMS].offset);
         dv->nodes = c->parts[P_NODES].bytes ? (const RtBvhNode *)(a + c->parts[P_NODES].offset) : NULL;
         dv->wide = hv->wide ? (const RtBvh4Node *)(a + c->parts[P_WIDE].offset) : NULL;
-        dv->vertices = (const RtVec3 *)(a + c->parts[P_VERTS].offset);
-        dv->normals = (const RtVec3 *)(a + c->parts[P_NORMALS].offset);
-        dv->spheres = (const RtSphere *)(a + c->parts[P_SPHERES].offset);
-        dv->triangles = (const RtTriangle *)(a + c->parts[P_TRIS].offset);
-        dv->materials = (const RtMaterial *)(a + c->parts[P_MATS].offset);
-        dv->lights = (const RtLight *)(a + c->parts[P_LIGHTS].offset);
+#define PART_DEVICE(T, name) dv->name = (const T *)(a + c->parts[P_##name].offset);
+        RT_SCENE_ARRAYS(PART_DEVICE)
+#undef PART_DEVICE
         c->g.units = c->center ? (const uint32_t *)(a + c->parts[P_ORDER].offset) : NULL;
     }
     return 0;

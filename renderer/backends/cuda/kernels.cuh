@@ -12,9 +12,12 @@
 /* The wide traversal's leaf vote (RT_WIDE_LEAF_VOTE, rt_traverse.h): a lane
  * that has put a leaf aside goes on through inner nodes until every active
  * lane of its warp has one, so the warp tests its leaves together
- * (Aila and Laine, HPG 2009, "speculative traversal"). */
+ * (Aila and Laine, HPG 2009, "speculative traversal"). nvcc's host pass has
+ * no warp: the CPU's vote, a leaf at once. */
 #if defined(__CUDA_ARCH__)
 #define RT_WIDE_LEAF_VOTE(has_leaf, any) __all_sync(__activemask(), (has_leaf))
+#else
+#define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf)
 #endif
 
 #include "core/rt_traverse.h"
