@@ -42,12 +42,14 @@ grep -q "prog.conf: a command study" prog.err || { cat prog.err; fail "command s
 [ "$(wc -l < miss.err)" -eq 1 ] && grep -q "raytrace B: './nothere' not found" miss.err ||
     { cat miss.err; fail "missing build: not one line"; }
 
-# eight commits of the same build; from the fifth on stored 1.5x slower
+# eight commits of the same build; from the fifth on stored 1.5x slower.
+# The stored times are set, not measured: what is tested is the check on
+# the history, which a busy machine's repeats must not decide.
 "$H" run c.conf -o one.csv -q 2> /dev/null || fail "the study"
 for k in $(seq 1 8); do
     awk -F, -v OFS=, -v k="$k" '
         NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; print; next }
-        { $c["render_ms"] = sprintf("%.4f", $c["render_ms"] * (k >= 5 ? 1.5 : 1.0))
+        { $c["render_ms"] = sprintf("%.4f", (10 + (NR % 3) * 0.1) * (k >= 5 ? 1.5 : 1.0))
           $c["git_commit"] = sprintf("c0ffee%02d", k)
           $c["utc"] = sprintf("2026-11-%02dT10:00:00Z", k); print }' one.csv > "c$k.csv"
 done
