@@ -79,7 +79,8 @@ int main(int argc, char **argv)
         if (ms < 0.0)
             rc = fail("the build failed (out of memory?)");
         else
-            printf("embree-build: scene=%s triangles=%u threads=%d ms=%.1f\n", sc.name, sc.ntriangles, threads, ms);
+            printf("embree-build: scene=%s triangles=%u threads=%d ms=%.1f\n", sc.source.name, sc.ntriangles, threads,
+                   ms);
     }
     rtcReleaseDevice(dev);
     rt_scene_free(&sc);

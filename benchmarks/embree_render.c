@@ -126,8 +126,8 @@ static int render_all(const Args *a, RtScene *sc, RtError *err)
     RtCamera cam;
     RtAccel accel; /* brute force: only the primitive records the shading reads */
     if (a->w) {
-        sc->width = a->w;
-        sc->height = a->h;
+        sc->settings.width = a->w;
+        sc->settings.height = a->h;
     }
     if (rt_scene_camera(sc, &cam, err) != 0 || rt_accel_build(sc, RT_ACCEL_NONE, &accel, err) != 0)
         return fail(err->msg);
@@ -149,7 +149,7 @@ static int render_all(const Args *a, RtScene *sc, RtError *err)
     float *rgb = malloc(npix * 3 * sizeof *rgb);
     uint8_t *img = malloc(npix * 3);
     for (int r = 0; rc == 0 && rgb && img && r < a->runs; r++)
-        printf("embree-render: scene=%s width=%d height=%d render_ms=%.3f\n", sc->name, cam.width, cam.height,
+        printf("embree-render: scene=%s width=%d height=%d render_ms=%.3f\n", sc->source.name, cam.width, cam.height,
                render_once(&v, rgb));
     if (rc == 0 && (!rgb || !img))
         rc = fail("out of memory for the image");

@@ -63,21 +63,21 @@ static void warn_deep(const RtScene *s, const RtCamera *cam)
         const RtMaterial *m = &s->materials[i];
         branching = (m->ks[0] > 0 || m->ks[1] > 0 || m->ks[2] > 0) && (m->kt[0] > 0 || m->kt[1] > 0 || m->kt[2] > 0);
     }
-    if (!branching || s->max_depth < 2)
+    if (!branching || s->settings.max_depth < 2)
         return;
-    double per_pixel = ldexp(1.0, s->max_depth) - 1.0;
+    double per_pixel = ldexp(1.0, s->settings.max_depth) - 1.0;
     double worst = per_pixel * (double)cam->width * (double)cam->height;
     if (worst < 1e9)
         return;
     char where[4200];
-    if (s->line_depth)
-        snprintf(where, sizeof where, "%s:%d", s->path, s->line_depth);
+    if (s->source.line_depth)
+        snprintf(where, sizeof where, "%s:%d", s->source.path, s->source.line_depth);
     else
-        snprintf(where, sizeof where, "%s", s->path);
+        snprintf(where, sizeof where, "%s", s->source.path);
     fprintf(stderr,
             "%s: warning: max_depth %d with a material that both reflects and transmits: up to %.3g rays per pixel, "
             "%.3g in all; lower max_depth, or bound the run (harness timeout)\n",
-            where, s->max_depth, per_pixel, worst);
+            where, s->settings.max_depth, per_pixel, worst);
 }
 
 /* The rank a launcher (mpirun, srun) gave this process, known before
@@ -121,8 +121,19 @@ static const RtBackend *pick_backend(const Options *o, int other_rank)
             fprintf(stderr, "%s: --backend %s: %s\n", cli_prog, be->name, be->unavailable);
         return NULL;
     }
+    if (o->builder == RT_BUILDER_GPU && !be->accel_build) {
+        if (!other_rank)
+            fprintf(stderr, "%s: option --builder 'gpu': the %s backend builds on the CPU (cuda and mpi-cuda "
+                            "build on the GPU)\n", cli_prog, be->name);
+        return NULL;
+    }
     return be;
 }
+
+/* Records from which --builder auto builds on the GPU, where the backend
+ * can: below, the CPU's build ends before the GPU's context would be ready
+ * (docs/performance.md, "The GPU build"). */
+#define RT_GPU_BUILD_MIN 65536
 
 /* One render's data, from the scene to the record. */
 typedef struct {
@@ -138,6 +149,8 @@ typedef struct {
     uint8_t *rgb;
     size_t npix;
     double t_start, parse_ms, build_ms, calib_ms, write_ms;
+    const char *builder; /* cpu, gpu */
+    RtBuildInfo gpu_build;
     const char *cache;  /* off, built or loaded */
     char cache_key[33];
     uint64_t hash;
@@ -179,10 +192,10 @@ static int cache_load(Run *r, RtError *err)
 static void cache_store(Run *r, const RtScene *parsed)
 {
     RtScene st = r->scene;
-    st.width = parsed->width;
-    st.height = parsed->height;
-    st.max_depth = parsed->max_depth;
-    st.line_res = parsed->line_res;
+    st.settings.width = parsed->settings.width;
+    st.settings.height = parsed->settings.height;
+    st.settings.max_depth = parsed->settings.max_depth;
+    st.source.line_res = parsed->source.line_res;
     RtError cerr;
     if (rt_cache_store(r->o->cache, &st, &r->accel, r->cache_key, &cerr) != 0)
         fprintf(stderr, "%s: warning: ", cli_prog), rt_say(cerr.msg); /* the run goes on */
@@ -190,6 +203,31 @@ static void cache_store(Run *r, const RtScene *parsed)
 
 /* The scene loaded with the overrides applied, the camera checked, the
  * output checked, the accelerator built and the image buffers allocated. */
+/* The BVH by --builder: on the backend's device where it can build and was
+ * asked to, or (auto) for a scene large enough that the GPU gives the
+ * earlier image; on the CPU otherwise, and after a GPU build that could not
+ * run there (one notice line: too little device memory, say). */
+static int build_accel(Run *r, const RtBvhSettings *bvh, RtError *err)
+{
+    const Options *o = r->o;
+    const uint64_t n = (uint64_t)r->scene.nspheres + r->scene.ntriangles;
+    if (o->accel == RT_ACCEL_BVH && r->be->accel_build &&
+        (o->builder == RT_BUILDER_GPU || (o->builder == RT_BUILDER_AUTO && n >= RT_GPU_BUILD_MIN))) {
+        const int rc = r->be->accel_build(&r->scene, bvh, o->device, &r->accel, &r->gpu_build, err);
+        if (rc == 0)
+            r->builder = "gpu";
+        if (rc <= 0)
+            return rc;
+        if (r->is_root) {
+            char note[1200];
+            snprintf(note, sizeof note, "%s: note: building the BVH on the CPU: %s", cli_prog, err->msg);
+            rt_say(note);
+        }
+        err->msg[0] = '\0';
+    }
+    return rt_accel_build_with(&r->scene, o->accel, bvh, &r->accel, err);
+}
+
 static int prepare(Run *r, RtError *err)
 {
     const Options *o = r->o;
@@ -215,22 +253,22 @@ static int prepare(Run *r, RtError *err)
     }
     const RtScene parsed = r->scene; /* (the settings as read, for the cache) */
     if (o->width) {
-        r->scene.width = o->width;
-        r->scene.height = o->height;
-        r->scene.line_res = 0;
+        r->scene.settings.width = o->width;
+        r->scene.settings.height = o->height;
+        r->scene.source.line_res = 0;
     }
     if (o->max_depth >= 0)
-        r->scene.max_depth = o->max_depth;
+        r->scene.settings.max_depth = o->max_depth;
     if (rt_scene_camera(&r->scene, &r->cam, err) != 0)
         return -1;
     if (r->is_root)
         warn_deep(&r->scene, &r->cam);
-    r->output = o->output ? o->output : r->scene.output;
+    r->output = o->output ? o->output : r->scene.settings.output;
     /* only the root writes the image, so only its directory matters */
     if (r->is_root && ((!o->output && rt_scene_output_check(r->output, err) != 0) || rt_output_check(r->output, err) != 0)) {
-        if (!o->output && r->scene.line_output) { /* the name came from the scene: say where */
+        if (!o->output && r->scene.source.line_output) { /* the name came from the scene: say where */
             RtError e2 = *err;
-            rt_fail(err, "%s:%d: output_image: %s", r->scene.path, r->scene.line_output, e2.msg);
+            rt_fail(err, "%s:%d: output_image: %s", r->scene.source.path, r->scene.source.line_output, e2.msg);
         }
         return -1;
     }
@@ -238,11 +276,14 @@ static int prepare(Run *r, RtError *err)
     RtBvhSettings bvh = rt_bvh_settings_default();
     bvh.threads = o->build_threads;
     bvh.huge_pages = o->huge_pages;
-    if (!loaded && rt_accel_build_with(&r->scene, o->accel, &bvh, &r->accel, err) != 0)
+    r->builder = "cpu";
+    if (!loaded && build_accel(r, &bvh, err) != 0)
         return -1;
-    r->build_ms = rt_now_ms() - t0;
+    r->build_ms = rt_now_ms() - t0 - r->gpu_build.init_ms; /* (the context is not the build's) */
     /* The tree's invariants (tests/unit run them on every build): with
      * --verify, after the timed build. */
+    if ((o->verify || (o->cache && !loaded && r->is_root)) && rt_accel_host(&r->accel, err) != 0)
+        return -1;
     if (o->verify && rt_bvh_check(&r->accel, err) != 0)
         return -1;
     if (o->cache && !loaded && r->is_root)
@@ -437,9 +478,9 @@ static void record_values(const Run *r, RecValue *v, char *tile)
     const Options *o = r->o;
     const RtRenderOut *out = &r->out;
     const uint64_t rays = rt_counters_rays(&out->counters);
-    const int tw = o->tile_w ? o->tile_w : rt_backend_tile(r->be);
+    const int tw = o->tile_w ? o->tile_w : r->be->tile;
     snprintf(tile, 32, "%dx%d", tw, o->tile_h ? o->tile_h : tw);
-    rec_scene(v, r->scene.name);
+    rec_scene(v, r->scene.source.name);
     rec_width(v, r->cam.width);
     rec_height(v, r->cam.height);
     rec_backend(v, r->be->name);
@@ -469,6 +510,11 @@ static void record_values(const Run *r, RecValue *v, char *tile)
     rec_build_threads(v, r->accel.build_threads);
     rec_huge_pages(v, r->accel.huge_pages ? "on" : "off");
     rec_sah_cost(v, r->accel.sah_cost);
+    rec_builder(v, r->builder ? r->builder : "cpu");
+    if (r->gpu_build.kernel_ms > 0.0) {
+        rec_gpu_build_ms(v, r->gpu_build.kernel_ms);
+        rec_build_init_ms(v, r->gpu_build.init_ms);
+    }
     rec_cache(v, r->cache);
     rec_commit(v, RT_COMMIT);
     if (r->col) /* several processes: the fastest rank's time shows the imbalance */

@@ -29,15 +29,13 @@ int rt_fail(RtError *err, const char *fmt, ...)
 
 /* The render settings as read (camera vectors unnormalized): with the
  * arrays, all a scene cache entry stores and the MPI broadcast sends. */
-#define RT_SCENE_SETTINGS_MEMBERS                                                \
-    RtVec3 camera_pos, camera_fwd, camera_up;                                    \
-    float fov_ha; /* degrees, half the horizontal... as the format names it */   \
-    int32_t width, height;                                                       \
-    int32_t max_depth;                                                           \
-    RtVec3 background, ambient;                                                  \
-    char output[4096]; /* output_image */
 typedef struct RtSceneSettings {
-    RT_SCENE_SETTINGS_MEMBERS
+    RtVec3 camera_pos, camera_fwd, camera_up;
+    float fov_ha; /* degrees, half the horizontal... as the format names it */
+    int32_t width, height;
+    int32_t max_depth;
+    RtVec3 background, ambient;
+    char output[4096]; /* output_image */
 } RtSceneSettings;
 
 /* Where a scene came from: the file, the lines that set values (for
@@ -48,34 +46,24 @@ typedef struct RtSceneSettings {
  * others, MPI ranks agree on all. Never stored or sent as bytes: whoever
  * loads a scene fills it; a cache entry and the MPI broadcast carry, each
  * by name, only what the key, the ranks' agreement and the messages need. */
-#define RT_SCENE_SOURCE_MEMBERS                                                            \
-    char name[256];  /* scene name: file name without directory and extension */          \
-    char path[4096]; /* file it came from */                                               \
-    int line_fwd, line_up, line_fov, line_res, line_depth, line_output; /* 0: default */   \
-    int models;      /* mesh: lines read */                                                \
-    uint8_t file_hash[16];                                                                 \
-    struct RtDep *deps; uint32_t ndeps;                                                    \
-    void *cache_map; /* the cache entry the arrays live in (rt_cache_load); NULL: malloc'd */ \
-    size_t cache_len;
 typedef struct RtSceneSource {
-    RT_SCENE_SOURCE_MEMBERS
+    char name[256];  /* scene name: file name without directory and extension */
+    char path[4096]; /* file it came from */
+    int line_fwd, line_up, line_fov, line_res, line_depth, line_output; /* 0: default */
+    int models;      /* mesh: lines read */
+    uint8_t file_hash[16];
+    struct RtDep *deps; uint32_t ndeps;
+    void *cache_map; /* the cache entry the arrays live in (rt_cache_load); NULL: malloc'd */
+    size_t cache_len;
 } RtSceneSource;
 
-/* The arrays (core/rt_scene.h's RT_SCENE_ARRAYS), then the settings and the
- * source, each of those reachable member by member (scene->width) and as
- * one struct (scene->settings): the same member list twice in a union, as
- * Linux's struct_group, so the two are one layout. */
+/* The arrays (core/rt_scene.h's RT_SCENE_ARRAYS), then the settings
+ * (scene->settings.width) and the source (scene->source.name). */
 #define RT_SCENE_ARRAY_(T, name) T *name; uint32_t n##name, cap_##name;
 typedef struct RtScene {
     RT_SCENE_ARRAYS(RT_SCENE_ARRAY_)
-    union {
-        struct { RT_SCENE_SETTINGS_MEMBERS };
-        RtSceneSettings settings;
-    };
-    union {
-        struct { RT_SCENE_SOURCE_MEMBERS };
-        RtSceneSource source;
-    };
+    RtSceneSettings settings;
+    RtSceneSource source;
 } RtScene;
 #undef RT_SCENE_ARRAY_
 
@@ -145,6 +133,12 @@ typedef struct RtAccel {
     int huge_pages;      /* the build asked for 2 MiB pages (RtBvhSettings.huge_pages) */
     double sah_cost;     /* the tree's SAH cost (0 for none): its quality */
     int mapped;          /* the arrays are in the scene's cache mapping: not freed here */
+    /* A tree a backend built on its device (RtBackend.accel_build) stays
+     * there: prims, nodes and wide are NULL until rt_accel_host copies them
+     * down; rt_accel_free calls device_free. */
+    void *device;
+    void (*device_free)(void *device);
+    int (*device_host)(struct RtAccel *accel, RtError *err);
 } RtAccel;
 
 /* The BVH build's settings, one struct a build (as Embree's
@@ -185,6 +179,9 @@ int rt_accel_build_with(const RtScene *scene, RtAccelKind kind, const RtBvhSetti
 int rt_accel_build(const RtScene *scene, RtAccelKind kind, RtAccel *accel, RtError *err);
 int rt_accel_build_threads(const RtScene *scene, RtAccelKind kind, int threads, RtAccel *accel, RtError *err);
 void rt_accel_free(RtAccel *accel);
+/* Makes a device-built tree's arrays (RtAccel.device) readable in host
+ * memory too; nothing for any other. 0, or -1 with err. */
+int rt_accel_host(RtAccel *accel, RtError *err);
 /* Leaves of the binary tree hold at most this many records (the bound
  * rt_bvh_check holds every tree to; RtBvhSettings.leaf_max may be lower). */
 #define RT_BVH_LEAF_MAX 4
@@ -194,6 +191,18 @@ void rt_accel_free(RtAccel *accel);
  * layout, depth within the traversal stacks; the same of the 4-wide copy. */
 int rt_bvh_check(const RtAccel *accel, RtError *err);
 const char *rt_accel_name(RtAccelKind kind);
+/* The tree's SAH cost over its binary nodes (the record's sah_cost). */
+double rt_accel_sah_cost(const RtAccel *accel);
+
+/* Who builds the BVH (raytrace --builder): the CPU, the GPU (a backend
+ * with RtBackend.accel_build), or the one that gives the earlier image. */
+typedef enum RtBuilder { RT_BUILDER_AUTO = 0, RT_BUILDER_CPU = 1, RT_BUILDER_GPU = 2 } RtBuilder;
+/* What a backend's own build measured (RtBackend.accel_build). */
+typedef struct RtBuildInfo {
+    double kernel_ms;   /* its kernels, first to last (CUDA events) */
+    double upload_ms;   /* the scene's vertices, triangles and spheres to the device */
+    double init_ms;     /* what it still waited for the device's context */
+} RtBuildInfo;
 int rt_accel_parse(const char *s, RtAccelKind *kind);
 
 /* The view the shading code reads; pointers into scene and accel. */
@@ -230,7 +239,7 @@ const char *rt_model_unavailable(void);
 int rt_cache_load(const char *dir, const char *scene_path, RtAccelKind kind, RtScene *scene, RtAccel *accel,
                   char *key, RtError *err);
 /* Stores a scene as parsed and its accelerator, keyed by the bytes it was
- * parsed from (scene->file_hash) and listing the other files it read
+ * parsed from (scene->source.file_hash) and listing the other files it read
  * (written whole or not at all); key gets the entry's name. */
 int rt_cache_store(const char *dir, const RtScene *scene, const RtAccel *accel, char *key, RtError *err);
 /* An entry's bytes (len of them, at a 64-byte aligned address, kept while
@@ -339,6 +348,17 @@ typedef struct RtBackend {
      * render() waits for it */
     void (*prewarm)(int device);
     int gpu;              /* 1: renders on GPUs (no CPU traversal, no isa key) */
+    /* the side of the square tiles it renders without --tile, as the
+     * record's tile= shows it: the CPU backends' own (backends/backends.h);
+     * the GPU backends tile by --block and record the threaded loop's; 0 for
+     * a backend this build lacks */
+    int tile;
+    /* optional: builds the BVH on the backend's device (device: --device)
+     * into accel, in host memory as rt_accel_build_with leaves it. 0 built;
+     * 1 not built, for a reason err holds, where the CPU may build instead
+     * (too little device memory); -1 failed */
+    int (*accel_build)(const RtScene *scene, const RtBvhSettings *settings, int device, RtAccel *accel,
+                       RtBuildInfo *info, RtError *err);
 } RtBackend;
 
 /* What main.c needs from a backend that runs as several processes, so that

@@ -35,26 +35,26 @@ int rt_fail(RtError *err, const char *fmt, ...)
 static int cam_err(const RtScene *s, int line, RtError *err, const char *msg)
 {
     if (line > 0)
-        return rt_fail(err, "%s:%d: %s", s->path, line, msg);
-    return rt_fail(err, "%s: %s (default value)", s->path, msg);
+        return rt_fail(err, "%s:%d: %s", s->source.path, line, msg);
+    return rt_fail(err, "%s: %s (default value)", s->source.path, msg);
 }
 
 int rt_scene_camera(const RtScene *s, RtCamera *cam, RtError *err)
 {
     /* Camera vectors in double: they are computed once, and the reference
      * images were made in double. */
-    double f[3] = {s->camera_fwd.x, s->camera_fwd.y, s->camera_fwd.z};
-    double u[3] = {s->camera_up.x, s->camera_up.y, s->camera_up.z};
+    double f[3] = {s->settings.camera_fwd.x, s->settings.camera_fwd.y, s->settings.camera_fwd.z};
+    double u[3] = {s->settings.camera_up.x, s->settings.camera_up.y, s->settings.camera_up.z};
     double fl = sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
     if (!(fl > 0.0))
-        return cam_err(s, s->line_fwd, err, "camera_fwd is the zero vector");
+        return cam_err(s, s->source.line_fwd, err, "camera_fwd is the zero vector");
     for (int i = 0; i < 3; i++)
         f[i] /= fl;
     double r[3] = {u[1] * f[2] - u[2] * f[1], u[2] * f[0] - u[0] * f[2], u[0] * f[1] - u[1] * f[0]};
     double rl = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
     double ul = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
     if (!(ul > 0.0) || !(rl > 1e-6 * ul))
-        return cam_err(s, s->line_up ? s->line_up : s->line_fwd, err,
+        return cam_err(s, s->source.line_up ? s->source.line_up : s->source.line_fwd, err,
                        "camera_up is zero or parallel to camera_fwd: no image plane");
     for (int i = 0; i < 3; i++)
         r[i] /= rl;
@@ -62,22 +62,23 @@ int rt_scene_camera(const RtScene *s, RtCamera *cam, RtError *err)
     double upl = sqrt(up[0] * up[0] + up[1] * up[1] + up[2] * up[2]);
     for (int i = 0; i < 3; i++)
         up[i] /= upl;
-    if (!(s->fov_ha > 0.0f && s->fov_ha < 90.0f))
-        return cam_err(s, s->line_fov, err, "camera_fov_ha must be strictly between 0 and 90 degrees");
-    if (s->width < 1 || s->height < 1 || s->width > RT_MAX_SIDE || s->height > RT_MAX_SIDE ||
-        (uint64_t)s->width * (uint64_t)s->height > RT_MAX_PIXELS) {
+    if (!(s->settings.fov_ha > 0.0f && s->settings.fov_ha < 90.0f))
+        return cam_err(s, s->source.line_fov, err, "camera_fov_ha must be strictly between 0 and 90 degrees");
+    if (s->settings.width < 1 || s->settings.height < 1 || s->settings.width > RT_MAX_SIDE ||
+        s->settings.height > RT_MAX_SIDE ||
+        (uint64_t)s->settings.width * (uint64_t)s->settings.height > RT_MAX_PIXELS) {
         char msg[256];
-        snprintf(msg, sizeof msg, "resolution %dx%d is outside 1x1 .. %dx%d (at most %llu pixels)", s->width,
-                 s->height, RT_MAX_SIDE, RT_MAX_SIDE, (unsigned long long)RT_MAX_PIXELS);
-        return cam_err(s, s->line_res, err, msg);
+        snprintf(msg, sizeof msg, "resolution %dx%d is outside 1x1 .. %dx%d (at most %llu pixels)", s->settings.width,
+                 s->settings.height, RT_MAX_SIDE, RT_MAX_SIDE, (unsigned long long)RT_MAX_PIXELS);
+        return cam_err(s, s->source.line_res, err, msg);
     }
-    cam->pos = s->camera_pos;
+    cam->pos = s->settings.camera_pos;
     cam->fwd = rt_v3((float)f[0], (float)f[1], (float)f[2]);
     cam->right = rt_v3((float)r[0], (float)r[1], (float)r[2]);
     cam->up = rt_v3((float)up[0], (float)up[1], (float)up[2]);
-    cam->d = (float)((s->height * 0.5) / tan(s->fov_ha * (M_PI / 180.0)));
-    cam->width = s->width;
-    cam->height = s->height;
+    cam->d = (float)((s->settings.height * 0.5) / tan(s->settings.fov_ha * (M_PI / 180.0)));
+    cam->width = s->settings.width;
+    cam->height = s->settings.height;
     return 0;
 }
 
@@ -95,16 +96,16 @@ RtSceneView rt_scene_view(const RtScene *s, const RtAccel *a, const RtCamera *ca
     RT_SCENE_ARRAYS(VIEW_ARRAY)
 #undef VIEW_ARRAY
     v.cam = *cam;
-    v.background = s->background;
-    v.ambient = s->ambient;
-    v.max_depth = s->max_depth;
+    v.background = s->settings.background;
+    v.ambient = s->settings.ambient;
+    v.max_depth = s->settings.max_depth;
     return v;
 }
 
 void rt_scene_free(RtScene *s)
 {
-    if (s->cache_map) {
-        munmap(s->cache_map, s->cache_len);
+    if (s->source.cache_map) {
+        munmap(s->source.cache_map, s->source.cache_len);
     } else {
 #define FREE_ARRAY(T, name) free(s->name);
         RT_SCENE_ARRAYS(FREE_ARRAY)
@@ -118,15 +119,15 @@ void rt_scene_name(RtScene *s, const char *path)
 {
     const char *b = strrchr(path, '/');
     b = b ? b + 1 : path;
-    snprintf(s->name, sizeof s->name, "%s", b);
-    char *dot = strrchr(s->name, '.');
-    if (dot && dot != s->name)
+    snprintf(s->source.name, sizeof s->source.name, "%s", b);
+    char *dot = strrchr(s->source.name, '.');
+    if (dot && dot != s->source.name)
         *dot = '\0';
     /* The name goes into a space-separated record line. */
-    for (char *c = s->name; *c; c++)
+    for (char *c = s->source.name; *c; c++)
         if (*c == ' ' || *c == '\t' || *c == '=')
             *c = '_';
-    snprintf(s->path, sizeof s->path, "%s", path);
+    snprintf(s->source.path, sizeof s->source.path, "%s", path);
 }
 
 double rt_now_ms(void)
@@ -196,7 +197,7 @@ double rt_calibrate_ms(void)
      * tracks how fast this core runs right now, so a benchmark can divide
      * its render time by it and compare runs made while a shared machine was
      * faster or slower (harness compare --metric render_ms/calib). */
-    enum { N = 16384, ITERS = 4000000 }; /* about 10 ms on the development VM */
+    enum { N = 16384, ITERS = 4000000 }; /* short next to a render, long enough to time */
     static float table[N];
     uint32_t s = 12345u;
     for (int i = 0; i < N; i++) {
@@ -341,8 +342,8 @@ static int check_prims(const RtScene *s, const RtAccel *a, RtError *err)
 
 int rt_scene_check(const RtScene *s, const RtAccel *a, RtError *err)
 {
-    if (s->max_depth < 0 || s->max_depth > RT_MAX_DEPTH)
-        return rt_fail(err, "max_depth %d outside 0..%d", s->max_depth, RT_MAX_DEPTH);
+    if (s->settings.max_depth < 0 || s->settings.max_depth > RT_MAX_DEPTH)
+        return rt_fail(err, "max_depth %d outside 0..%d", s->settings.max_depth, RT_MAX_DEPTH);
     const long t = first_bad(s->ntriangles, bad_triangle, s, NULL);
     if (t >= 0)
         return rt_fail(err, "triangle %ld: vertex, normal or material index out of range", t);

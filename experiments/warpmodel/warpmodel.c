@@ -373,8 +373,8 @@ int main(int argc, char **argv)
         return 1;
     }
     if (rw) {
-        sc.width = rw;
-        sc.height = rh;
+        sc.settings.width = rw;
+        sc.settings.height = rh;
     }
     if (rt_scene_camera(&sc, &cam, &err) != 0 || rt_accel_build(&sc, RT_ACCEL_BVH, &acc, &err) != 0) {
         fprintf(stderr, "warpmodel: %s\n", err.msg);

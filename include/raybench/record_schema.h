@@ -72,6 +72,14 @@ typedef enum { RT_REC_MAIN, RT_REC_MAIN_IF, RT_REC_BACKEND, RT_REC_LAST } RtRecW
     X(sah_cost, F4, "", EXTRA, "extra", MAIN, \
       "the tree's SAH cost (traversal and intersection cost 1, relative to the root's area; 0 for none): " \
       "its quality beside `build_ms`") \
+    X(builder, STR, "", EXTRA, "extra", MAIN, \
+      "`cpu` or `gpu`: who built the BVH (`--builder`; `cpu` also for `none` and a tree from the cache)") \
+    X(gpu_build_ms, F3, "ms", EXTRA, "extra", MAIN_IF, \
+      "`builder=gpu` only: the build's kernels on the GPU, first to last; `build_ms` adds its device " \
+      "memory and copying the scene's geometry up (the tree stays on the GPU; docs/performance.md, " \
+      "\"The GPU build\")") \
+    X(build_init_ms, F3, "ms", EXTRA, "extra", MAIN_IF, \
+      "`builder=gpu` only: how long the build waited for the GPU's context, not in `build_ms`") \
     X(cache, STR, "", EXTRA, "extra", MAIN, \
       "`off`, `built` (parsed, built and stored) or `loaded` (mapped from `--cache DIR`; `build_ms` is then 0)") \
     X(commit, STR, "", EXTRA, "extra", MAIN, \

@@ -33,7 +33,7 @@ static RtPrim *make_prims(const RtScene *s, int nt, int on, uint32_t *n_out, RtE
 {
     uint64_t n = (uint64_t)s->nspheres + s->ntriangles;
     if (n >= RT_PRIM_SPHERE_BIT) {
-        rt_fail(err, "%s: %llu primitives exceed the limit of %u", s->path, (unsigned long long)n,
+        rt_fail(err, "%s: %llu primitives exceed the limit of %u", s->source.path, (unsigned long long)n,
                 RT_PRIM_SPHERE_BIT - 1);
         return NULL;
     }
@@ -103,12 +103,24 @@ int rt_accel_build(const RtScene *s, RtAccelKind kind, RtAccel *a, RtError *err)
     return rt_accel_build_with(s, kind, NULL, a, err);
 }
 
+int rt_accel_host(RtAccel *a, RtError *err)
+{
+    return a->device && a->device_host ? a->device_host(a, err) : 0;
+}
+
 void rt_accel_free(RtAccel *a)
 {
+    if (a->device && a->device_free)
+        a->device_free(a->device);
     if (!a->mapped) {
         free(a->prims);
         free(a->nodes);
         free(a->wide);
     }
     memset(a, 0, sizeof *a);
+}
+
+double rt_accel_sah_cost(const RtAccel *a)
+{
+    return a->nnodes ? bvh_sah_cost(a->nodes, a->nnodes, rt_thread_count(0)) : 0.0;
 }

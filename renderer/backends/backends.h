@@ -1,5 +1,5 @@
-/* backends.h - what the table of backends (backends.c) says about a backend
- * beyond its descriptor (rt.h): the tile size it renders without --tile. */
+/* backends.h - the CPU backends' default tile sizes, which their
+ * descriptors (RtBackend.tile, rt.h) carry for the record and --help. */
 #ifndef RT_BACKENDS_H
 #define RT_BACKENDS_H
 
@@ -13,9 +13,5 @@
  * enough (768 tiles for 512x384) that the last tiles do not leave threads
  * idle. */
 #define RT_OMP_TILE 16
-
-/* The side of the square tiles `be` renders when --tile is not given, as the
- * record's tile= shows it. */
-int rt_backend_tile(const RtBackend *be);
 
 #endif

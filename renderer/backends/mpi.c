@@ -299,4 +299,5 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     return 0;
 }
 
-const RtBackend rt_backend_mpi = {"mpi", NULL, rt_mpi_init, render_mpi, rt_mpi_finalize, &rt_mpi_collective, 0, NULL, 0};
+const RtBackend rt_backend_mpi = {"mpi", NULL, rt_mpi_init, render_mpi, rt_mpi_finalize, &rt_mpi_collective, 0, NULL, 0,
+                                  RT_MPI_TILE, NULL};

@@ -193,7 +193,7 @@ static int scene_load_bcast(const char *path, RtScene *scene, RtWarnFn warn, voi
         rt_scene_name(scene, path);
     }
     bcast_bytes(&scene->settings, sizeof scene->settings);
-    RT_MPI_CHECK(MPI_Bcast(scene->file_hash, 16, MPI_BYTE, 0, MPI_COMM_WORLD));
+    RT_MPI_CHECK(MPI_Bcast(scene->source.file_hash, 16, MPI_BYTE, 0, MPI_COMM_WORLD));
 #define ARRAY_ENTRY(T, name) {(void **)&scene->name, &scene->n##name, &scene->cap_##name, sizeof(T)},
     struct { void **p; uint32_t *n, *cap; size_t size; } a[] = {RT_SCENE_ARRAYS(ARRAY_ENTRY)};
 #undef ARRAY_ENTRY

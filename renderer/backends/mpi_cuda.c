@@ -21,7 +21,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "backends.h" /* RT_OMP_TILE */
 #include "config.h"
+#include "cuda/bvh_gpu.h"
 #include "cuda/cuda_session.h"
 #include "mpi_common.h"
 #include "rt.h"
@@ -310,6 +312,17 @@ static int render_mpi_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *er
     return 0;
 }
 
+/* Each rank builds its own tree on its own device (pick_device's choice). */
+static int mpi_cuda_accel_build(const RtScene *scene, const RtBvhSettings *settings, int device, RtAccel *accel,
+                                RtBuildInfo *info, RtError *err)
+{
+    int n = 0;
+    if (rt_cuda_device_count(&n, err) != 0)
+        return -1;
+    return rt_cuda_accel_build(scene, settings, (device + rt_mpi_local_rank) % n, accel, info, err);
+}
+
 /* times its own runs: the scene stays on each rank's device between frames */
 const RtBackend rt_backend_mpi_cuda = {"mpi-cuda",         NULL, rt_mpi_init, render_mpi_cuda, rt_mpi_finalize,
-                                       &rt_mpi_collective, 1,    mpi_cuda_prewarm, 1};
+                                       &rt_mpi_collective, 1,    mpi_cuda_prewarm, 1, RT_OMP_TILE,
+                                       mpi_cuda_accel_build};

@@ -24,7 +24,7 @@ static void tile_defaults(char *buf, size_t size)
     for (int i = 0; b[i] && n < size; i++) {
         if (b[i]->gpu || b[i]->unavailable)
             continue;
-        const int t = rt_backend_tile(b[i]);
+        const int t = b[i]->tile;
         n += (size_t)snprintf(buf + n, size - n, "%s%s %dx%d", n ? ", " : "", b[i]->name, t, t);
     }
 }
@@ -47,6 +47,8 @@ static void usage(FILE *fp)
             "                           the process may use; the same scene and tree on any number)\n"
             "      --huge-pages on|off|auto  the BVH build's large arrays in 2 MiB pages; auto (default):\n"
             "                           on with 8 or more build threads (the same tree either way)\n"
+            "      --builder B          who builds the BVH: cpu, gpu (cuda, mpi-cuda) or auto (default: the\n"
+            "                           GPU for the GPU backends from 65536 primitives, else the CPU)\n"
             "      --tile WxH           tile size in pixels (default %s)\n"
             "      --schedule S         openmp: tiles (dynamic, default) or pixels (the report's collapse(2) static)\n"
             "      --mpi-schedule S     mpi: dynamic (default) or rows (the report's block rows + Gatherv)\n"
@@ -104,7 +106,7 @@ static int opt_error(const char *opt, const char *val, const char *why)
 
 enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE,
        OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE, OPT_ISA, OPT_SHARE_GPU, OPT_HUGE_PAGES,
-       OPT_MAX_MODEL_TRIS };
+       OPT_MAX_MODEL_TRIS, OPT_BUILDER };
 
 static void print_version(void)
 {
@@ -115,10 +117,16 @@ static void print_version(void)
     printf("\nbuild: %s\ncommit: %s\n", RT_BUILD_FLAGS, RT_COMMIT);
 }
 
-/* --cache, --max-model-triangles, --build-threads, --huge-pages, --runs and --warmup. */
+/* --cache, --max-model-triangles, --build-threads, --builder, --huge-pages, --runs and --warmup. */
 static int parse_load_timing(int c, const char *arg, Options *o)
 {
     switch (c) {
+    case OPT_BUILDER:
+        if (strcmp(arg, "cpu") == 0) o->builder = RT_BUILDER_CPU;
+        else if (strcmp(arg, "gpu") == 0) o->builder = RT_BUILDER_GPU;
+        else if (strcmp(arg, "auto") == 0) o->builder = RT_BUILDER_AUTO;
+        else return opt_error("--builder", arg, "expected cpu, gpu or auto");
+        return 0;
     case OPT_HUGE_PAGES:
         if (strcmp(arg, "on") != 0 && strcmp(arg, "off") != 0 && strcmp(arg, "auto") != 0)
             return opt_error("--huge-pages", arg, "expected on, off or auto");
@@ -210,7 +218,7 @@ static int parse_options(int argc, char **argv, Options *o)
         {"runs", required_argument, NULL, OPT_RUNS},  {"warmup", required_argument, NULL, OPT_WARMUP},
         {"build-threads", required_argument, NULL, OPT_BUILD_THREADS}, {"cache", required_argument, NULL, OPT_CACHE},
         {"max-model-triangles", required_argument, NULL, OPT_MAX_MODEL_TRIS},
-        {"huge-pages", required_argument, NULL, OPT_HUGE_PAGES},
+        {"huge-pages", required_argument, NULL, OPT_HUGE_PAGES}, {"builder", required_argument, NULL, OPT_BUILDER},
         {"verify", no_argument, NULL, OPT_VERIFY},    {"calibrate", no_argument, NULL, OPT_CALIBRATE},    {"quiet", no_argument, NULL, 'q'},
         {"isa", required_argument, NULL, OPT_ISA},    {"share-gpu", no_argument, NULL, OPT_SHARE_GPU},
         {"help", no_argument, NULL, 'h'},             {"version", no_argument, NULL, 'V'},
@@ -255,7 +263,7 @@ static int parse_options(int argc, char **argv, Options *o)
                 return -1;
             break;
         case OPT_CACHE: case OPT_BUILD_THREADS: case OPT_RUNS: case OPT_WARMUP: case OPT_HUGE_PAGES:
-        case OPT_MAX_MODEL_TRIS:
+        case OPT_MAX_MODEL_TRIS: case OPT_BUILDER:
             if (parse_load_timing(c, optarg, o) != 0)
                 return -1;
             break;

@@ -15,7 +15,8 @@ typedef struct Options {
     int threads;
     int build_threads;  /* 0: every allowed CPU */
     int huge_pages;     /* 1 on, 0 off, -1 auto (RtBvhSettings.huge_pages) */
-    int tile_w, tile_h; /* 0: the backend's (rt_backend_tile) */
+    RtBuilder builder;  /* --builder: auto (default), cpu or gpu */
+    int tile_w, tile_h; /* 0: the backend's (RtBackend.tile) */
     RtSchedule schedule;
     RtMpiSchedule mpi_schedule;
     int block_x, block_y;

@@ -68,6 +68,11 @@ typedef struct RtCamera {
 
 /* A node of the flat BVH: 32 bytes, depth-first order, the first child of an
  * interior node is the next node (pbrt-v4 LinearBVHNode). */
+/* The deepest leaf a tree may have (the root at depth 0): a binned-SAH BVH
+ * over 2^32 primitives with leaves of at most 4 is far shallower; the
+ * builders refuse deeper trees, so the traversal's stacks
+ * (core/rt_traverse.h) never overflow. */
+#define RT_BVH_MAX_DEPTH 60
 typedef struct RtBvhNode {
     float lo[3];     /* bounds minimum */
     uint32_t index;  /* leaf: first primitive in prims; interior: second child */

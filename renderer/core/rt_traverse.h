@@ -36,11 +36,9 @@
 #define RT_SSE 0
 #endif
 
-/* Traversal stack depth. A binned-SAH BVH over 2^32 primitives with leaves of
- * at most 4 is far shallower than this in practice; the builder refuses trees
- * deeper than RT_BVH_MAX_DEPTH so the stack can never overflow. */
+/* Traversal stack depth: above RT_BVH_MAX_DEPTH (core/rt_scene.h), which
+ * every builder keeps to, so the stack can never overflow. */
 #define RT_BVH_STACK 64
-#define RT_BVH_MAX_DEPTH 60
 
 typedef struct RtHit {
     float t;     /* distance along the ray */

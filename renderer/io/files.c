@@ -94,42 +94,42 @@ int rt_read_file_stat(const char *path, size_t max, char **data, size_t *len, st
 
 int rt_scene_add_dep(RtScene *s, const char *path, const void *bytes, size_t len, RtError *err)
 {
-    for (uint32_t i = 0; i < s->ndeps; i++) /* a file read twice is one dependency, if its bytes were the same */
-        if (strcmp(s->deps[i].path, path) == 0) {
+    for (uint32_t i = 0; i < s->source.ndeps; i++) /* a file read twice is one dependency, if its bytes were the same */
+        if (strcmp(s->source.deps[i].path, path) == 0) {
             uint8_t h[16];
             rt_content_hash(bytes, len, h);
-            if (memcmp(h, s->deps[i].hash, 16) != 0)
+            if (memcmp(h, s->source.deps[i].hash, 16) != 0)
                 return rt_fail(err, "%s: changed while the scene was read; run again", path);
             return 0;
         }
-    RtDep *nd = realloc(s->deps, (s->ndeps + 1) * sizeof *nd);
+    RtDep *nd = realloc(s->source.deps, (s->source.ndeps + 1) * sizeof *nd);
     if (!nd)
         return rt_fail(err, "%s: out of memory", path);
-    s->deps = nd;
-    RtDep *d = &s->deps[s->ndeps];
+    s->source.deps = nd;
+    RtDep *d = &s->source.deps[s->source.ndeps];
     if (!(d->path = strdup(path)))
         return rt_fail(err, "%s: out of memory", path);
     rt_content_hash(bytes, len, d->hash);
-    s->ndeps++;
+    s->source.ndeps++;
     return 0;
 }
 
 void rt_scene_digest(const RtScene *s, uint8_t out[16])
 {
     size_t n = 16;
-    for (uint32_t i = 0; i < s->ndeps; i++)
-        n += strlen(s->deps[i].path) + 1 + 16;
+    for (uint32_t i = 0; i < s->source.ndeps; i++)
+        n += strlen(s->source.deps[i].path) + 1 + 16;
     uint8_t *buf = malloc(n);
     if (!buf) { /* (the scene file alone: still a digest every rank computes alike) */
-        memcpy(out, s->file_hash, 16);
+        memcpy(out, s->source.file_hash, 16);
         return;
     }
     size_t at = 0;
-    memcpy(buf, s->file_hash, 16), at += 16;
-    for (uint32_t i = 0; i < s->ndeps; i++) {
-        const size_t l = strlen(s->deps[i].path) + 1;
-        memcpy(buf + at, s->deps[i].path, l), at += l;
-        memcpy(buf + at, s->deps[i].hash, 16), at += 16;
+    memcpy(buf, s->source.file_hash, 16), at += 16;
+    for (uint32_t i = 0; i < s->source.ndeps; i++) {
+        const size_t l = strlen(s->source.deps[i].path) + 1;
+        memcpy(buf + at, s->source.deps[i].path, l), at += l;
+        memcpy(buf + at, s->source.deps[i].hash, 16), at += 16;
     }
     rt_content_hash(buf, at, out);
     free(buf);
@@ -140,17 +140,17 @@ void rt_scene_digest(const RtScene *s, uint8_t out[16])
 int rt_scene_deps_pack(const RtScene *s, char **blob, size_t *len)
 {
     size_t n = 0;
-    for (uint32_t i = 0; i < s->ndeps; i++)
-        n += 20 + strlen(s->deps[i].path);
+    for (uint32_t i = 0; i < s->source.ndeps; i++)
+        n += 20 + strlen(s->source.deps[i].path);
     char *b = malloc(n ? n : 1);
     if (!b)
         return -1;
     size_t at = 0;
-    for (uint32_t i = 0; i < s->ndeps; i++) {
-        const uint32_t l = (uint32_t)strlen(s->deps[i].path);
-        memcpy(b + at, s->deps[i].hash, 16);
+    for (uint32_t i = 0; i < s->source.ndeps; i++) {
+        const uint32_t l = (uint32_t)strlen(s->source.deps[i].path);
+        memcpy(b + at, s->source.deps[i].hash, 16);
         memcpy(b + at + 16, &l, 4);
-        memcpy(b + at + 20, s->deps[i].path, l);
+        memcpy(b + at + 20, s->source.deps[i].path, l);
         at += 20 + l;
     }
     *blob = b;
@@ -160,27 +160,27 @@ int rt_scene_deps_pack(const RtScene *s, char **blob, size_t *len)
 
 int rt_scene_deps_unpack(RtScene *s, const char *blob, size_t len, RtError *err)
 {
-    s->deps = NULL;
-    s->ndeps = 0;
+    s->source.deps = NULL;
+    s->source.ndeps = 0;
     size_t at = 0;
     while (at < len) {
         uint32_t l;
         if (len - at < 20 || (memcpy(&l, blob + at + 16, 4), l == 0) || l >= 4096 || l > len - at - 20 ||
             memchr(blob + at + 20, '\0', l))
             return rt_fail(err, "the list of files the scene read is damaged");
-        RtDep *nd = realloc(s->deps, (s->ndeps + 1) * sizeof *nd);
+        RtDep *nd = realloc(s->source.deps, (s->source.ndeps + 1) * sizeof *nd);
         char *path = malloc(l + 1);
         if (nd)
-            s->deps = nd;
+            s->source.deps = nd;
         if (!nd || !path) {
             free(path);
             return rt_fail(err, "out of memory");
         }
         memcpy(path, blob + at + 20, l);
         path[l] = '\0';
-        s->deps[s->ndeps].path = path;
-        memcpy(s->deps[s->ndeps].hash, blob + at, 16);
-        s->ndeps++;
+        s->source.deps[s->source.ndeps].path = path;
+        memcpy(s->source.deps[s->source.ndeps].hash, blob + at, 16);
+        s->source.ndeps++;
         at += 20 + l;
     }
     return 0;
@@ -188,9 +188,9 @@ int rt_scene_deps_unpack(RtScene *s, const char *blob, size_t len, RtError *err)
 
 void rt_scene_free_deps(RtScene *s)
 {
-    for (uint32_t i = 0; i < s->ndeps; i++)
-        free(s->deps[i].path);
-    free(s->deps);
-    s->deps = NULL;
-    s->ndeps = 0;
+    for (uint32_t i = 0; i < s->source.ndeps; i++)
+        free(s->source.deps[i].path);
+    free(s->source.deps);
+    s->source.deps = NULL;
+    s->source.ndeps = 0;
 }

@@ -11,7 +11,7 @@
 /* glTF. Assimp 5.2.5 builds a node of its own for every place a glTF node
  * is listed as a child, so a node graph that lists the same child twice at
  * each of n levels makes 2^n nodes while the file stays a kilobyte (20
- * levels: 2 M nodes, 2.4 GB, 21 s before a triangle is read). The graph is
+ * levels: 2 M nodes, all built before a triangle is read). The graph is
  * counted here from the JSON, before Assimp sees it. A small JSON reader
  * (values in one array, children linked) is enough: the graph needs
  * nodes, scenes, meshes and accessors only. */

@@ -422,14 +422,14 @@ static int header_ok(const CacheHeader *h, size_t len)
 /* The lines that set the settings, into an entry's header and back. */
 static void lines_store(int32_t *l, const RtScene *s)
 {
-    l[0] = s->line_fwd, l[1] = s->line_up, l[2] = s->line_fov;
-    l[3] = s->line_res, l[4] = s->line_depth, l[5] = s->line_output;
+    l[0] = s->source.line_fwd, l[1] = s->source.line_up, l[2] = s->source.line_fov;
+    l[3] = s->source.line_res, l[4] = s->source.line_depth, l[5] = s->source.line_output;
 }
 
 static void lines_load(RtScene *s, const int32_t *l)
 {
-    s->line_fwd = l[0], s->line_up = l[1], s->line_fov = l[2];
-    s->line_res = l[3], s->line_depth = l[4], s->line_output = l[5];
+    s->source.line_fwd = l[0], s->source.line_up = l[1], s->source.line_fov = l[2];
+    s->source.line_res = l[3], s->source.line_depth = l[4], s->source.line_output = l[5];
 }
 
 /* The scene and accelerator an entry's bytes hold, pointing into m; of
@@ -439,12 +439,12 @@ static void entry_views(char *m, RtScene *scene, RtAccel *accel)
     const CacheHeader *h = (const CacheHeader *)m;
     memset(scene, 0, sizeof *scene);
     memcpy(&scene->settings, m + sizeof *h, sizeof scene->settings);
-    scene->output[sizeof scene->output - 1] = '\0';
+    scene->settings.output[sizeof scene->settings.output - 1] = '\0';
 #define ARRAY_VIEW(T, name) \
     scene->name = (T *)(m + h->offset[A_##name]), scene->n##name = scene->cap_##name = h->counts[A_##name];
     RT_SCENE_ARRAYS(ARRAY_VIEW)
 #undef ARRAY_VIEW
-    memcpy(scene->file_hash, h->file_hash, 16);
+    memcpy(scene->source.file_hash, h->file_hash, 16);
     lines_load(scene, h->lines);
     memset(accel, 0, sizeof *accel);
     accel->kind = (RtAccelKind)h->kind;
@@ -505,14 +505,14 @@ void rt_cache_entry_seal(void *bytes, size_t len)
 /* Whether every file the entry's scene read still hashes as it did. */
 static int deps_current(CacheDir *cd, const RtScene *s)
 {
-    for (uint32_t i = 0; i < s->ndeps; i++) {
+    for (uint32_t i = 0; i < s->source.ndeps; i++) {
         XXH128_hash_t h;
         uint8_t now[16];
         RtError ignored;
-        if (file_hash(cd, s->deps[i].path, &h, &ignored) != 0)
+        if (file_hash(cd, s->source.deps[i].path, &h, &ignored) != 0)
             return 0;
         hash_bytes(h, now);
-        if (memcmp(now, s->deps[i].hash, 16) != 0)
+        if (memcmp(now, s->source.deps[i].hash, 16) != 0)
             return 0;
     }
     return 1;
@@ -547,7 +547,7 @@ int rt_cache_load(const char *dir, const char *scene_path, RtAccelKind kind, RtS
     }
     RtError why;
     int rc = rt_cache_entry_parse(m, len, kind, scene, accel, &why);
-    if (rc == 0 && memcmp(scene->file_hash, file, 16) != 0)
+    if (rc == 0 && memcmp(scene->source.file_hash, file, 16) != 0)
         rc = rt_fail(&why, "made from other bytes than its key says");
     if (rc != 0) { /* never trusted: removed, built again */
         unlinkat(cd.fd, name, 0);
@@ -565,9 +565,9 @@ int rt_cache_load(const char *dir, const char *scene_path, RtAccelKind kind, RtS
     }
     rt_scene_name(scene, scene_path); /* (the rest of the source: entry_views) */
     if (rt_model_supported(scene_path)) /* raytrace MODEL: the image is named after this file */
-        snprintf(scene->output, sizeof scene->output, "%s.png", scene->name);
-    scene->cache_map = m;
-    scene->cache_len = len;
+        snprintf(scene->settings.output, sizeof scene->settings.output, "%s.png", scene->source.name);
+    scene->source.cache_map = m;
+    scene->source.cache_len = len;
     return 1;
 }
 
@@ -617,7 +617,7 @@ static void make_header(CacheHeader *h, const RtScene *scene, const RtAccel *acc
     h->format = RT_CACHE_FORMAT;
     h->header_size = sizeof *h;
     h->settings_size = sizeof *settings;
-    memcpy(h->file_hash, scene->file_hash, 16);
+    memcpy(h->file_hash, scene->source.file_hash, 16);
     lines_store(h->lines, scene);
     uint64_t at = sizeof *h + sizeof *settings;
     for (int i = 0; i < A_COUNT; i++) {
@@ -640,7 +640,7 @@ int rt_cache_store(const char *dir, const RtScene *scene, const RtAccel *accel, 
     if (cache_open(&cd, dir, 1, err) != 1)
         return -1;
     /* the key of the bytes that were parsed, whatever the file holds now */
-    cache_key(&cd, scene->file_hash, accel->kind, key);
+    cache_key(&cd, scene->source.file_hash, accel->kind, key);
     char *deps = NULL;
     size_t ndeps = 0;
     if (rt_scene_deps_pack(scene, &deps, &ndeps) != 0) {

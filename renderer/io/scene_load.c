@@ -50,15 +50,15 @@ static void frame_model(RtScene *s)
                            (hi[2] - lo[2]) * (hi[2] - lo[2]));
     r = r > 0.0f ? r : 1.0f;
     const RtVec3 dir = rt_normalize(rt_v3(0.55f, 0.45f, 1.0f)); /* from the model towards the camera */
-    s->fov_ha = 25.0f;
-    const float dist = 1.15f * r / sinf(s->fov_ha * 3.14159265f / 180.0f);
-    s->camera_pos = rt_madd(c, dir, dist);
-    s->camera_fwd = dir; /* the camera looks along minus camera_fwd */
-    s->camera_up = rt_v3(0.0f, 1.0f, 0.0f);
-    s->width = 800;
-    s->height = 600;
-    s->background = rt_v3(0.12f, 0.14f, 0.18f);
-    s->ambient = rt_v3(0.18f, 0.18f, 0.2f);
+    s->settings.fov_ha = 25.0f;
+    const float dist = 1.15f * r / sinf(s->settings.fov_ha * 3.14159265f / 180.0f);
+    s->settings.camera_pos = rt_madd(c, dir, dist);
+    s->settings.camera_fwd = dir; /* the camera looks along minus camera_fwd */
+    s->settings.camera_up = rt_v3(0.0f, 1.0f, 0.0f);
+    s->settings.width = 800;
+    s->settings.height = 600;
+    s->settings.background = rt_v3(0.12f, 0.14f, 0.18f);
+    s->settings.ambient = rt_v3(0.18f, 0.18f, 0.2f);
 }
 
 int rt_model_scene(const char *path, RtScene *s, RtError *err)
@@ -71,7 +71,7 @@ int rt_model_scene(const char *path, RtScene *s, RtError *err)
     if (rt_model_append(path, id, 1, s, err) != 0)
         return -1;
     frame_model(s);
-    snprintf(s->output, sizeof s->output, "%s.png", s->name);
+    snprintf(s->settings.output, sizeof s->settings.output, "%s.png", s->source.name);
     return 0;
 }
 
@@ -81,16 +81,16 @@ static int model_scene(const char *path, RtScene *scene, RtError *err)
 {
     if (rt_model_scene(path, scene, err) != 0)
         return -1;
-    for (uint32_t i = 0; i < scene->ndeps; i++)
-        if (strcmp(scene->deps[i].path, path) == 0) {
-            memcpy(scene->file_hash, scene->deps[i].hash, 16);
+    for (uint32_t i = 0; i < scene->source.ndeps; i++)
+        if (strcmp(scene->source.deps[i].path, path) == 0) {
+            memcpy(scene->source.file_hash, scene->source.deps[i].hash, 16);
             return 0;
         }
     char *buf; /* (a loader that read it otherwise: its bytes now) */
     size_t len;
     if (rt_read_file(path, RT_MAX_FILE, &buf, &len, err) != 0)
         return -1;
-    rt_content_hash(buf, len, scene->file_hash);
+    rt_content_hash(buf, len, scene->source.file_hash);
     free(buf);
     return 0;
 }
@@ -110,7 +110,7 @@ int rt_scene_load_threads(const char *path, int threads, RtScene *scene, RtWarnF
         return -1;
     const int rc = rt_scene_parse_buffer_threads(path, buf, len, threads, scene, warn, warn_ctx, err);
     if (rc == 0)
-        rt_content_hash(buf, len, scene->file_hash);
+        rt_content_hash(buf, len, scene->source.file_hash);
     free(buf);
     return rc;
 }

@@ -49,11 +49,11 @@ static int cmd_output(Parser *p, const char *v)
     }
     if (n == 0)
         return parse_fail(p, "output_image: expected a file name");
-    if (n >= sizeof p->s->output)
-        return parse_fail(p, "output_image: name longer than %zu bytes", sizeof p->s->output - 1);
-    memcpy(p->s->output, s, n);
-    p->s->output[n] = '\0';
-    p->s->line_output = p->line;
+    if (n >= sizeof p->s->settings.output)
+        return parse_fail(p, "output_image: name longer than %zu bytes", sizeof p->s->settings.output - 1);
+    memcpy(p->s->settings.output, s, n);
+    p->s->settings.output[n] = '\0';
+    p->s->source.line_output = p->line;
     return 0;
 }
 
@@ -70,9 +70,9 @@ static int cmd_resolution(Parser *p, const char *v)
         return parse_fail(p, "film_resolution %.0fx%.0f would need %.1f GiB of image memory (limit %dx%d, %llu pixels)",
                           (double)f[0], (double)f[1], (double)f[0] * (double)f[1] * 15.0 / (1024.0 * 1024.0 * 1024.0),
                           RT_MAX_SIDE, RT_MAX_SIDE, (unsigned long long)RT_MAX_PIXELS);
-    p->s->width = (int32_t)f[0];
-    p->s->height = (int32_t)f[1];
-    p->s->line_res = p->line;
+    p->s->settings.width = (int32_t)f[0];
+    p->s->settings.height = (int32_t)f[1];
+    p->s->source.line_res = p->line;
     return 0;
 }
 
@@ -345,7 +345,7 @@ static int cmd_mesh(Parser *p, const char *v)
     RtError e;
     if (rt_model_append(path, m, p->material, p->s, &e) != 0)
         return parse_fail(p, "mesh: %s", e.msg);
-    p->s->models++;
+    p->s->source.models++;
     return 0;
 }
 
@@ -393,13 +393,13 @@ static int cmd_shading(Parser *p, const char *cmd, const char *v)
         if (lex_floats(p, cmd, v, f, 3) != 0)
             return -1;
         /* Several ambient lights add up, like every other light. */
-        sc->ambient = rt_add(sc->ambient, v3f(f));
+        sc->settings.ambient = rt_add(sc->settings.ambient, v3f(f));
         return 0;
     }
     if (strcmp(cmd, "background") == 0) {
         if (lex_floats(p, cmd, v, f, 3) != 0)
             return -1;
-        sc->background = v3f(f);
+        sc->settings.background = v3f(f);
         return 0;
     }
     return NOT_MINE;
@@ -416,8 +416,8 @@ static int cmd_max_depth(Parser *p, const char *v)
         return parse_fail(p, "max_depth: must not be negative, got %g", (double)f[0]);
     if (f[0] > RT_MAX_DEPTH)
         return parse_fail(p, "max_depth: %g exceeds the supported maximum %d", (double)f[0], RT_MAX_DEPTH);
-    p->s->max_depth = (int32_t)f[0];
-    p->s->line_depth = p->line;
+    p->s->settings.max_depth = (int32_t)f[0];
+    p->s->source.line_depth = p->line;
     return 0;
 }
 
@@ -431,13 +431,13 @@ static int cmd_camera(Parser *p, const char *cmd, const char *v)
         if (lex_floats(p, cmd, v, f, 3) != 0)
             return -1;
         if (cmd[7] == 'p') {
-            sc->camera_pos = v3f(f);
+            sc->settings.camera_pos = v3f(f);
         } else if (cmd[7] == 'f') {
-            sc->camera_fwd = v3f(f);
-            sc->line_fwd = p->line;
+            sc->settings.camera_fwd = v3f(f);
+            sc->source.line_fwd = p->line;
         } else {
-            sc->camera_up = v3f(f);
-            sc->line_up = p->line;
+            sc->settings.camera_up = v3f(f);
+            sc->source.line_up = p->line;
         }
         return 0;
     }
@@ -446,8 +446,8 @@ static int cmd_camera(Parser *p, const char *cmd, const char *v)
             return -1;
         if (!(f[0] > 0.0f && f[0] < 90.0f))
             return parse_fail(p, "camera_fov_ha: must be strictly between 0 and 90 degrees, got %g", (double)f[0]);
-        sc->fov_ha = f[0];
-        sc->line_fov = p->line;
+        sc->settings.fov_ha = f[0];
+        sc->source.line_fov = p->line;
         return 0;
     }
     if (strcmp(cmd, "film_resolution") == 0)
@@ -532,16 +532,16 @@ int parse_next_line(Parser *p, const char *buf, size_t len, size_t *pos, char *l
 
 static void scene_defaults(RtScene *s)
 {
-    s->camera_pos = rt_v3(0, 0, 0);
-    s->camera_fwd = rt_v3(0, 0, -1);
-    s->camera_up = rt_v3(0, 1, 0);
-    s->fov_ha = 45.0f;
-    s->width = 640;
-    s->height = 480;
-    s->max_depth = 5;
-    s->background = rt_v3(0, 0, 0);
-    s->ambient = rt_v3(0, 0, 0);
-    snprintf(s->output, sizeof s->output, "raytraced.bmp");
+    s->settings.camera_pos = rt_v3(0, 0, 0);
+    s->settings.camera_fwd = rt_v3(0, 0, -1);
+    s->settings.camera_up = rt_v3(0, 1, 0);
+    s->settings.fov_ha = 45.0f;
+    s->settings.width = 640;
+    s->settings.height = 480;
+    s->settings.max_depth = 5;
+    s->settings.background = rt_v3(0, 0, 0);
+    s->settings.ambient = rt_v3(0, 0, 0);
+    snprintf(s->settings.output, sizeof s->settings.output, "raytraced.bmp");
 }
 
 /* A parser at the start of a scene: the defaults and material 0, the

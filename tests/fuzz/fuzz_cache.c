@@ -39,9 +39,9 @@ static void report(void)
 
 static void render_small(RtScene *s, const RtAccel *a)
 {
-    s->width = 8, s->height = 6;
-    if (s->max_depth > 3) /* (2^depth rays a pixel where glass both reflects and refracts) */
-        s->max_depth = 3;
+    s->settings.width = 8, s->settings.height = 6;
+    if (s->settings.max_depth > 3) /* (2^depth rays a pixel where glass both reflects and refracts) */
+        s->settings.max_depth = 3;
     RtCamera cam;
     RtError err;
     if (rt_scene_camera(s, &cam, &err) != 0)

@@ -13,7 +13,10 @@
 #          or sorted with pixel pairs), `large`: no --block at 2560x1920
 #          against serial at that size (large=1 sched=persistent order=tiles
 #          anyhit=slot pairs=0), `runs`: 16x8 with --runs 3 --warmup 1 (the
-#          record must count them), and cuda+none in 16x16 and 32x32 (the
+#          record must count them), `gpubuild`: no --block, --builder gpu
+#          (the record must say builder=gpu, and the image hash and ray
+#          counts equal `default`'s, whose tree the CPU built: hits do not
+#          depend on the tree), and cuda+none in 16x16 and 32x32 (the
 #          binary traversal, persistent schedule);
 #   bvh    cuda+bvh in 16x16 and 32x32 only (scenes whose brute force is slow);
 #   nogpu  expects `--backend cuda` to fail with one line and exit 1 (the
@@ -74,8 +77,9 @@ for sc in "$@"; do
     ref="$TMP/$name-serial.ppm"
     rec_s=$("$RT" -q --backend serial --accel bvh -o "$ref" "$DIR/$sc.txt") || { echo "FAIL $name: serial render"; fail=1; continue; }
     rec_l="" # serial at 2560x1920, made for the first `large` render
+    rec_default="" # the `default` render, for `gpubuild`
     case $MODE in
-        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:16x8:runs bvh:-:default bvh:-:large} none:16x16 none:32x32" ;;
+        full) runs="${GPU_CHECK_BLOCKS:-bvh:8x8 bvh:16x8 bvh:16x16 bvh:32x8 bvh:32x32 bvh:13x7 bvh:128x1 bvh:16x8:runs bvh:-:default bvh:-:gpubuild bvh:-:large} none:16x16 none:32x32" ;;
         *) runs="${GPU_CHECK_BLOCKS:-bvh:16x16 bvh:32x32}" ;;
     esac
     for r in $runs; do
@@ -84,7 +88,8 @@ for sc in "$@"; do
         size=""; bref=$ref; srec=$rec_s; opts="--block $blk --runs 1 --warmup 0"
         case $kind in
             runs) opts="--block $blk --runs 3 --warmup 1" ;;
-            default) opts="" ;;
+            default) opts="--builder cpu" ;;
+            gpubuild) opts="--builder gpu" ;;
             large)
                 size="-r 2560x1920"; opts=""
                 bref="$TMP/$name-serial-large.ppm"
@@ -110,7 +115,14 @@ for sc in "$@"; do
             runs) says runs 3 && says warmups 1 && says frames 3 && says warmup_frames 1 || continue ;;
             default)
                 ah=slot; case $rec_c in *" pairs=1 "*) ah=sorted ;; esac
-                says large 0 && says sched grid && says order center && says anyhit "$ah" || continue ;;
+                says large 0 && says sched grid && says order center && says anyhit "$ah" || continue
+                rec_default=$rec_c ;;
+            gpubuild)
+                says builder gpu || continue
+                for k in image_fnv1a primary_rays shadow_rays secondary_rays; do
+                    [ "$(field "$rec_c" $k)" = "$(field "$rec_default" $k)" ] ||
+                        { echo "FAIL $name gpubuild: $k $(field "$rec_c" $k), the CPU's tree $(field "$rec_default" $k)"; fail=1; }
+                done ;;
             large) says large 1 && says sched persistent && says order tiles && says anyhit slot && says pairs 0 || continue ;;
         esac
         trav=$kind; want=$kind

@@ -122,10 +122,10 @@ static int locate(void)
     L.wide = find_array(entry, entry_len, A.wide, A.nwide * sizeof *A.wide, "wide nodes");
     /* the settings: by their output name (unique in the entry), then checked */
     L.settings = -1;
-    const size_t ol = strlen(S.output) + 1;
+    const size_t ol = strlen(S.settings.output) + 1;
     int found = 0;
     for (size_t o = 0; o + ol <= entry_len; o++)
-        if (memcmp(entry + o, S.output, ol) == 0 && o >= offsetof(RtSceneSettings, output)) {
+        if (memcmp(entry + o, S.settings.output, ol) == 0 && o >= offsetof(RtSceneSettings, output)) {
             L.settings = (long)(o - offsetof(RtSceneSettings, output));
             found++;
         }
@@ -133,8 +133,9 @@ static int locate(void)
     if (found == 1 && (size_t)L.settings + sizeof(RtSceneSettings) <= entry_len) {
         RtSceneSettings copy;
         memcpy(&copy, entry + L.settings, sizeof copy);
-        CHECK(copy.max_depth == S.max_depth && memcmp(&copy.camera_pos, &S.camera_pos, sizeof S.camera_pos) == 0 &&
-                  copy.width == S.width && copy.height == S.height,
+        CHECK(copy.max_depth == S.settings.max_depth &&
+                  memcmp(&copy.camera_pos, &S.settings.camera_pos, sizeof S.settings.camera_pos) == 0 &&
+                  copy.width == S.settings.width && copy.height == S.settings.height,
               "the settings are not where their output name says");
     } else {
         L.settings = -1;

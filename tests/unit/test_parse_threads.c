@@ -65,7 +65,7 @@ static int same_scene(const RtScene *a, const RtScene *b)
 #define SAME_POOL(f, n) (a->n == b->n && memcmp(a->f, b->f, (size_t)a->n * sizeof *a->f) == 0)
     return SAME_POOL(vertices, nvertices) && SAME_POOL(normals, nnormals) && SAME_POOL(triangles, ntriangles) &&
            SAME_POOL(spheres, nspheres) && SAME_POOL(materials, nmaterials) && SAME_POOL(lights, nlights) &&
-           memcmp(&a->camera_pos, &b->camera_pos, (const char *)(a + 1) - (const char *)&a->camera_pos) == 0;
+           memcmp(&a->settings, &b->settings, (const char *)(a + 1) - (const char *)&a->settings) == 0;
 #undef SAME_POOL
 }
 

@@ -23,8 +23,12 @@
 #include <cuda_runtime.h>
 
 #include "kernels.cuh"
+#include "bvh_gpu.h"
 #include "cuda_check.h"
 #include "cuda_session.h"
+extern "C" {
+#include "backends/backends.h" /* RT_OMP_TILE */
+}
 
 /* One device allocation for everything: each array at a 256-byte aligned
  * offset, so one size is known (for the out-of-memory message) and one free
@@ -66,6 +70,7 @@ typedef struct CudaRun {
     RtBvh4Node *slot_wide;     /* host copy of the wide tree in slot order */
     int slots;                 /* frames in flight (rt_cuda_frames_in_flight) */
     double init_ms, upload_ms;
+    RtCudaTree *tree;          /* the tree the GPU built on this device, read in place; NULL: the host's */
 } CudaRun;
 
 static void cuda_gpu_name(const char *in, char *out, size_t size)
@@ -79,9 +84,10 @@ static void cuda_gpu_name(const char *in, char *out, size_t size)
     out[k] = '\0';
 }
 
-/* The CUDA context takes 100 ms and more to create (H100 machine: 114-127
- * ms); created on a thread of its own while main() parses or maps the
- * scene, it is ready or nearly so when the render starts. */
+/* The CUDA context takes long to create next to a small scene's render
+ * (the record's init_ms: docs/gpu.md); created on a thread of its own while
+ * main() parses or maps the scene, it is ready or nearly so when the render
+ * starts. */
 static pthread_t g_warm;
 static int g_warm_started;
 
@@ -103,6 +109,14 @@ void rt_cuda_prewarm_device(int device, int wrap)
 }
 
 static void cuda_prewarm(int device) { rt_cuda_prewarm_device(device, 0); }
+
+void rt_cuda_prewarm_join(void)
+{
+    if (g_warm_started) {
+        pthread_join(g_warm, NULL);
+        g_warm_started = 0;
+    }
+}
 
 int rt_cuda_device_bus(int device, char *bus, size_t size, RtError *err)
 {
@@ -127,15 +141,11 @@ int rt_cuda_device_count(int *n, RtError *err)
 /* The device, its context (init_ms: how long the render still waited for
  * it) and its properties. No driver, no GPU: one clear line before
  * anything else. */
-static int cuda_open(CudaRun *c, RtError *err)
+int rt_cuda_device_open(int dev, double *wait_ms, RtError *err)
 {
     const double t_wait = rt_now_ms();
-    if (g_warm_started) {
-        pthread_join(g_warm, NULL);
-        g_warm_started = 0;
-    }
+    rt_cuda_prewarm_join();
     int ndev = 0;
-    const int dev = c->job->device;
     if (rt_cuda_device_count(&ndev, err))
         return -1;
     if (dev < 0 || dev >= ndev)
@@ -143,7 +153,17 @@ static int cuda_open(CudaRun *c, RtError *err)
                        ndev - 1);
     RT_CUDA_CHECK(cudaSetDevice(dev));
     RT_CUDA_CHECK(cudaFree(0));
-    c->init_ms = rt_now_ms() - t_wait; /* what is left of the context's creation */
+    *wait_ms = rt_now_ms() - t_wait; /* what is left of the context's creation */
+    return 0;
+fail:
+    return -1;
+}
+
+static int cuda_open(CudaRun *c, RtError *err)
+{
+    const int dev = c->job->device;
+    if (rt_cuda_device_open(dev, &c->init_ms, err))
+        return -1;
     RT_CUDA_CHECK(cudaGetDeviceProperties(&c->prop, dev));
     cuda_gpu_name(c->prop.name, c->gpu, sizeof c->gpu);
     {
@@ -177,7 +197,7 @@ static int cuda_plan_auto(CudaRun *c, int has_tree, RtError *err)
     }
     /* Slot order for the shadow rays where the kernel has the choice: the
      * 4-wide tree, one lane per pixel. */
-    p->slot = !p->pairs && c->job->view.wide != NULL;
+    p->slot = !p->pairs && (c->job->view.wide != NULL || c->tree != NULL);
     return 0;
 fail:
     return -1;
@@ -231,7 +251,10 @@ static int cuda_parts(CudaRun *c, RtError *err)
     const RtSceneView *hv = &c->job->view;
     RtCudaPart *pt = c->parts;
     int failed = 0;
-    if (c->plan.slot && (c->slot_wide = rt_cuda_slot_order(hv, err, &failed)) == NULL && failed)
+    float way[3];
+    if (c->plan.slot && c->tree && rt_cuda_slot_way(hv, way) && rt_cuda_tree_slot_order(c->tree, hv->nwide, way, err))
+        return -1;
+    if (c->plan.slot && !c->tree && (c->slot_wide = rt_cuda_slot_order(hv, err, &failed)) == NULL && failed)
         return -1;
     if (c->plan.center && (c->center = rt_cuda_center_order(&c->g, c->w, c->h, err)) == NULL)
         return -1;
@@ -244,6 +267,9 @@ static int cuda_parts(CudaRun *c, RtError *err)
 #define PART_HOST(T, name) pt[P_##name].host = hv->name, pt[P_##name].bytes = (size_t)hv->n##name * sizeof(T);
     RT_SCENE_ARRAYS(PART_HOST) /* every scene array goes up whole */
 #undef PART_HOST
+    if (c->tree) /* (on the device already: the build's) */
+        pt[P_PRIMS].bytes = pt[P_NODES].bytes = pt[P_WIDE].bytes = pt[P_vertices].bytes = pt[P_triangles].bytes =
+            pt[P_spheres].bytes = 0;
     pt[P_IMAGE].bytes = (size_t)c->slots * c->npix * 3 * sizeof(float);
     pt[P_IMAGE8].bytes = (size_t)c->slots * c->npix * 3;
     pt[P_COUNTERS].bytes = (size_t)c->slots * RT_CUDA_CSLOT;
@@ -297,6 +323,13 @@ static int cuda_upload(CudaRun *c, RtError *err)
 #define PART_DEVICE(T, name) dv->name = (const T *)(a + c->parts[P_##name].offset);
         RT_SCENE_ARRAYS(PART_DEVICE)
 #undef PART_DEVICE
+        if (c->tree) {
+            dv->prims = c->tree->prims;
+            dv->wide = c->tree->wide;
+            dv->vertices = c->tree->vertices;
+            dv->triangles = c->tree->triangles;
+            dv->spheres = c->tree->spheres;
+        }
         c->g.units = c->center ? (const uint32_t *)(a + c->parts[P_ORDER].offset) : NULL;
     }
     return 0;
@@ -410,6 +443,15 @@ int rt_cuda_session_open(const RtRenderJob *job, RtCudaSession **out, RtError *e
     c->w = job->view.cam.width;
     c->h = job->view.cam.height;
     c->npix = (size_t)c->w * (size_t)c->h;
+    if (job->accel && job->accel->device) { /* built on a GPU: read in place on its device */
+        c->tree = (RtCudaTree *)job->accel->device;
+        if (c->tree->device != job->device && !job->accel->prims) {
+            rt_fail(err, "cuda: the BVH was built on device %d, the render runs on %d", c->tree->device, job->device);
+            goto fail;
+        }
+        if (c->tree->device != job->device)
+            c->tree = NULL;
+    }
     if (cuda_open(c, err) || cuda_plan(c, err) || cuda_upload(c, err))
         goto fail;
     RT_CUDA_CHECK(cudaDeviceSynchronize()); /* (the streams below do not wait for the legacy stream's poison) */
@@ -734,5 +776,6 @@ fail:
 extern "C" {
 extern const RtBackend rt_backend_cuda;
 /* times its own runs: the scene stays on the device between frames */
-const RtBackend rt_backend_cuda = {"cuda", NULL, NULL, render_cuda, NULL, NULL, 1, cuda_prewarm, 1};
+const RtBackend rt_backend_cuda = {"cuda", NULL, NULL, render_cuda, NULL, NULL, 1, cuda_prewarm, 1, RT_OMP_TILE,
+                                   rt_cuda_accel_build};
 }

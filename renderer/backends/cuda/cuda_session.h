@@ -36,6 +36,12 @@ int rt_cuda_device_bus(int device, char *bus, size_t size, RtError *err);
 /* Creates device `device`'s context on a thread of its own, so that it is
  * ready when the session opens; device modulo the device count when wrap. */
 void rt_cuda_prewarm_device(int device, int wrap);
+/* Waits for the context rt_cuda_prewarm_device started, if it did. */
+void rt_cuda_prewarm_join(void);
+/* Makes device `dev` the calling thread's, its context created (wait_ms:
+ * how long that still took). 0, or -1 with "cuda: no usable GPU: ..." or
+ * "cuda: --device N: ...". */
+int rt_cuda_device_open(int dev, double *wait_ms, RtError *err);
 /* Opens job->device, plans the launch for job's whole image and uploads the
  * scene; the share is the whole image. 0, or -1 with the message (out of
  * memory names the bytes needed). */

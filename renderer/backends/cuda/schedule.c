@@ -27,8 +27,8 @@
 
 /* Below about 4 waves a frame's time is its slowest pixels' (latency), not
  * the GPU's throughput: on the H200 the dragon at 512x384 (2.9 waves) gave
- * a frame every 0.149 ms with 2 frames in flight and every 0.124 ms with 4;
- * at 3840x2160 (82 waves) 2 are as fast as any more (docs/gpu.md). */
+ * frames faster with 4 frames in flight than with 2; at 3840x2160 (82
+ * waves) 2 are as fast as any more (docs/gpu.md, "Measured"). */
 #define RT_CUDA_DEEP_WAVES 4.0
 
 int rt_cuda_frames_in_flight(double waves) { return waves < RT_CUDA_DEEP_WAVES ? RT_CUDA_MAX_SLOTS : 2; }
@@ -203,30 +203,10 @@ typedef struct SlotOrder {
     float way[3];
 } SlotOrder;
 
-static void slot_sort(const SlotOrder *so, RtBvh4Node *o)
-{
-    float key[4];
-    for (uint32_t k = 0; k < o->count; k++) {
-        key[k] = 0.0f;
-        key[k] += 0.5f * (o->lo_x[k] + o->hi_x[k]) * so->way[0];
-        key[k] += 0.5f * (o->lo_y[k] + o->hi_y[k]) * so->way[1];
-        key[k] += 0.5f * (o->lo_z[k] + o->hi_z[k]) * so->way[2];
-    }
-    for (uint32_t i = 1; i < o->count; i++) /* insertion sort: ties keep their order */
-        for (uint32_t j = i; j > 0 && key[j] < key[j - 1]; j--) {
-#define RT_SWAP(T, a) do { T t_ = (a)[j]; (a)[j] = (a)[j - 1]; (a)[j - 1] = t_; } while (0)
-            RT_SWAP(float, key);
-            RT_SWAP(float, o->lo_x); RT_SWAP(float, o->lo_y); RT_SWAP(float, o->lo_z);
-            RT_SWAP(float, o->hi_x); RT_SWAP(float, o->hi_y); RT_SWAP(float, o->hi_z);
-            RT_SWAP(uint32_t, o->child);
-#undef RT_SWAP
-        }
-}
-
 static void slot_copy(SlotOrder *so, uint32_t from, uint32_t to)
 {
     RtBvh4Node o = so->in[from];
-    slot_sort(so, &o);
+    rt_cuda_slot_sort(so->way, &o);
     for (uint32_t k = 0; k < o.count; k++)
         if (!(o.child[k] & RT_WIDE_LEAF)) {
             const uint32_t c = o.child[k];
@@ -236,12 +216,21 @@ static void slot_copy(SlotOrder *so, uint32_t from, uint32_t to)
     so->out[to] = o;
 }
 
+int rt_cuda_slot_way(const RtSceneView *v, float way[3])
+{
+    if (v->nlights != 1 || v->lights[0].type != RT_LIGHT_DIRECTIONAL)
+        return 0;
+    for (int i = 0; i < 3; i++)
+        way[i] = -v->lights[0].dir[i]; /* towards the light */
+    return 1;
+}
+
 RtBvh4Node *rt_cuda_slot_order(const RtSceneView *v, RtError *err, int *failed)
 {
     *failed = 0;
-    if (!v->wide || v->nlights != 1 || v->lights[0].type != RT_LIGHT_DIRECTIONAL)
-        return NULL;
     SlotOrder so;
+    if (!v->wide || !rt_cuda_slot_way(v, so.way))
+        return NULL;
     so.in = v->wide;
     so.out = malloc((size_t)v->nwide * sizeof *so.out);
     if (!so.out) {
@@ -249,8 +238,6 @@ RtBvh4Node *rt_cuda_slot_order(const RtSceneView *v, RtError *err, int *failed)
         rt_fail(err, "cuda: out of memory for the slot order of %u nodes", v->nwide);
         return NULL;
     }
-    for (int i = 0; i < 3; i++)
-        so.way[i] = -v->lights[0].dir[i]; /* towards the light */
     so.n = 1;
     slot_copy(&so, 0, 0);
     return so.out;

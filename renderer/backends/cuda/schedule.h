@@ -101,6 +101,31 @@ uint32_t *rt_cuda_center_order(const RtCudaGrid *g, int w, int h, RtError *err);
  * nodes, or NULL when the scene has no single direction of shadow rays and
  * the build's order stays): see schedule.c. */
 RtBvh4Node *rt_cuda_slot_order(const RtSceneView *v, RtError *err, int *failed);
+/* Whether the slot order applies (the scene's one light is directional),
+ * and its way (towards the light). */
+int rt_cuda_slot_way(const RtSceneView *v, float way[3]);
+/* One node's slots front to back along `way` (by their boxes' centres),
+ * ties in their order: rt_cuda_slot_order's sort, and the GPU build's
+ * (bvh_gpu.cu), which sorts its tree in place. */
+static inline RT_HD void rt_cuda_slot_sort(const float way[3], RtBvh4Node *o)
+{
+    float key[4];
+    for (uint32_t k = 0; k < o->count; k++) {
+        key[k] = 0.0f;
+        key[k] += 0.5f * (o->lo_x[k] + o->hi_x[k]) * way[0];
+        key[k] += 0.5f * (o->lo_y[k] + o->hi_y[k]) * way[1];
+        key[k] += 0.5f * (o->lo_z[k] + o->hi_z[k]) * way[2];
+    }
+    for (uint32_t i = 1; i < o->count; i++) /* insertion sort: ties keep their order */
+        for (uint32_t j = i; j > 0 && key[j] < key[j - 1]; j--) {
+#define RT_SWAP(T, a) do { T t_ = (a)[j]; (a)[j] = (a)[j - 1]; (a)[j - 1] = t_; } while (0)
+            RT_SWAP(float, key);
+            RT_SWAP(float, o->lo_x); RT_SWAP(float, o->lo_y); RT_SWAP(float, o->lo_z);
+            RT_SWAP(float, o->hi_x); RT_SWAP(float, o->hi_y); RT_SWAP(float, o->hi_z);
+            RT_SWAP(uint32_t, o->child);
+#undef RT_SWAP
+        }
+}
 
 #ifdef __cplusplus
 }
