@@ -133,6 +133,10 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
     int w = v->cam.width, h = v->cam.height;
     int64_t ntiles = rt_tile_count(w, h, tw, th);
     RtMpiImage m;
+    /* Each thread's CPU, claim or no claim: a rank that gets no tile still
+     * ran where it was bound (the record's cores, the harness's pinning check). */
+#pragma omp parallel num_threads(pool->nthreads)
+    rt_cpu_note(rt_cpu_slot(pool, rt_cpu_thread_id()));
     rt_mpi_image_open(&m, (size_t)w * (size_t)h * 3 * sizeof(float), rgb, rt_mpi_local_size == rt_mpi_size && !test_separate());
     rt_mpi_frame_start(&m);
     const double t0 = rt_now_ms();

@@ -110,4 +110,12 @@ for sep in 1 0; do
     if [ $sep = 1 ] && [ "$puts" = 0 ]; then echo "FAIL: separate: no time in puts"; fails=$((fails + 1)); fi
     if [ $sep = 0 ] && [ "$puts" != 0 ]; then echo "FAIL: shared: time in puts"; fails=$((fails + 1)); fi
 done
+
+# A rank that claims no tile (3 ranks, one 8x8 tile) still names its core:
+# the harness's pinning check must not see a rank that ran nowhere.
+rec=$(timeout 60 "$mpirun" --quiet --oversubscribe -np 3 "$rt" -q --backend mpi -r 8x8 -o "$tmp/m.ppm" "$good" \
+      2> "$tmp/err") || { echo "FAIL: one tile, three ranks: $(cat "$tmp/err")"; fails=$((fails + 1)); }
+echo "one tile, three ranks: rank_claims=$(key "$rec" rank_claims) rank_cores=$(key "$rec" rank_cores)"
+key "$rec" rank_cores | grep -Eq '^[0-9,]+/[0-9,]+/[0-9,]+$' ||
+    { echo "FAIL: one tile, three ranks: a rank without a core: rank_cores=$(key "$rec" rank_cores)"; fails=$((fails + 1)); }
 [ "$fails" = 0 ]
