@@ -276,7 +276,7 @@ static int prepare(Run *r, RtError *err)
     RtBvhSettings bvh = rt_bvh_settings_default();
     bvh.threads = o->build_threads;
     bvh.huge_pages = o->huge_pages;
-    r->builder = "cpu";
+    r->builder = loaded ? "cache" : "cpu";
     if (!loaded && build_accel(r, &bvh, err) != 0)
         return -1;
     r->build_ms = rt_now_ms() - t0 - r->gpu_build.init_ms; /* (the context is not the build's) */

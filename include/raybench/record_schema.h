@@ -73,7 +73,8 @@ typedef enum { RT_REC_MAIN, RT_REC_MAIN_IF, RT_REC_BACKEND, RT_REC_LAST } RtRecW
       "the tree's SAH cost (traversal and intersection cost 1, relative to the root's area; 0 for none): " \
       "its quality beside `build_ms`") \
     X(builder, STR, "", EXTRA, "extra", MAIN, \
-      "`cpu` or `gpu`: who built the BVH (`--builder`; `cpu` also for `none` and a tree from the cache)") \
+      "`cpu` or `gpu`: who built the BVH (`--builder`; `cpu` also for `none`), `cache`: none, the tree " \
+      "came from `--cache DIR`") \
     X(gpu_build_ms, F3, "ms", EXTRA, "extra", MAIN_IF, \
       "`builder=gpu` only: the build's kernels on the GPU, first to last; `build_ms` adds its device " \
       "memory and copying the scene's geometry up (the tree stays on the GPU; docs/performance.md, " \

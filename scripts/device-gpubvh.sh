@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# device-gpubvh.sh [test|ab|quality|cache]... - the GPU BVH build on the GPU
+# machine (docs/performance.md, "The GPU build"); run through the device tool
+# from the repository root with carry [".devcarry"] (the course scenes in
+# .devcarry/scenes/course, .devcarry/include/xxhash.h where the machine lacks
+# libxxhash-dev). Steps (default: all):
+#   test     test_gpu_bvh on degenerate input, the project's and the course's
+#            scenes and the two large sphere fields; gpu_check.sh's default
+#            (CPU tree) and gpubuild (GPU tree) renders on four course scenes
+#   ab       the first image of large-1m and large-4m at 1920x1080: the
+#            commit in .devcarry/base.tar.gz (`git archive --prefix=base/ OLD
+#            | gzip`; its CPU build), this tree with --builder cpu and with
+#            --builder gpu, interleaved, ROUNDS rounds (default 5)
+#   quality  each builder's tree rendered (--runs 5, 1920x1080) on the large
+#            stand-ins and every course scene, 3 rounds: SAH cost, visits,
+#            kernel time, image
+#   cache    the first image from a warm cache of large-4m (an entry stored
+#            by the GPU build, then five loads)
+# Output under $OUT (default /tmp/device-gpubvh).
+set -uo pipefail
+cd "$(dirname "$0")/.."
+R=$PWD
+OUT=${OUT:-/tmp/device-gpubvh}
+mkdir -p "$OUT"
+steps=${*:-test ab quality cache}
+course=$R/.devcarry/scenes/course
+xx=()
+[ -f /usr/include/xxhash.h ] || xx+=("-Dc_args=-I$R/.devcarry/include")
+B=/tmp/b-head
+[ -f $B/build.ninja ] || meson setup $B -Dgpu_arch=9.0 "-Dcourse_dir=$course" "${xx[@]}" > "$OUT/setup.log" 2>&1
+ninja -C $B renderer/raytrace renderer/scenegen renderer/imgdiff tests/test_gpu_bvh > "$OUT/build.log" 2>&1 ||
+    { tail -20 "$OUT/build.log"; exit 1; }
+SCENEGEN=$B/renderer/scenegen scripts/gen-scenes.sh large-1m large-4m island-1m island-4m objects-1m > /dev/null 2>&1
+export RAYBENCH_COURSE_DIR=$course
+keys='^(scene|backend|builder|parse_ms|build_ms|gpu_build_ms|build_init_ms|init_ms|upload_ms|render_ms|kernel_ms|write_ms|total_ms|sah_cost|node_visits|image_fnv1a|bvh_nodes|prims)='
+rec() { "$@" | tr ' ' '\n' | grep -E "$keys" | tr '\n' ' '; echo; }
+C=course:InterestingScenes
+for step in $steps; do case $step in
+test)
+    timeout 300 $B/tests/test_gpu_bvh scenes/demo.txt scenes/glass.txt tests/scenes/odd.txt $C/dragon.txt \
+        $C/arm-reach.txt $C/bottle.txt course:SphereExamples/spheres2.txt $C/ShadowTest.txt \
+        scenes/generated/large-1m.txt scenes/generated/large-4m.txt > "$OUT/test.txt" 2>&1
+    echo "test_gpu_bvh rc=$?"
+    GPU_CHECK_BLOCKS="bvh:-:default bvh:-:gpubuild" sh tests/gpu/gpu_check.sh $B/renderer/raytrace \
+        $B/renderer/imgdiff "$course" full InterestingScenes/dragon TriangleExamples/outdoor \
+        SphereExamples/spheres2 InterestingScenes/ShadowTest > "$OUT/gpu-check.txt" 2>&1
+    echo "gpu_check rc=$?" ;;
+ab)
+    tar xzf .devcarry/base.tar.gz -C /tmp
+    (cd /tmp/base && meson setup /tmp/b-base -Dgpu_arch=9.0 "${xx[@]}" > "$OUT/setup-base.log" 2>&1 &&
+        ninja -C /tmp/b-base renderer/raytrace > "$OUT/build-base.log" 2>&1) || { echo "base build failed"; exit 1; }
+    for round in $(seq "${ROUNDS:-5}"); do
+        for sc in large-1m large-4m; do
+            echo -n "round=$round version=base "
+            rec /tmp/b-base/renderer/raytrace --backend cuda -q -r 1920x1080 scenes/generated/$sc.txt -o /tmp/k.png
+            for b in cpu gpu; do
+                echo -n "round=$round version=head "
+                rec $B/renderer/raytrace --backend cuda --builder $b -q -r 1920x1080 scenes/generated/$sc.txt -o /tmp/k.png
+            done
+        done
+    done > "$OUT/first-image.txt" ;;
+quality)
+    for round in 1 2 3; do
+        for f in scenes/generated/{large-1m,large-4m,island-1m,island-4m,objects-1m}.txt "$course"/*/*.txt; do
+            for b in cpu gpu; do
+                echo -n "round=$round "
+                rec $B/renderer/raytrace --backend cuda --builder $b --runs 5 -q -r 1920x1080 "$f" -o /tmp/q.png
+            done
+        done
+    done > "$OUT/quality.txt" ;;
+cache)
+    rm -rf /tmp/rb-cache && mkdir -m 700 /tmp/rb-cache
+    for i in 0 1 2 3 4 5; do
+        echo -n "cache run=$i "
+        rec $B/renderer/raytrace --backend cuda --builder gpu --cache /tmp/rb-cache -q -r 1920x1080 \
+            scenes/generated/large-4m.txt -o /tmp/c.png
+    done > "$OUT/cache.txt" ;;
+*) echo "device-gpubvh: unknown step '$step' (test, ab, quality, cache)" >&2; exit 2 ;;
+esac; done
