@@ -14,6 +14,9 @@
 #              of pixels over 2/255, so a change of the shading shows while a
 #              change of float rounding in the last bit does not
 #   golden+none@WxH  also brute force at WxH, with the same image_fnv1a
+#   png@WxH,WxH...  the PNG writer (pieces deflated on every core, io/image.c)
+#              against PPM at each size: the same pixels read back by libpng
+#              (CRCs and Adler-32 checked), the same bytes on 1 and 2 threads
 # SCENE and REFERENCE may be course:PATH and reference:NAME (tests/course.sh).
 # Exits 77 (skipped) when a course scene or reference image is missing.
 set -u
@@ -57,6 +60,16 @@ golden@* | golden+none@*)
         echo "bvh $hb none $hn at $res"
         [ -n "$hb" ] && [ "$hb" = "$hn" ] || { echo "FAIL: bvh and none images differ"; exit 1; }
     esac
+    ;;
+png@*)
+    for res in $(echo "${mode#png@}" | tr ',' ' '); do
+        "$rt" --quiet -r "$res" -o "$tmp/a.ppm" "$scene" > /dev/null || exit 1
+        OMP_NUM_THREADS=1 "$rt" --quiet -r "$res" -o "$tmp/a1.png" "$scene" > /dev/null || exit 1
+        OMP_NUM_THREADS=2 "$rt" --quiet -r "$res" -o "$tmp/a2.png" "$scene" > /dev/null || exit 1
+        "$diff" "$tmp/a1.png" "$tmp/a.ppm" --min-psnr 1000 --max-over2 0 || { echo "FAIL: png at $res"; exit 1; }
+        cmp -s "$tmp/a1.png" "$tmp/a2.png" || { echo "FAIL: png at $res: other bytes on 2 threads"; exit 1; }
+        echo "png $res: $(wc -c < "$tmp/a1.png") bytes, the PPM's pixels"
+    done
     ;;
 *) echo "bad mode $mode"; exit 2 ;;
 esac
