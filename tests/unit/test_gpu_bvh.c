@@ -165,22 +165,20 @@ static void check_degenerate(void)
     const RtVec3 v[5] = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {0, 1, 0}, {3, 0, 0}};
     const uint32_t same[4][3] = {{0, 1, 3}, {0, 1, 3}, {0, 1, 3}, {0, 1, 3}};
     const uint32_t flat[4][3] = {{0, 1, 2}, {0, 0, 0}, {1, 2, 4}, {2, 2, 2}}; /* collinear, a point */
-    RtScene s;
-    make_scene(&s, v, 5, 400000, same, 0);
-    check_scene("400000 identical triangles", &s, 0);
-    rt_scene_free(&s);
-    make_scene(&s, v, 5, 1000, flat, 0);
-    check_scene("1000 zero-area triangles", &s, 0);
-    rt_scene_free(&s);
-    make_scene(&s, v, 5, 1, same, 0);
-    check_scene("one triangle", &s, 0);
-    rt_scene_free(&s);
-    make_scene(&s, v, 5, 1, same, 1);
-    check_scene("a triangle and a sphere", &s, 0);
-    rt_scene_free(&s);
-    make_scene(&s, v, 5, 0, same, 3000);
-    check_scene("3000 spheres", &s, 0);
-    rt_scene_free(&s);
+    const struct {
+        const char *name;
+        uint32_t ntri;
+        const uint32_t (*tri)[3];
+        uint32_t nsph;
+    } cases[] = {{"400000 identical triangles", 400000, same, 0}, {"1000 zero-area triangles", 1000, flat, 0},
+                 {"one triangle", 1, same, 0},                    {"a triangle and a sphere", 1, same, 1},
+                 {"3000 spheres", 0, same, 3000}};
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        RtScene s;
+        make_scene(&s, v, 5, cases[k].ntri, cases[k].tri, cases[k].nsph);
+        check_scene(cases[k].name, &s, 0);
+        rt_scene_free(&s);
+    }
 }
 
 int main(int argc, char **argv)
