@@ -191,8 +191,6 @@ int rt_accel_host(RtAccel *accel, RtError *err);
  * layout, depth within the traversal stacks; the same of the 4-wide copy. */
 int rt_bvh_check(const RtAccel *accel, RtError *err);
 const char *rt_accel_name(RtAccelKind kind);
-/* The tree's SAH cost over its binary nodes (the record's sah_cost). */
-double rt_accel_sah_cost(const RtAccel *accel);
 
 /* Who builds the BVH (raytrace --builder): the CPU, the GPU (a backend
  * with RtBackend.accel_build), or the one that gives the earlier image. */
@@ -461,6 +459,10 @@ double rt_median(double *v, int n);
  * first begun elapsed_ms ago: warmup_runs >= 0 counts them; else
  * warmup_ms >= 0 is a time, with at least one render; else none (--warmup). */
 int rt_warmup_due(int warmup_runs, double warmup_ms, int done, double elapsed_ms);
+/* Marks the whole 2 MiB pages inside p (n bytes, just allocated, to be
+ * filled) for transparent huge pages (accel/huge_pages.c): one fault per
+ * 2 MiB instead of per 4 KiB; a hint the kernel may decline. Returns p. */
+void *rt_huge_hint(void *p, size_t n);
 /* The threads a loading step runs on when `asked` for (0: as many as
  * OpenMP gives, one per allowed CPU; 1 in a build without OpenMP). */
 int rt_thread_count(int asked);

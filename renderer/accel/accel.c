@@ -119,8 +119,3 @@ void rt_accel_free(RtAccel *a)
     }
     memset(a, 0, sizeof *a);
 }
-
-double rt_accel_sah_cost(const RtAccel *a)
-{
-    return a->nnodes ? bvh_sah_cost(a->nodes, a->nnodes, rt_thread_count(0)) : 0.0;
-}

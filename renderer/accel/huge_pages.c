@@ -11,12 +11,10 @@
 
 #define HUGE_PAGE ((uintptr_t)2 << 20)
 
-/* Marks the whole 2 MiB pages inside array p of n bytes, just allocated,
- * when `on` (the build's choice: bvh_huge_pages_on). Returns p. */
-void *bvh_huge_hint(void *p, size_t n, int on)
+void *rt_huge_hint(void *p, size_t n)
 {
 #ifdef MADV_HUGEPAGE
-    if (p && on && n >= 2 * HUGE_PAGE) {
+    if (p && n >= 2 * HUGE_PAGE) {
         const uintptr_t a = ((uintptr_t)p + HUGE_PAGE - 1) & ~(HUGE_PAGE - 1);
         const uintptr_t e = ((uintptr_t)p + n) & ~(HUGE_PAGE - 1);
         if (e > a)
@@ -24,10 +22,12 @@ void *bvh_huge_hint(void *p, size_t n, int on)
     }
 #else
     (void)n;
-    (void)on;
 #endif
     return p;
 }
+
+/* rt_huge_hint when `on` (the build's choice: bvh_huge_pages_on). */
+void *bvh_huge_hint(void *p, size_t n, int on) { return on ? rt_huge_hint(p, n) : p; }
 
 /* malloc(n), in 2 MiB pages when `on`. */
 void *bvh_alloc(size_t n, int on) { return bvh_huge_hint(malloc(n), n, on); }

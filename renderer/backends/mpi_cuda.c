@@ -33,16 +33,22 @@ static void mpi_cuda_prewarm(int device) { rt_cuda_prewarm_device(device + rt_mp
 
 /* This rank's device: --device + local rank, modulo the GPUs it sees (under
  * Slurm's --gpus-per-task each rank sees only its own: device 0). */
-static int pick_device(const RtRenderJob *job, int *dev, char *bus, size_t size, RtError *err)
+static int rank_device(int device, int *dev, RtError *err)
 {
     int n = 0;
     if (rt_cuda_device_count(&n, err) != 0)
         return -1;
-    if (job->device >= n)
-        return rt_fail(err, "mpi-cuda: --device %d: this node has %d CUDA device(s), numbered 0 to %d", job->device,
-                       n, n - 1);
-    *dev = (job->device + rt_mpi_local_rank) % n;
-    return rt_cuda_device_bus(*dev, bus, size, err);
+    if (device >= n)
+        return rt_fail(err, "mpi-cuda: --device %d: this node has %d CUDA device(s), numbered 0 to %d", device, n,
+                       n - 1);
+    *dev = (device + rt_mpi_local_rank) % n;
+    return 0;
+}
+
+/* rank_device, and its PCI bus id. */
+static int pick_device(const RtRenderJob *job, int *dev, char *bus, size_t size, RtError *err)
+{
+    return rank_device(job->device, dev, err) || rt_cuda_device_bus(*dev, bus, size, err) ? -1 : 0;
 }
 
 /* One rank per GPU: collective over the node; fails on a rank whose GPU a
@@ -312,14 +318,12 @@ static int render_mpi_cuda(const RtRenderJob *job, RtRenderOut *out, RtError *er
     return 0;
 }
 
-/* Each rank builds its own tree on its own device (pick_device's choice). */
+/* Each rank builds its own tree on the device it renders on. */
 static int mpi_cuda_accel_build(const RtScene *scene, const RtBvhSettings *settings, int device, RtAccel *accel,
                                 RtBuildInfo *info, RtError *err)
 {
-    int n = 0;
-    if (rt_cuda_device_count(&n, err) != 0)
-        return -1;
-    return rt_cuda_accel_build(scene, settings, (device + rt_mpi_local_rank) % n, accel, info, err);
+    int dev = 0;
+    return rank_device(device, &dev, err) ? -1 : rt_cuda_accel_build(scene, settings, dev, accel, info, err);
 }
 
 /* times its own runs: the scene stays on each rank's device between frames */
