@@ -89,7 +89,7 @@ static double render_once(const RtSceneView *v, float *rgb)
     for (int t = 0; t < n; t++) {
         int x0, y0, x1, y1;
         rt_tile_rect(w, h, 32, 32, t, &x0, &y0, &x1, &y1);
-        rt_render_tile(v, x0, y0, x1, y1, rgb, &cnt);
+        rt_render_tile(v, x0, y0, x1, y1, rgb + 3 * ((size_t)y0 * (size_t)w + (size_t)x0), 3 * (size_t)w, &cnt);
     }
     return rt_now_ms() - t0;
 }

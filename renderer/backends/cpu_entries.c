@@ -28,10 +28,10 @@
     {                                                                                                            \
         return trace_wide(s, o, d, tmax, any, hit, cnt, node, leaf);                                             \
     }                                                                                                            \
-    target static void tile_##isa(const RtSceneView *s, int x0, int y0, int x1, int y1, float *rgb,              \
-                                  RtCounters *cnt)                                                               \
+    target static void tile_##isa(const RtSceneView *s, int x0, int y0, int x1, int y1, float *dst,              \
+                                  size_t pitch, RtCounters *cnt)                                                 \
     {                                                                                                            \
-        rt_render_tile_##path(s, x0, y0, x1, y1, rgb, cnt);                                                      \
+        rt_render_tile_##path(s, x0, y0, x1, y1, dst, pitch, cnt);                                               \
     }                                                                                                            \
     target static void pixel_##isa(const RtSceneView *s, int i, int j, float *rgb, RtCounters *cnt)              \
     {                                                                                                            \

@@ -17,6 +17,7 @@
 
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "rt.h"
 #include "cpu_trace.h"
@@ -32,6 +33,8 @@
  * line: counters merged at the end, never atomics in the pixel loop. */
 typedef struct RtCpuSlot {
     RtCounters cnt;                         /* work counters of this thread (40 bytes) */
+    uint64_t backups;                       /* second renders of a tile it started */
+    uint64_t backups_won;                   /* ... whose pixels went into the image */
     uint64_t cpus[RT_CPU_MAX_CPUS / 64];    /* bitmask of CPUs it ran on (128 bytes) */
 } RtCpuSlot;
 
@@ -39,6 +42,8 @@ typedef struct RtCpuPool {
     int nthreads;
     size_t stride;   /* bytes between slots: sizeof(RtCpuSlot) rounded up to 128 */
     unsigned char *mem;
+    size_t tile_floats; /* each thread's tile buffer (rt_cpu_render_tiles) */
+    float *tiles;
 } RtCpuPool;
 
 static inline RtCpuSlot *rt_cpu_slot(const RtCpuPool *p, int t)
@@ -65,13 +70,23 @@ static inline int rt_cpu_threads(int requested, int fallback)
 #endif
 }
 
-static inline int rt_cpu_pool_init(RtCpuPool *p, int nthreads, RtError *err)
+/* A pool of nthreads, each with a buffer for one tile of up to tw x th
+ * pixels (0 x 0: the pool renders no tiles). */
+static inline int rt_cpu_pool_init(RtCpuPool *p, int nthreads, int tw, int th, RtError *err)
 {
     p->nthreads = nthreads;
     p->stride = (sizeof(RtCpuSlot) + 127) / 128 * 128;
     p->mem = aligned_alloc(128, p->stride * (size_t)nthreads);
-    if (!p->mem)
-        return rt_fail(err, "out of memory for %d worker threads", nthreads);
+    /* whole lines per thread: no two threads write one line */
+    p->tile_floats = ((size_t)tw * (size_t)th * 3 + 31) / 32 * 32;
+    p->tiles = p->tile_floats ? aligned_alloc(128, p->tile_floats * sizeof(float) * (size_t)nthreads) : NULL;
+    if (!p->mem || (p->tile_floats && !p->tiles)) {
+        free(p->mem);
+        free(p->tiles);
+        p->mem = NULL;
+        p->tiles = NULL;
+        return rt_fail(err, "out of memory for %d worker threads with %dx%d tiles", nthreads, tw, th);
+    }
     memset(p->mem, 0, p->stride * (size_t)nthreads);
 #ifdef _OPENMP
     /* The team size is exactly what was asked for, never trimmed by the
@@ -90,7 +105,9 @@ static inline int rt_cpu_pool_init(RtCpuPool *p, int nthreads, RtError *err)
 static inline void rt_cpu_pool_free(RtCpuPool *p)
 {
     free(p->mem);
+    free(p->tiles);
     p->mem = NULL;
+    p->tiles = NULL;
 }
 
 static inline int rt_cpu_thread_id(void)
@@ -121,42 +138,115 @@ static inline void rt_region_tile(int rx0, int ry0, int rx1, int ry1, int tw, in
     *y1 += ry0;
 }
 
-/* Renders tiles [first, first + count) of the tw x th tiling of the region,
- * handed out one at a time to whichever thread is free (dynamic): ray cost
- * varies by orders of magnitude across an image (sky vs. a glass dragon), so
- * a static split leaves threads idle. rgb is the full image (stride = width). */
-static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtSceneView *v, int rx0, int ry0, int rx1, int ry1,
-                                       int tw, int th, int first, int count, float *rgb, RtProgressFn progress,
-                                       void *progress_ctx)
+/* ---- tiles, and their second renders ----------------------------------
+ *
+ * A thread that the operating system (or a hypervisor) takes off its core
+ * while it holds a tile holds the frame: on a 64-core virtual machine such
+ * stalls reach milliseconds, as long as a whole 512x384 frame. So once the
+ * tiles are all claimed, a thread with nothing left starts a second render
+ * of a tile that is claimed and not yet finished, at most one per tile:
+ * MapReduce's backup tasks (Dean and Ghemawat, OSDI 2004). Both renders go
+ * into buffers of their own; whichever finishes first sets the tile's DONE
+ * bit and copies its pixels into the image, and only its counters count.
+ * A tile's pixels depend only on the scene, so image and counters are those
+ * of one render, whoever wins. */
+#define RT_TILE_DONE 1u   /* its pixels are in the image */
+#define RT_TILE_BACKUP 2u /* its second render has started */
+
+/* A frame's tiles: a state byte each, and the count of tiles in the image.
+ * The MPI backend keeps it in rank 0's shared window, so that ranks back up
+ * each other's tiles too. */
+typedef struct RtTileBoard {
+    unsigned char *state; /* per tile of the tiling: RT_TILE_* */
+    int64_t *done;        /* tiles in the image */
+    int64_t *end_ns;      /* when the last of them arrived (rt_now_ns) */
+    int64_t total;        /* tiles in the frame */
+} RtTileBoard;
+
+static inline int64_t rt_now_ns(void)
 {
-    int done = 0; /* tiles finished, for progress only */
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
+}
+
+/* What rt_cpu_render_tiles does: claim tiles [first, first + count) of the
+ * tw x th tiling of region [rx0,rx1) x [ry0,ry1), one at a time, then back
+ * up tiles of [scan_first, scan_first + scan_count) (all claimed by then),
+ * each thread starting its pass at its own place: thread t of a caller
+ * that is slot `scan_slot` of `scan_slots` callers (MPI ranks). */
+typedef struct RtTileRun {
+    const RtSceneView *v;
+    int rx0, ry0, rx1, ry1, tw, th;
+    int64_t first, count;
+    int64_t scan_first, scan_count;
+    int scan_slot, scan_slots;
+    float *rgb;           /* the whole image (stride = width) */
+    RtTileBoard *board;   /* states indexed by tile number in the tiling */
+    RtProgressFn progress;
+    void *progress_ctx;
+} RtTileRun;
+
+/* Tile t rendered into buf; its pixels copied into the image and its
+ * counters added to *cnt only if this render is the first to finish it. */
+static inline int rt_tile_render(const RtTileRun *r, int64_t t, float *buf, RtCounters *cnt)
+{
+    int x0, y0, x1, y1;
+    rt_region_tile(r->rx0, r->ry0, r->rx1, r->ry1, r->tw, r->th, (int)t, &x0, &y0, &x1, &y1);
+    const size_t cw = (size_t)(x1 - x0) * 3, w = (size_t)r->v->cam.width;
+    RtCounters c;
+    memset(&c, 0, sizeof c);
+    rt_cpu_render_tile(r->v, x0, y0, x1, y1, buf, cw, &c);
+    RtTileBoard *b = r->board;
+    if (__atomic_fetch_or(&b->state[t], RT_TILE_DONE, __ATOMIC_ACQ_REL) & RT_TILE_DONE)
+        return 0;
+    for (int j = y0; j < y1; j++)
+        memcpy(r->rgb + 3 * ((size_t)j * w + (size_t)x0), buf + (size_t)(j - y0) * cw, cw * sizeof(float));
+    rt_counters_add(cnt, &c);
+    if (__atomic_add_fetch(b->done, 1, __ATOMIC_ACQ_REL) == b->total)
+        __atomic_store_n(b->end_ns, rt_now_ns(), __ATOMIC_RELEASE);
+    return 1;
+}
+
+/* Renders r's tiles on the pool's threads: ray cost varies by orders of
+ * magnitude across an image (sky vs. a glass dragon), so tiles are handed
+ * out one at a time to whichever thread is free (dynamic), then backed up. */
+static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtTileRun *r)
+{
+    int64_t next = r->first, done = 0; /* done: for progress only */
+    const int64_t end = r->first + r->count;
 #pragma omp parallel num_threads(p->nthreads)
     {
         int tid = rt_cpu_thread_id();
         RtCpuSlot *slot = rt_cpu_slot(p, tid);
+        float *buf = p->tiles + (size_t)tid * p->tile_floats;
         RtCounters cnt; /* on this thread's stack: the hot loop writes nothing shared */
         memset(&cnt, 0, sizeof cnt);
         rt_cpu_note(slot);
-#pragma omp for schedule(dynamic, 1) nowait
-        for (int t = first; t < first + count; t++) {
-            int x0, y0, x1, y1;
-            rt_region_tile(rx0, ry0, rx1, ry1, tw, th, t, &x0, &y0, &x1, &y1);
-            rt_cpu_render_tile(v, x0, y0, x1, y1, rgb, &cnt);
+        for (int64_t t; (t = __atomic_fetch_add(&next, 1, __ATOMIC_RELAXED)) < end;) {
+            rt_tile_render(r, t, buf, &cnt);
             rt_cpu_note(slot);
-            if (progress) {
-                /* One atomic add per tile (hundreds of pixels); only thread 0
-                 * prints, so no thread ever waits for the terminal. */
-                int d;
-#pragma omp atomic capture
-                d = ++done;
+            if (r->progress) {
+                /* only thread 0 prints: no thread ever waits for the terminal */
+                int64_t d = __atomic_add_fetch(&done, 1, __ATOMIC_RELAXED);
                 if (tid == 0)
-                    progress(progress_ctx, (uint64_t)d, (uint64_t)count);
+                    r->progress(r->progress_ctx, (uint64_t)d, (uint64_t)r->count);
             }
+        }
+        const int64_t n = r->scan_count, k0 = n * (int64_t)(r->scan_slot * p->nthreads + tid) /
+                                               ((int64_t)r->scan_slots * p->nthreads);
+        for (int64_t k = 0; k < n; k++) {
+            const int64_t t = r->scan_first + (k0 + k) % n;
+            if (__atomic_load_n(&r->board->state[t], __ATOMIC_RELAXED) ||
+                __atomic_fetch_or(&r->board->state[t], RT_TILE_BACKUP, __ATOMIC_RELAXED))
+                continue;
+            slot->backups++;
+            slot->backups_won += (uint64_t)rt_tile_render(r, t, buf, &cnt);
         }
         rt_counters_add(&slot->cnt, &cnt);
     }
-    if (progress)
-        progress(progress_ctx, (uint64_t)count, (uint64_t)count);
+    if (r->progress)
+        r->progress(r->progress_ctx, (uint64_t)r->count, (uint64_t)r->count);
 }
 
 /* The report's OpenMP scheme: `collapse(2)` over the pixel loops of the
@@ -190,6 +280,17 @@ static inline void rt_cpu_pool_merge(const RtCpuPool *p, RtCounters *sum, char *
         for (int c = 0; c < RT_CPU_MAX_CPUS; c++)
             if (s->cpus[c / 64] >> (c % 64) & 1)
                 rt_cores_note(cores, size, c);
+    }
+}
+
+/* Second renders started and won, over the pool's threads (the record's
+ * backups= key). */
+static inline void rt_cpu_pool_backups(const RtCpuPool *p, uint64_t *runs, uint64_t *won)
+{
+    *runs = *won = 0;
+    for (int t = 0; t < p->nthreads; t++) {
+        *runs += rt_cpu_slot(p, t)->backups;
+        *won += rt_cpu_slot(p, t)->backups_won;
     }
 }
 

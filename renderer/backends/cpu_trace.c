@@ -145,13 +145,14 @@ int rt_cpu_trace(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, 
     return rt_cpu_current()->trace(s, o, d, tmax, any, hit, cnt);
 }
 
-void rt_cpu_render_tile(const RtSceneView *s, int x0, int y0, int x1, int y1, float *rgb, RtCounters *cnt)
+void rt_cpu_render_tile(const RtSceneView *s, int x0, int y0, int x1, int y1, float *dst, size_t pitch,
+                        RtCounters *cnt)
 {
     if (!s->cpu_wide) {
-        rt_render_tile_fallback(s, x0, y0, x1, y1, rgb, cnt);
+        rt_render_tile_fallback(s, x0, y0, x1, y1, dst, pitch, cnt);
         return;
     }
-    rt_cpu_current()->tile(s, x0, y0, x1, y1, rgb, cnt);
+    rt_cpu_current()->tile(s, x0, y0, x1, y1, dst, pitch, cnt);
 }
 
 void rt_cpu_render_pixel(const RtSceneView *s, int i, int j, float *rgb, RtCounters *cnt)

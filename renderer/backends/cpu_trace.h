@@ -26,7 +26,7 @@ typedef struct RtCpuIsa {
     int (*supported)(void);
     /* rt_render_tile and rt_render_pixel (core/rt_path_tmpl.h, shadow rays
      * RT_ANY_HIT) with this entry's traversal inlined */
-    void (*tile)(const RtSceneView *s, int x0, int y0, int x1, int y1, float *rgb, RtCounters *cnt);
+    void (*tile)(const RtSceneView *s, int x0, int y0, int x1, int y1, float *dst, size_t pitch, RtCounters *cnt);
     void (*pixel)(const RtSceneView *s, int i, int j, float *rgb, RtCounters *cnt);
 } RtCpuIsa;
 
@@ -53,7 +53,8 @@ int rt_cpu_trace(const RtSceneView *s, RtVec3 o, RtVec3 d, float tmax, int any, 
 /* What every CPU backend renders with: rt_render_tile and rt_render_pixel
  * of core/rt_path_tmpl.h through the selected entry (its tile and pixel), or,
  * for scenes without the CPU's copy of the tree, through rt_cpu_trace. */
-void rt_cpu_render_tile(const RtSceneView *s, int x0, int y0, int x1, int y1, float *rgb, RtCounters *cnt);
+void rt_cpu_render_tile(const RtSceneView *s, int x0, int y0, int x1, int y1, float *dst, size_t pitch,
+                        RtCounters *cnt);
 void rt_cpu_render_pixel(const RtSceneView *s, int i, int j, float *rgb, RtCounters *cnt);
 
 #endif

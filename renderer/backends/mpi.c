@@ -15,6 +15,9 @@
  *                           counter and the image live in an MPI window
  *                           (one-sided: on one node Open MPI's osc/sm turns
  *                           both into plain shared-memory atomics and copies).
+ *                           On one node the window also holds the tile
+ *                           board, so ranks back up each other's tiles once
+ *                           the counter is spent (cpu_tiles.h).
  *
  * Start and end, the scene on every rank, agreeing on failures and the
  * shared image's window and claims are mpi_common.c's, shared with
@@ -44,6 +47,9 @@ enum {
 };
 typedef struct RankTimes {
     double t[T_N];
+    int64_t t0_ns;      /* when this rank left the starting barrier */
+    int64_t end_ns;     /* when the last tile reached rank 0's image (shared board), else 0 */
+    uint64_t backups[2]; /* second renders started, won */
 } RankTimes;
 
 /* Test hook: the window of separate memory (MPI_Fetch_and_op claims and
@@ -75,14 +81,23 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
         displs[r] = y0 * w * 3;
     }
     int y0 = displs[rt_mpi_rank] / (w * 3), y1 = y0 + counts[rt_mpi_rank] / (w * 3);
+    /* the rank's tiles, backed up among its own threads */
+    const int64_t ntiles = y1 > y0 ? rt_tile_count(w, y1 - y0, tw, th) : 0;
+    unsigned char *state = calloc((size_t)ntiles + 1, 1);
+    if (!state)
+        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
+    int64_t done = 0, end_ns = 0;
+    RtTileBoard board = {state, &done, &end_ns, ntiles};
+    RtTileRun run = {v, 0, y0, w, y1, tw, th, 0, ntiles, 0, ntiles, 0, 1, rgb, &board, NULL, NULL};
     RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD));
     const double t0 = rt_now_ms();
     if (y1 > y0) {
         if (job->schedule == RT_SCHED_PIXELS)
             rt_cpu_render_pixels(pool, v, 0, y0, w, y1, rgb);
         else
-            rt_cpu_render_tiles(pool, v, 0, y0, w, y1, tw, th, 0, rt_tile_count(w, y1 - y0, tw, th), rgb, NULL, NULL);
+            rt_cpu_render_tiles(pool, &run);
     }
+    free(state);
     rt->t[T_WORK_MS] = rt_now_ms() - t0;
     if (rt_mpi_rank == 0)
         RT_MPI_CHECK(MPI_Gatherv(MPI_IN_PLACE, 0, MPI_FLOAT, rgb, counts, displs, MPI_FLOAT, 0, MPI_COMM_WORLD));
@@ -137,46 +152,70 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
      * ran where it was bound (the record's cores, the harness's pinning check). */
 #pragma omp parallel num_threads(pool->nthreads)
     rt_cpu_note(rt_cpu_slot(pool, rt_cpu_thread_id()));
-    rt_mpi_image_open(&m, (size_t)w * (size_t)h * 3 * sizeof(float), rgb, rt_mpi_local_size == rt_mpi_size && !test_separate());
+    /* On one node the tile board lives in rank 0's window, after two
+     * int64s (tiles done, the time of the last) on a line pair of their
+     * own, so ranks back up each other's tiles (cpu_tiles.h); across nodes
+     * each rank keeps one for its own threads. */
+    const int shared = rt_mpi_local_size == rt_mpi_size && !test_separate() && rt_mpi_size > 1;
+    rt_mpi_image_open(&m, (size_t)w * (size_t)h * 3 * sizeof(float), rgb, shared, shared ? 128 + (size_t)ntiles : 0);
+    unsigned char *local = shared ? NULL : calloc((size_t)ntiles, 1);
+    int64_t local_done = 0, local_end = 0;
+    if (!shared && !local)
+        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
+    RtTileBoard board = {local, &local_done, &local_end, ntiles};
+    if (shared) {
+        board.done = (int64_t *)m.extra;
+        board.end_ns = (int64_t *)m.extra + 1;
+        board.state = (unsigned char *)m.extra + 128;
+    }
+    RtTileRun run = {v, 0, 0, w, h, tw, th, 0, 0, 0, 0, rt_mpi_rank, rt_mpi_size,
+                     m.direct ? (float *)m.img0 : rgb, &board, NULL, NULL};
     rt_mpi_frame_start(&m);
+    rt->t0_ns = rt_now_ns();
     const double t0 = rt_now_ms();
 
-    float *dst = m.direct ? (float *)m.img0 : rgb;
     const int64_t min_claim = tiles_per_claim(pool->nthreads);
-    int64_t first, count;
     TileTypes tt;
     tt.n = 0;
     /* Which rank renders a tile never changes the image. */
     for (;;) {
         double t = rt_now_ms();
-        count = rt_mpi_claim(&m, ntiles, min_claim, &first);
+        run.count = rt_mpi_claim(&m, ntiles, min_claim, &run.first);
         rt->t[T_CLAIM_MS] += rt_now_ms() - t;
-        if (count <= 0)
+        if (run.count <= 0)
             break;
         rt->t[T_CLAIMS]++;
-        rt_cpu_render_tiles(pool, v, 0, 0, w, h, tw, th, (int)first, (int)count, dst, NULL, NULL);
+        rt_cpu_render_tiles(pool, &run);
         if (m.direct)
             continue;
         t = rt_now_ms();
-        for (int k = (int)first; k < first + count; k++) {
+        for (int k = (int)run.first; k < run.first + run.count; k++) {
             int x0, y0, x1, y1;
             rt_tile_rect(w, h, tw, th, k, &x0, &y0, &x1, &y1);
             MPI_Datatype ty = tile_type(&tt, x1 - x0, y1 - y0, w);
             size_t off = ((size_t)y0 * (size_t)w + (size_t)x0) * 3;
-            RT_MPI_CHECK(MPI_Put(rgb + off, 1, ty, 0, (MPI_Aint)(RT_WIN_IMAGE + off * sizeof(float)), 1, ty, m.win));
+            RT_MPI_CHECK(MPI_Put(rgb + off, 1, ty, 0, (MPI_Aint)(m.img_off + off * sizeof(float)), 1, ty, m.win));
         }
         rt->t[T_PUT_MS] += rt_now_ms() - t;
     }
     rt->t[T_WORK_MS] = rt_now_ms() - t0;
+    if (shared) { /* every tile is claimed: back up those still unfinished */
+        run.count = 0;
+        run.scan_count = ntiles;
+        rt_cpu_render_tiles(pool, &run);
+    }
     rt_mpi_frame_end(&m);
     rt->t[T_END_MS] = rt_now_ms() - t0;
+    if (rt_mpi_rank == 0)
+        rt->end_ns = shared ? *board.end_ns : rt_mpi_size == 1 ? local_end : 0;
     rt_mpi_image_close(&m, rgb);
+    free(local);
     for (int i = 0; i < tt.n; i++)
         MPI_Type_free(&tt.t[i]);
 }
 
 /* Appends " key=v0/v1/..." of time `f` of every rank. */
-static size_t rank_key(char *buf, size_t size, size_t len, const char *key, const RankTimes *all, int f,
+static size_t rank_key(char *buf, size_t size, size_t len, const char *key, const double *all, int f,
                        const char *fmt)
 {
     if (len < size)
@@ -184,7 +223,7 @@ static size_t rank_key(char *buf, size_t size, size_t len, const char *key, cons
     for (int r = 0; r < rt_mpi_size && len < size; r++) {
         len += (size_t)snprintf(buf + len, size - len, "%s", r ? "/" : "");
         if (len < size)
-            len += (size_t)snprintf(buf + len, size - len, fmt, all[r].t[f]);
+            len += (size_t)snprintf(buf + len, size - len, fmt, all[(size_t)r * T_N + (size_t)f]);
     }
     return len;
 }
@@ -192,7 +231,7 @@ static size_t rank_key(char *buf, size_t size, size_t len, const char *key, cons
 /* The per-rank keys (collective; rank 0 gets them in buf). */
 static void rank_keys(const RankTimes *mine, int dynamic, char *e, size_t size)
 {
-    RankTimes *all = rt_mpi_rank == 0 ? malloc(sizeof *all * (size_t)rt_mpi_size) : NULL;
+    double *all = rt_mpi_rank == 0 ? malloc(sizeof *all * T_N * (size_t)rt_mpi_size) : NULL;
     if (rt_mpi_rank == 0 && !all)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
     RT_MPI_CHECK(MPI_Gather(mine->t, T_N, MPI_DOUBLE, all, T_N, MPI_DOUBLE, 0, MPI_COMM_WORLD));
@@ -223,7 +262,8 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     if (threads > 1 && rt_mpi_thread_level < MPI_THREAD_FUNNELED)
         failed = rt_fail(err, "--threads %d needs MPI_THREAD_FUNNELED, this MPI library provides level %d", threads,
                          rt_mpi_thread_level) != 0;
-    else if (rt_cpu_pool_init(&pool, threads, err) != 0)
+    else if (rt_cpu_pool_init(&pool, threads, tw < job->view.cam.width ? tw : job->view.cam.width,
+                              th < job->view.cam.height ? th : job->view.cam.height, err) != 0)
         failed = 1;
     /* only in tests/cpu's raytrace-testhooks (mpi_fail.sh): an error on one
      * rank only */
@@ -250,7 +290,12 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     char cores[sizeof out->cores];
     cores[0] = '\0';
     rt_cpu_pool_merge(&pool, &mine, cores, sizeof cores);
+    uint64_t backups[2];
+    rt_cpu_pool_backups(&pool, &times.backups[0], &times.backups[1]);
     rt_cpu_pool_free(&pool);
+    RT_MPI_CHECK(MPI_Reduce(times.backups, backups, 2, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD));
+    int64_t t0_min;
+    RT_MPI_CHECK(MPI_Reduce(&times.t0_ns, &t0_min, 1, MPI_INT64_T, MPI_MIN, 0, MPI_COMM_WORLD));
     _Static_assert(sizeof(RtCounters) == 5 * sizeof(uint64_t), "RtCounters is reduced as 5 uint64");
     RT_MPI_CHECK(MPI_Reduce(&mine, &sum, 5, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD));
     double ms_max, ms_min, load_max;
@@ -272,7 +317,10 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     if (rt_mpi_rank != 0)
         return 0;
     out->counters = sum;
-    out->render_ms = ms_max;
+    /* with the board (dynamic, one node): from the first rank's start to the
+     * last tile in the image, one clock on one node; else to the end of the
+     * slowest rank */
+    out->render_ms = times.end_ns > 0 ? (times.end_ns - t0_min) * 1e-6 : ms_max;
     out->render_ms_min = ms_min;
     /* cores: the union (the harness's pinning check); rank_cores: per rank,
      * ranks separated by '/', e.g. 0/1 or 0,1/2,3 for 2 ranks x 2 threads */
@@ -293,11 +341,12 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     free(all);
     snprintf(out->extra, sizeof out->extra,
              " mpi_schedule=%s schedule=%s mpi_scene=%s load_ms_max=%.3f tiles_per_claim=%lld"
-             " rank_cores=%s nodes=%d rank_node=%s%s",
+             " backups=%llu backups_won=%llu rank_cores=%s nodes=%d rank_node=%s%s",
              job->mpi_schedule == RT_MPI_ROWS ? "rows" : "dynamic",
              job->schedule == RT_SCHED_PIXELS ? "pixels" : "tiles",
              rt_mpi_scene_how, load_max,
-             (long long)tiles_per_claim(threads), per_rank, rt_mpi_nodes, nodes, keys);
+             (long long)tiles_per_claim(threads), (unsigned long long)backups[0], (unsigned long long)backups[1],
+             per_rank, rt_mpi_nodes, nodes, keys);
     if (job->progress)
         job->progress(job->progress_ctx, 1, 1);
     return 0;

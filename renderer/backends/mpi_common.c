@@ -233,12 +233,14 @@ const RtCollective rt_mpi_collective = {mpi_is_root, rt_mpi_agree, mpi_scene_loa
 
 /* ---------------------------------------------------------------- the shared image */
 
-void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared)
+void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared, size_t extra)
 {
     memset(m, 0, sizeof *m);
     m->bytes = bytes;
+    m->extra_bytes = extra;
+    m->img_off = RT_WIN_EXTRA + (extra + 127) / 128 * 128;
     shared = shared && rt_mpi_size > 1;
-    MPI_Aint size = rt_mpi_rank == 0 ? (MPI_Aint)(RT_WIN_IMAGE + bytes) : 0;
+    MPI_Aint size = rt_mpi_rank == 0 ? (MPI_Aint)(m->img_off + bytes) : 0;
     if (shared)
         RT_MPI_CHECK(MPI_Win_allocate_shared(size, 1, MPI_INFO_NULL, MPI_COMM_WORLD, &m->base, &m->win));
     else
@@ -256,7 +258,8 @@ void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared
         m->direct = 1;
         m->atomic = 1;
     }
-    m->img0 = (char *)m->base + RT_WIN_IMAGE;
+    m->extra = (char *)m->base + RT_WIN_EXTRA;
+    m->img0 = (char *)m->base + m->img_off;
     if (rt_mpi_rank == 0) {
         if (init)
             memcpy(m->img0, init, bytes); /* e.g. main's NaN poison, for --verify */
@@ -268,8 +271,10 @@ void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared
 
 void rt_mpi_frame_start(RtMpiImage *m)
 {
-    if (rt_mpi_rank == 0)
+    if (rt_mpi_rank == 0) {
         *(int64_t *)m->base = 0;
+        memset(m->extra, 0, m->extra_bytes);
+    }
     RT_MPI_CHECK(MPI_Win_sync(m->win));
     RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD));
 }
@@ -310,7 +315,7 @@ void rt_mpi_put_runs(RtMpiImage *m, const void *src, size_t off, size_t width, s
     MPI_Datatype t;
     RT_MPI_CHECK(MPI_Type_vector((int)count, (int)width, (int)pitch, MPI_BYTE, &t));
     RT_MPI_CHECK(MPI_Type_commit(&t));
-    RT_MPI_CHECK(MPI_Put((const char *)src + off, 1, t, 0, (MPI_Aint)(RT_WIN_IMAGE + off), 1, t, m->win));
+    RT_MPI_CHECK(MPI_Put((const char *)src + off, 1, t, 0, (MPI_Aint)(m->img_off + off), 1, t, m->win));
     MPI_Type_free(&t);
 }
 

@@ -51,28 +51,33 @@ void rt_mpi_rank_nodes(char *buf, size_t size);
 extern const RtCollective rt_mpi_collective;
 
 /* The shared image of the dynamic scheme. The window on rank 0 (disp_unit
- * 1) holds the claim counter, then the image at byte RT_WIN_IMAGE, a
- * 128-byte line pair later (the adjacent-line prefetcher's pair), so that
+ * 1) holds the claim counter, then `extra` bytes of the caller's (the tile
+ * board, shared memory only), then the image at byte img_off, each part
+ * 128-byte line pairs apart (the adjacent-line prefetcher's pair), so that
  * claims never contend with the pixels written beside them. */
-#define RT_WIN_IMAGE 128
+#define RT_WIN_EXTRA 128
 typedef struct RtMpiImage {
     MPI_Win win;
     void *base;     /* rank 0's window (the counter at its start) */
+    void *extra;    /* rank 0's extra bytes, where this rank may reach them directly */
     void *img0;     /* rank 0's image, where this rank may write it directly */
     int direct;     /* 1: write img0 directly; 0: MPI_Put into it */
     int atomic;     /* 1: claim with a CPU atomic on the counter (shared memory) */
     size_t bytes;   /* the image's size */
+    size_t extra_bytes;
+    size_t img_off; /* the image's byte in the window */
 } RtMpiImage;
 
-/* Collective: the window on rank 0 (counter and an image of `bytes`, the
- * image starting as rank 0's init, e.g. main's NaN poison, or zeros where
- * init is NULL), locked for the passive target epochs of frames. Rank 0
- * writes its own pixels directly where the memory model allows. shared (the
- * same on every rank) says every rank runs on one node: the window is then
- * shared memory (MPI_Win_allocate_shared), every rank writes its pixels
- * straight into rank 0's image (no puts) and claims with one CPU atomic on
- * the counter (no MPI call, no lock). */
-void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared);
+/* Collective: the window on rank 0 (counter, `extra` bytes zeroed at every
+ * frame start, and an image of `bytes`, the image starting as rank 0's
+ * init, e.g. main's NaN poison, or zeros where init is NULL), locked for the
+ * passive target epochs of frames. Rank 0 writes its own pixels directly
+ * where the memory model allows. shared (the same on every rank) says every
+ * rank runs on one node: the window is then shared memory
+ * (MPI_Win_allocate_shared), every rank writes its pixels straight into
+ * rank 0's image (no puts) and claims with one CPU atomic on the counter (no
+ * MPI call, no lock). */
+void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared, size_t extra);
 /* Collective: the counter back to 0; returns when every rank may claim. */
 void rt_mpi_frame_start(RtMpiImage *m);
 /* Guided self-scheduling (Polychronopoulos & Kuck 1987) of `total` units:

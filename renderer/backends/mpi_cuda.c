@@ -256,7 +256,7 @@ static void open_image(const RtRenderJob *job, RtCudaSession *s, RtRenderOut *ou
     d->slots = rt_cuda_session_slots(s);
     /* the same on every rank, or their frames' calls would differ (GPUs of other kinds) */
     RT_MPI_CHECK(MPI_Allreduce(MPI_IN_PLACE, &d->slots, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD));
-    rt_mpi_image_open(m, d->bytes, d->floats ? (const void *)out->rgb : NULL, rt_mpi_local_size == rt_mpi_size);
+    rt_mpi_image_open(m, d->bytes, d->floats ? (const void *)out->rgb : NULL, rt_mpi_local_size == rt_mpi_size, 0);
     if (!m->direct && (d->stage = malloc((size_t)d->slots * d->bytes)) == NULL)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
     rt_cuda_session_pin(s, d->stage ? d->stage : m->img0, d->stage ? (size_t)d->slots * d->bytes : d->bytes);

@@ -2,13 +2,14 @@
  * threads of one process.
  *
  *   --schedule tiles  (default) tiles of --tile WxH (default RT_OMP_TILE,
- *                     backends.h) handed out dynamically: the load-balanced
- *                     scheme.
+ *                     backends.h) handed out dynamically, then backed up
+ *                     (cpu_tiles.h): the load-balanced scheme.
  *   --schedule pixels the report's scheme: `collapse(2)` static over pixels.
  *
  * Threads: --threads N, else OMP_NUM_THREADS, else every CPU of the process's
  * affinity mask. */
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "backends.h" /* RT_OMP_TILE */
@@ -20,18 +21,33 @@ static int render_openmp(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     const RtSceneView *v = &job->view;
     int w = v->cam.width, h = v->cam.height;
     int tw = job->tile_w > 0 ? job->tile_w : RT_OMP_TILE, th = job->tile_h > 0 ? job->tile_h : RT_OMP_TILE;
+    const int pixels = job->schedule == RT_SCHED_PIXELS;
+    const int64_t ntiles = rt_tile_count(w, h, tw, th);
     RtCpuPool pool;
-    if (rt_cpu_pool_init(&pool, rt_cpu_threads(job->threads, 0), err) != 0)
+    if (rt_cpu_pool_init(&pool, rt_cpu_threads(job->threads, 0), pixels ? 0 : (tw < w ? tw : w),
+                         pixels ? 0 : (th < h ? th : h), err) != 0)
         return -1;
+    unsigned char *state = pixels ? NULL : calloc((size_t)ntiles, 1);
+    if (!pixels && !state) {
+        rt_cpu_pool_free(&pool);
+        return rt_fail(err, "out of memory for %lld tiles", (long long)ntiles);
+    }
+    int64_t done = 0, end_ns = 0;
+    RtTileBoard board = {state, &done, &end_ns, ntiles};
+    RtTileRun run = {v, 0, 0, w, h, tw, th, 0, ntiles, 0, ntiles, 0, 1, out->rgb, &board, job->progress,
+                     job->progress_ctx};
 
-    double t0 = rt_now_ms();
-    if (job->schedule == RT_SCHED_PIXELS)
+    const int64_t t0 = rt_now_ns();
+    if (pixels)
         rt_cpu_render_pixels(&pool, v, 0, 0, w, h, out->rgb);
     else
-        rt_cpu_render_tiles(&pool, v, 0, 0, w, h, tw, th, 0, rt_tile_count(w, h, tw, th), out->rgb, job->progress,
-                            job->progress_ctx);
-    out->render_ms = rt_now_ms() - t0;
-    if (job->progress && job->schedule == RT_SCHED_PIXELS)
+        rt_cpu_render_tiles(&pool, &run);
+    const int64_t t1 = rt_now_ns();
+    /* render_ms: to the image complete, when the last tile's pixels are in
+     * it; join_ms: to the end of the parallel region, which also waits for
+     * the threads still busy with a tile that was already finished */
+    out->render_ms = ((pixels ? t1 : end_ns) - t0) * 1e-6;
+    if (job->progress && pixels)
         job->progress(job->progress_ctx, 1, 1); /* the report's static loop has no natural progress points */
 
     out->render_ms_min = out->render_ms;
@@ -39,9 +55,15 @@ static int render_openmp(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     out->threads_used = pool.nthreads;
     out->ranks_used = 1;
     out->is_root = 1;
-    snprintf(out->extra, sizeof out->extra, " schedule=%s",
-             job->schedule == RT_SCHED_PIXELS ? "pixels" : "tiles");
+    uint64_t runs, won;
+    rt_cpu_pool_backups(&pool, &runs, &won);
+    if (pixels)
+        snprintf(out->extra, sizeof out->extra, " schedule=pixels");
+    else
+        snprintf(out->extra, sizeof out->extra, " schedule=tiles join_ms=%.3f backups=%llu backups_won=%llu",
+                 (t1 - t0) * 1e-6, (unsigned long long)runs, (unsigned long long)won);
     rt_cpu_pool_free(&pool);
+    free(state);
     return 0;
 }
 

@@ -20,7 +20,8 @@ static int render_serial(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     for (int t = 0; t < ntiles; t++) {
         int x0, y0, x1, y1;
         rt_tile_rect(w, h, tw, th, t, &x0, &y0, &x1, &y1);
-        rt_cpu_render_tile(v, x0, y0, x1, y1, out->rgb, &cnt);
+        rt_cpu_render_tile(v, x0, y0, x1, y1, out->rgb + 3 * ((size_t)y0 * (size_t)w + (size_t)x0), 3 * (size_t)w,
+                           &cnt);
         if (job->progress)
             job->progress(job->progress_ctx, (uint64_t)t + 1, (uint64_t)ntiles);
     }

@@ -64,11 +64,9 @@ RT_PATH_FN RtVec3 RT_PATH_NAME(rt_trace_path)(const RtSceneView *s, RtRay primar
     return color;
 }
 
-/* Renders pixel (i, j) into rgb (float RGB, row-major, stride = image
- * width); shadow_any is the shadow rays' query, RT_ANY_HIT or
- * RT_ANY_HIT_SLOT (rt_traverse.h): the same image either way. */
-RT_PATH_FN void RT_PATH_NAME(rt_render_pixel)(const RtSceneView *s, int i, int j, int shadow_any, float *rgb,
-                                         RtCounters *cnt)
+/* The colour of pixel (i, j); shadow_any is the shadow rays' query,
+ * RT_ANY_HIT or RT_ANY_HIT_SLOT (rt_traverse.h): the same image either way. */
+RT_PATH_FN RtVec3 RT_PATH_NAME(rt_shade_pixel)(const RtSceneView *s, int i, int j, int shadow_any, RtCounters *cnt)
 {
     RtVec3 c = RT_PATH_NAME(rt_trace_path)(s, rt_camera_ray(&s->cam, i, j), shadow_any, cnt);
 #ifdef RT_PLANT_EVERY
@@ -83,19 +81,37 @@ RT_PATH_FN void RT_PATH_NAME(rt_render_pixel)(const RtSceneView *s, int i, int j
             (void)sink;
         }
 #endif
+    return c;
+}
+
+/* Renders pixel (i, j) into rgb (float RGB, row-major, stride = image
+ * width). */
+RT_PATH_FN void RT_PATH_NAME(rt_render_pixel)(const RtSceneView *s, int i, int j, int shadow_any, float *rgb,
+                                         RtCounters *cnt)
+{
+    RtVec3 c = RT_PATH_NAME(rt_shade_pixel)(s, i, j, shadow_any, cnt);
     float *px = rgb + 3 * ((size_t)j * (size_t)s->cam.width + (size_t)i);
     px[0] = c.x;
     px[1] = c.y;
     px[2] = c.z;
 }
 
-/* Renders pixels [x0,x1) x [y0,y1): the one loop every CPU backend calls. */
-RT_PATH_FN void RT_PATH_NAME(rt_render_tile)(const RtSceneView *s, int x0, int y0, int x1, int y1, float *rgb,
-                                        RtCounters *cnt)
+/* Renders pixels [x0,x1) x [y0,y1) into dst, pixel (x0, y0) first and rows
+ * `pitch` floats apart: into the image itself (pitch 3 * width, dst at the
+ * tile's corner) or into a tile of its own (pitch 3 * (x1 - x0)). The one
+ * loop every CPU backend calls. */
+RT_PATH_FN void RT_PATH_NAME(rt_render_tile)(const RtSceneView *s, int x0, int y0, int x1, int y1, float *dst,
+                                        size_t pitch, RtCounters *cnt)
 {
-    for (int j = y0; j < y1; j++)
-        for (int i = x0; i < x1; i++)
-            RT_PATH_NAME(rt_render_pixel)(s, i, j, RT_ANY_HIT, rgb, cnt);
+    for (int j = y0; j < y1; j++) {
+        float *row = dst + (size_t)(j - y0) * pitch;
+        for (int i = x0; i < x1; i++) {
+            RtVec3 c = RT_PATH_NAME(rt_shade_pixel)(s, i, j, RT_ANY_HIT, cnt);
+            row[3 * (i - x0)] = c.x;
+            row[3 * (i - x0) + 1] = c.y;
+            row[3 * (i - x0) + 2] = c.z;
+        }
+    }
 }
 
 #undef RT_PATH_TRACE

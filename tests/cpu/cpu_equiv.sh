@@ -1,7 +1,7 @@
 #!/bin/sh
 # cpu_equiv.sh RAYTRACE MPIRUN SCENE RESOLUTION ACCELS
 # The CPU backends against the serial oracle on one scene: OpenMP (1, 2, 3
-# threads; 7x5 and 16x16 tiles; the pixels schedule) and MPI (no mpirun, and
+# threads; 7x5 and 16x16 tiles; the pixels schedule; 12 threads of 4x4 tiles) and MPI (no mpirun, and
 # mpirun -np 1, 2, 3 with rows and dynamic; 2 ranks x 2 threads; every rank
 # parsing the scene instead of the broadcast default) must give the serial image_fnv1a and every work
 # counter exactly. Every run uses --verify (the image is poisoned first and
@@ -61,6 +61,10 @@ for accel in $accels; do
         done
         check "openmp threads=$t pixels $accel" "$rt" $common --backend openmp --threads $t --schedule pixels "$scene"
     done
+    # far more threads than cores: threads lose their core while they hold
+    # tiles, and others back those up (cpu_tiles.h); one image either way
+    check "openmp threads=12 tile=4x4 $accel" "$rt" $common --backend openmp --threads 12 --tile 4x4 "$scene"
+    echo "$accel openmp 12 threads:$(tr ' ' '\n' < "$tmp/run.rec" | grep -E '^(backups|backups_won)=' | tr '\n' ' ')"
     check "openmp OMP_NUM_THREADS=3 $accel" env OMP_NUM_THREADS=3 "$rt" $common --backend openmp "$scene"
     grep -q ' threads=3 ' "$tmp/run.rec" || { echo "FAIL: OMP_NUM_THREADS=3 did not give 3 threads"; fails=$((fails + 1)); }
 

@@ -126,15 +126,15 @@ static void check_renders(const char *path, const RtSceneView *v, const RtCpuIsa
     memset(&c0, 0, sizeof c0);
     for (size_t i = 0; i < n; i++)
         ref[i] = NAN;
-    rt_render_tile_binary(v, 0, 0, w, h, ref, &cr);
+    rt_render_tile_binary(v, 0, 0, w, h, ref, 3 * (size_t)w, &cr);
     for (int e = 0; e < nisa; e++)
         for (int way = 0; way < 2; way++) {
             for (size_t i = 0; i < n; i++)
                 img[i] = NAN;
             memset(&c, 0, sizeof c);
             if (way == 0) {
-                isa[e].tile(v, 0, 0, w, h / 2, img, &c);
-                isa[e].tile(v, 0, h / 2, w, h, img, &c);
+                isa[e].tile(v, 0, 0, w, h / 2, img, 3 * (size_t)w, &c);
+                isa[e].tile(v, 0, h / 2, w, h, img + 3 * (size_t)w * (size_t)(h / 2), 3 * (size_t)w, &c);
             } else {
                 for (int j = 0; j < h; j++)
                     for (int i = 0; i < w; i++)

@@ -1,0 +1,166 @@
+/* test_tile_board.c SCENE - the tile loop's backup renders (cpu_tiles.h):
+ * however a frame's tiles are split between first renders and backups, and
+ * whichever render of a tile finishes first, the image and the counters are
+ * the serial ones, every tile is in the image once, and the board's count
+ * and end time say so. The races themselves are forced here: a tile
+ * published twice, a frame rendered by backups alone, and tiles that the
+ * board already calls done. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "backends/cpu_tiles.h"
+#include "check.h"
+#include "core/rt_shade.h"
+#include "scene_fixture.h"
+
+typedef struct {
+    const RtSceneView *v;
+    int w, h, tw, th;
+    int64_t ntiles;
+    float *ref, *img;
+    RtCounters cref;
+    unsigned char *state;
+    int64_t done, end_ns;
+    RtTileBoard board;
+} Frame;
+
+static void frame_reset(Frame *f)
+{
+    for (size_t i = 0; i < (size_t)f->w * (size_t)f->h * 3; i++)
+        f->img[i] = NAN;
+    memset(f->state, 0, (size_t)f->ntiles);
+    f->done = f->end_ns = 0;
+    f->board = (RtTileBoard){f->state, &f->done, &f->end_ns, f->ntiles};
+}
+
+/* The pool's counters and the image against the serial ones. */
+static void frame_check(Frame *f, RtCpuPool *p, const char *what, int64_t skipped)
+{
+    RtCounters sum;
+    char cores[256] = "";
+    rt_cpu_pool_merge(p, &sum, cores, sizeof cores);
+    size_t bad = 0, n = (size_t)f->w * (size_t)f->h * 3;
+    for (size_t i = 0; i < n; i++)
+        bad += memcmp(&f->img[i], &f->ref[i], sizeof(float)) != 0;
+    if (skipped == 0) {
+        CHECK(bad == 0, "%s: %zu of %zu floats differ from the serial image", what, bad, n);
+        CHECK(memcmp(&sum, &f->cref, sizeof sum) == 0, "%s: counters differ (%llu node visits against %llu)", what,
+              (unsigned long long)sum.node_visits, (unsigned long long)f->cref.node_visits);
+        CHECK(f->done == f->ntiles && f->end_ns > 0, "%s: %lld of %lld tiles done, end %lld", what,
+              (long long)f->done, (long long)f->ntiles, (long long)f->end_ns);
+    } else {
+        CHECK(f->done == f->ntiles - skipped && f->end_ns == 0, "%s: %lld tiles done, %lld expected", what,
+              (long long)f->done, (long long)(f->ntiles - skipped));
+    }
+    for (int64_t t = 0; t < f->ntiles; t++)
+        CHECK(f->state[t] & RT_TILE_DONE, "%s: tile %lld not marked done", what, (long long)t);
+}
+
+static void check_frame(const RtSceneView *v, Frame *f)
+{
+    const int threads[] = {1, 2, 7};
+    for (int k = 0; k < 3; k++) {
+        char what[96];
+        RtCpuPool p;
+        RtError e;
+        CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, &e) == 0, "pool: %s", e.msg);
+        /* claims, then the backups' pass: whatever the split, one image */
+        frame_reset(f);
+        RtTileRun run = {v, 0, 0, f->w, f->h, f->tw, f->th, 0, f->ntiles, 0, f->ntiles, 0, 1, f->img, &f->board,
+                         NULL, NULL};
+        rt_cpu_render_tiles(&p, &run);
+        snprintf(what, sizeof what, "%d threads, claims", threads[k]);
+        frame_check(f, &p, what, 0);
+        uint64_t runs, won;
+        rt_cpu_pool_backups(&p, &runs, &won);
+        CHECK(won <= runs && runs <= (uint64_t)f->ntiles, "%s: %llu backups, %llu won", what,
+              (unsigned long long)runs, (unsigned long long)won);
+        rt_cpu_pool_free(&p);
+
+        /* nobody claims (the owners stalled): the backups render it all */
+        CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, &e) == 0, "pool: %s", e.msg);
+        frame_reset(f);
+        run.count = 0;
+        rt_cpu_render_tiles(&p, &run);
+        snprintf(what, sizeof what, "%d threads, backups only", threads[k]);
+        frame_check(f, &p, what, 0);
+        rt_cpu_pool_backups(&p, &runs, &won);
+        CHECK(runs == (uint64_t)f->ntiles && won == runs, "%s: %llu backups, %llu won, %lld tiles", what,
+              (unsigned long long)runs, (unsigned long long)won, (long long)f->ntiles);
+        rt_cpu_pool_free(&p);
+
+        /* tiles already done elsewhere are neither backed up nor counted */
+        CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, &e) == 0, "pool: %s", e.msg);
+        frame_reset(f);
+        int64_t skipped = 0;
+        for (int64_t t = 0; t < f->ntiles; t += 3, skipped++)
+            f->state[t] = RT_TILE_DONE;
+        rt_cpu_render_tiles(&p, &run);
+        snprintf(what, sizeof what, "%d threads, a third done elsewhere", threads[k]);
+        frame_check(f, &p, what, skipped);
+        for (int64_t t = 0; t < f->ntiles; t += 3) {
+            int x0, y0, x1, y1;
+            rt_tile_rect(f->w, f->h, f->tw, f->th, (int)t, &x0, &y0, &x1, &y1);
+            CHECK(isnan(f->img[3 * ((size_t)y0 * (size_t)f->w + (size_t)x0)]), "%s: tile %lld written", what,
+                  (long long)t);
+        }
+        rt_cpu_pool_free(&p);
+    }
+}
+
+/* One tile rendered twice: the first publishes, the second does not. */
+static void check_twice(const RtSceneView *v, Frame *f)
+{
+    frame_reset(f);
+    RtTileRun run = {v, 0, 0, f->w, f->h, f->tw, f->th, 0, 0, 0, 0, 0, 1, f->img, &f->board, NULL, NULL};
+    float *buf = malloc(sizeof(float) * 3 * (size_t)f->tw * (size_t)f->th);
+    RtCounters a, b;
+    memset(&a, 0, sizeof a);
+    memset(&b, 0, sizeof b);
+    CHECK(rt_tile_render(&run, 1, buf, &a) == 1, "the first render of a tile publishes");
+    CHECK(rt_tile_render(&run, 1, buf, &b) == 0, "the second render of a tile does not");
+    CHECK(a.primary_rays == (uint64_t)f->tw * (uint64_t)f->th && b.primary_rays == 0,
+          "only the first render counts: %llu, %llu primary rays", (unsigned long long)a.primary_rays,
+          (unsigned long long)b.primary_rays);
+    CHECK(f->done == 1 && f->end_ns == 0, "one tile done (%lld), frame not complete", (long long)f->done);
+    free(buf);
+}
+
+int main(int argc, char **argv)
+{
+    char buf[4096];
+    if (argc != 2)
+        return fprintf(stderr, "usage: test_tile_board SCENE\n"), 2;
+    RtScene s;
+    RtAccel a;
+    RtCamera cam;
+    RtSceneView v;
+    const char *path = check_scene_path(argv[1], buf, sizeof buf);
+    if (fixture_load(path, &s, &a, &cam, &v) != 0)
+        return check_report("test_tile_board");
+    /* 61x47 in 7x5 tiles: uneven edges */
+    RtError e;
+    s.settings.width = 61;
+    s.settings.height = 47;
+    CHECK(rt_scene_camera(&s, &cam, &e) == 0, "camera: %s", e.msg);
+    v = rt_scene_view(&s, &a, &cam);
+    void *soa = rt_cpu_prepare(&v);
+    Frame f = {&v, 61, 47, 7, 5, rt_tile_count(61, 47, 7, 5), NULL, NULL, {0}, NULL, 0, 0, {0}};
+    size_t n = (size_t)f.w * (size_t)f.h * 3;
+    f.ref = malloc(n * sizeof(float));
+    f.img = malloc(n * sizeof(float));
+    f.state = malloc((size_t)f.ntiles);
+    memset(&f.cref, 0, sizeof f.cref);
+    rt_cpu_render_tile(&v, 0, 0, f.w, f.h, f.ref, 3 * (size_t)f.w, &f.cref);
+    check_twice(&v, &f);
+    check_frame(&v, &f);
+    printf("%s: %lld tiles of %dx%d\n", path, (long long)f.ntiles, f.tw, f.th);
+    free(f.ref);
+    free(f.img);
+    free(f.state);
+    free(soa);
+    fixture_free(&s, &a);
+    return check_report("test_tile_board");
+}
