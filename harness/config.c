@@ -211,7 +211,7 @@ static int dim_of_key(const char *key)
 
 static const char *const scalar_keys[] = {
     "study", "scene_dir", "repeats", "warmup", "timeout", "oversubscribe",
-    "baseline", "raytrace", "mpirun", "launcher", "scene_cache", "instructions", NULL};
+    "baseline", "raytrace", "mpirun", "launcher", "scene_cache", "instructions", "order", NULL};
 
 int hx_launcher_parse(const char *name, HxLauncher *out)
 {
@@ -342,6 +342,11 @@ static int parse_scalar(int lineno, const char *key, const char *v, HxConfig *cf
         cfg->mpirun = hx_strdup(v);
     } else if (strcmp(key, "scene_cache") == 0) {
         cfg->scene_cache = hx_strdup(v);
+    } else if (strcmp(key, "order") == 0) {
+        if (strcmp(v, "rounds") == 0 || strcmp(v, "nested") == 0)
+            cfg->order_rounds = strcmp(v, "rounds") == 0;
+        else
+            rc = set_err(err, errlen, cfg, lineno, "order: expected nested|rounds, got '%s'", v);
     } else if (strcmp(key, "instructions") == 0) {
         if (strcmp(v, "on") == 0 || strcmp(v, "off") == 0)
             cfg->instructions = strcmp(v, "on") == 0;

@@ -162,6 +162,7 @@ typedef struct {
     HxStrList scene_path;       /* resolved path of each dim[HX_DIM_SCENE] */
     char *scene_dir;
     int repeats, warmup;
+    int order_rounds;           /* order: rounds: each round runs every configuration once */
     double timeout_s;
     int oversubscribe_allow;
     char *baseline;             /* KEY=VALUE for `table`'s baseline (b) */

@@ -3,7 +3,7 @@
  *
  * Nesting order, outermost first: scene, backend, the params in the order
  * declared, then the other dimensions (hx.h's HX_DIM_* order), repeats
- * innermost. A scope may only name a key outside the one it scopes, so
+ * innermost; with `order: rounds`, repeats outermost within a scene. A scope may only name a key outside the one it scopes, so
  * whether a key applies is known when its turn comes. */
 #include "hx.h"
 
@@ -274,6 +274,43 @@ static void expand_params(Expand *e, int p)
     }
 }
 
+/* `order: rounds`: within a scene, round k (warm-ups first) runs every
+ * configuration once, in the nested order, so that a drift of the machine
+ * over the study reaches every worker count alike instead of whichever ran
+ * during it: a one-worker baseline measured in a quiet minute skews every
+ * efficiency in the table. Keys: scene block, repeat, position. */
+typedef struct {
+    size_t block, pos;
+    int repeat;
+} RoundKey;
+
+static int round_cmp(const void *a, const void *b)
+{
+    const RoundKey *x = a, *y = b;
+    if (x->block != y->block)
+        return x->block < y->block ? -1 : 1;
+    if (x->repeat != y->repeat)
+        return x->repeat < y->repeat ? -1 : 1;
+    return x->pos < y->pos ? -1 : x->pos > y->pos;
+}
+
+static void order_rounds(HxPlan *plan)
+{
+    RoundKey *k = hx_xmalloc((plan->n ? plan->n : 1) * sizeof *k);
+    for (size_t i = 0, block = 0; i < plan->n; i++) {
+        if (i && plan->runs[i].scene_path != plan->runs[i - 1].scene_path)
+            block++;
+        k[i] = (RoundKey){block, i, plan->runs[i].repeat};
+    }
+    qsort(k, plan->n, sizeof *k, round_cmp);
+    HxRun *runs = hx_xmalloc((plan->n ? plan->n : 1) * sizeof *runs);
+    for (size_t i = 0; i < plan->n; i++)
+        runs[i] = plan->runs[k[i].pos];
+    free(plan->runs);
+    plan->runs = runs;
+    free(k);
+}
+
 int hx_expand(const HxConfig *cfg, HxPlan *plan)
 {
     memset(plan, 0, sizeof *plan);
@@ -295,6 +332,8 @@ int hx_expand(const HxConfig *cfg, HxPlan *plan)
                 expand_params(&e, 0);
             }
     }
+    if (cfg->order_rounds)
+        order_rounds(plan);
     return 0;
 }
 

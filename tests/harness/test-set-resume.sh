@@ -2,7 +2,8 @@
 # harness run --set KEY=VALUE and growing a study with --resume:
 #   - --set scene_dir finds the scenes in another folder (relative to the
 #     current folder, not the config's); --set threads changes the plan
-#     (--dry-run), and the dry run names the overrides;
+#     (--dry-run), and the dry run names the overrides; order: rounds runs
+#     every configuration once per round;
 #   - an unknown key, a missing '=', a bad value: one line naming the option,
 #     exit 1, no CSV made, an existing CSV untouched;
 #   - --resume with more repeats or a new swept value runs exactly the new
@@ -58,6 +59,15 @@ mkdir b && echo "# dummy" > b/ok.txt
 [ "$(grep -c '^\[[0-9]*\] .*threads=2 .*#r[01] ' set.txt)" -eq 2 ] || fail "--set threads: threads=2 runs: $(cat set.txt)"
 grep -q '^study s: 4 runs' set.txt || fail "--set threads: header: $(head -1 set.txt)"
 grep -qx "override: --set 'threads=1 2'" set.txt || fail "the dry run does not name the override"
+# order: rounds runs round by round: threads 1, 2, then 1, 2 again
+"$H" run conf/s.conf --dry-run --set threads='1 2' --set order=rounds > rounds.txt 2> /dev/null || fail "order: rounds"
+got=$(grep -o '^\[[0-9]*\] .*threads=[12] .*#r[01]' rounds.txt | sed 's/^\[\([0-9]*\)\].*threads=\([12]\) .*#r\([01]\)$/\1:\2:\3/' | tr '\n' ' ')
+[ "$got" = "1:1:0 2:2:0 3:1:1 4:2:1 " ] || fail "order: rounds: run order $got"
+got=$(grep -o '^\[[0-9]*\] .*threads=[12] .*#r[01]' set.txt | sed 's/^\[\([0-9]*\)\].*threads=\([12]\) .*#r\([01]\)$/\1:\2:\3/' | tr '\n' ' ')
+[ "$got" = "1:1:0 2:1:1 3:2:0 4:2:1 " ] || fail "the default order: $got"
+"$H" run conf/s.conf --dry-run --set order=shuffled > /dev/null 2> err
+rc=$?
+refused "--set order=shuffled" "order: expected nested|rounds, got 'shuffled'"
 # a key the config lacks is added
 "$H" run conf/s.conf --dry-run --set resolution=8x6 > res.txt 2> /dev/null || fail "--set resolution"
 grep -q -- '--resolution 8x6' res.txt || fail "--set resolution=8x6 not in the command: $(cat res.txt)"
