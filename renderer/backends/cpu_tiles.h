@@ -35,6 +35,7 @@ typedef struct RtCpuSlot {
     RtCounters cnt;                         /* work counters of this thread (40 bytes) */
     uint64_t backups;                       /* second renders of a tile it started */
     uint64_t backups_won;                   /* ... whose pixels went into the image */
+    int64_t start_ns, end_ns;               /* its last tile loop: entered, out of claims */
     uint64_t cpus[RT_CPU_MAX_CPUS / 64];    /* bitmask of CPUs it ran on (128 bytes) */
 } RtCpuSlot;
 
@@ -222,6 +223,7 @@ static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtTileRun *r)
         float *buf = p->tiles + (size_t)tid * p->tile_floats;
         RtCounters cnt; /* on this thread's stack: the hot loop writes nothing shared */
         memset(&cnt, 0, sizeof cnt);
+        slot->start_ns = rt_now_ns();
         rt_cpu_note(slot);
         for (int64_t t; (t = __atomic_fetch_add(&next, 1, __ATOMIC_RELAXED)) < end;) {
             rt_tile_render(r, t, buf, &cnt);
@@ -233,6 +235,7 @@ static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtTileRun *r)
                     r->progress(r->progress_ctx, (uint64_t)d, (uint64_t)r->count);
             }
         }
+        slot->end_ns = rt_now_ns();
         const int64_t n = r->scan_count, k0 = n * (int64_t)(r->scan_slot * p->nthreads + tid) /
                                                ((int64_t)r->scan_slots * p->nthreads);
         for (int64_t k = 0; k < n; k++) {
@@ -280,6 +283,21 @@ static inline void rt_cpu_pool_merge(const RtCpuPool *p, RtCounters *sum, char *
         for (int c = 0; c < RT_CPU_MAX_CPUS; c++)
             if (s->cpus[c / 64] >> (c % 64) & 1)
                 rt_cores_note(cores, size, c);
+    }
+}
+
+/* Appends " key=v0/v1/..." to buf: each thread's start or end of its last
+ * tile loop (end: 1) in ms after t0_ns. */
+static inline void rt_cpu_pool_times(const RtCpuPool *p, int end, int64_t t0_ns, const char *key, char *buf,
+                                     size_t size)
+{
+    size_t len = strlen(buf);
+    if (len < size)
+        len += (size_t)snprintf(buf + len, size - len, " %s=", key);
+    for (int t = 0; t < p->nthreads && len < size; t++) {
+        const RtCpuSlot *s = rt_cpu_slot(p, t);
+        len += (size_t)snprintf(buf + len, size - len, "%s%.3f", t ? "/" : "",
+                                ((end ? s->end_ns : s->start_ns) - t0_ns) * 1e-6);
     }
 }
 

@@ -59,9 +59,14 @@ static int render_openmp(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     rt_cpu_pool_backups(&pool, &runs, &won);
     if (pixels)
         snprintf(out->extra, sizeof out->extra, " schedule=pixels");
-    else
+    else {
         snprintf(out->extra, sizeof out->extra, " schedule=tiles join_ms=%.3f backups=%llu backups_won=%llu",
                  (t1 - t0) * 1e-6, (unsigned long long)runs, (unsigned long long)won);
+        /* where each thread's frame went: a late start is a thread the
+         * system woke late; an early end, one that found no tile left */
+        rt_cpu_pool_times(&pool, 0, t0, "thread_start_ms", out->extra, sizeof out->extra);
+        rt_cpu_pool_times(&pool, 1, t0, "thread_work_ms", out->extra, sizeof out->extra);
+    }
     rt_cpu_pool_free(&pool);
     free(state);
     return 0;
