@@ -301,6 +301,16 @@ static inline void rt_cpu_pool_times(const RtCpuPool *p, int end, int64_t t0_ns,
     }
 }
 
+/* When the first thread entered its last tile loop. */
+static inline int64_t rt_cpu_pool_start(const RtCpuPool *p)
+{
+    int64_t start = rt_cpu_slot(p, 0)->start_ns;
+    for (int t = 1; t < p->nthreads; t++)
+        if (rt_cpu_slot(p, t)->start_ns < start)
+            start = rt_cpu_slot(p, t)->start_ns;
+    return start;
+}
+
 /* Second renders started and won, over the pool's threads (the record's
  * backups= key). */
 static inline void rt_cpu_pool_backups(const RtCpuPool *p, uint64_t *runs, uint64_t *won)
