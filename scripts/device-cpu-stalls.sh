@@ -1,0 +1,90 @@
+#!/usr/bin/env bash
+# device-cpu-stalls.sh - a large CPU host (64 cores on the nvidia-h100-x4 and
+# nvidia-h200-x4 kinds): how its stalls reach the OpenMP and MPI frames.
+# STEPS (default "ab ceil tables keys"), each into $OUT:
+#   ab      `harness ab` of OpenMP and MPI at N workers, 512x384 and
+#           2048x1536, the older build against this one (ROUNDS, default 7)
+#   ceil    `harness ceiling` at 1, N/2 and N copies, both resolutions
+#   tables  the report's tables 1 and 2 (BVH, tiles, dynamic) at 1, N/2 and
+#           N workers, 5 repeats, `order: rounds`; tables against the ceiling
+#   keys    5 unpinned runs of each at N workers, their timing keys
+#   diag    6 rounds of OpenMP (pinned, this build and the older one) and MPI
+#           at N workers: fork_ms, thread_start_ms, backups, rank_work_ms
+#   none    brute force at N workers, 3 repeats each
+# The code measured is .devcarry/head.tar.gz (git archive --prefix=head/ HEAD
+# | gzip), the older one .devcarry/prev.tar.gz (git archive --prefix=prev/
+# OLD | gzip). Carry [".devcarry", ".devwl"] (scripts/device-ceiling.sh says
+# what they hold).
+set -u
+R=$PWD; O=${OUT:-/tmp/b64}; mkdir -p "$O"; T0=$(date +%s)
+log() { echo "[$(($(date +%s) - T0))s] $*" | tee -a "$O/log.txt"; }
+left() { echo $((${LIMIT:-570} - ($(date +%s) - T0))); }
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+P=/tmp/wl-pkgs
+for f in .devwl/debs/*.deb; do dpkg -x "$f" "$P"; done
+sed -i "s|^prefix=.*|prefix=$P/usr|" "$P"/usr/lib/x86_64-linux-gnu/pkgconfig/hwloc.pc
+export PATH=$PATH:$P/usr/bin
+command -v pkg-config > /dev/null || ln -sf "$P/usr/bin/pkgconf" "$P/usr/bin/pkg-config"
+export PKG_CONFIG_PATH=$P/usr/lib/x86_64-linux-gnu/pkgconfig LD_LIBRARY_PATH=$P/usr/lib/x86_64-linux-gnu
+course=$R/.devcarry/scenes/course
+xx=(); [ -f /usr/include/xxhash.h ] || xx+=("-Dc_args=-I$R/.devcarry/include")
+if [ ! -x /tmp/bh/harness/harness ]; then
+  tar xzf .devcarry/head.tar.gz -C /tmp; tar xzf .devcarry/prev.tar.gz -C /tmp
+  { nproc; lscpu | grep -E 'Model name|NUMA|Socket|Thread'; mpirun --version | head -1; } > "$O/machine.txt" 2>&1
+  (cd /tmp/head && meson setup /tmp/bh -Dcuda=disabled -Dhwloc=enabled -Dcourse_dir=none "${xx[@]}" > "$O/setup.log" 2>&1 && ninja -C /tmp/bh harness/harness renderer/raytrace > "$O/build.log" 2>&1) &
+  (cd /tmp/prev && meson setup /tmp/bp -Dcuda=disabled -Dcourse_dir=none "${xx[@]}" > /dev/null 2>&1 && ninja -C /tmp/bp renderer/raytrace > "$O/prev-build.log" 2>&1) &
+  wait
+fi
+[ -x /tmp/bh/renderer/raytrace ] && [ -x /tmp/bp/renderer/raytrace ] || { log "build failed"; tail -20 "$O"/*.log; exit 1; }
+log built
+H=/tmp/bh/harness/harness RT=/tmp/bh/renderer/raytrace PR=/tmp/bp/renderer/raytrace
+N=$(nproc)
+dragon=$(find $course -name dragon.txt | head -1)
+cd /tmp/head
+for step in ${STEPS:-ab ceil tables keys}; do case $step in
+ab)
+  for b in openmp mpi; do
+    k=threads; [ $b = mpi ] && k=ranks
+    printf 'study: %s%s\nscene_dir: %s\nscenes: dragon\nbackend: %s\naccel: bvh\nresolution: 512x384 2048x1536\n%s: %s\npin: close\nrepeats: 1\ntimeout: 60\n' $b $N $course $b $k "${ABW:-$N}" > /tmp/ab-$b.conf
+    timeout $(( $(left) - 20 )) $H ab --config /tmp/ab-$b.conf $PR $RT --rounds ${ROUNDS:-7} > "$O/ab-$b.txt" 2> "$O/ab-$b.err"; log "ab $b rc $?"
+    grep -E '^(IMPROVEMENT|REGRESSION|INCONCLUSIVE|no change)' "$O/ab-$b.txt" | cut -c1-250
+  done ;;
+ceil)
+  W="1 $((N / 2)) $N"
+  for res in 512x384 2048x1536; do
+    timeout 100 $H ceiling configs/openmp-scaling-bvh.conf --set scene_dir=$course --set resolution=$res --set threads="$W" --set schedule=tiles --repeats 5 -o "$O/ceiling-$res.csv" > "$O/ceiling-$res.log" 2>&1 || log "ceiling $res rc $?"
+    tail -5 "$O/ceiling-$res.log"
+  done; log ceilings ;;
+tables)
+  W="1 $((N / 2)) $N"
+  for res in 512x384 2048x1536; do
+    S=(--set scene_dir=$course --set resolution=$res --set repeats=5 --set accel=bvh)
+    timeout 120 $H run configs/report-table1-openmp.conf "${S[@]}" --set order=rounds --set threads="$W" --set backend=openmp --set schedule=tiles -q -o "$O/t1-bvh-$res.csv" > /dev/null 2>&1 || log "t1 $res rc $?"
+    $H table "$O/t1-bvh-$res.csv" --ceiling "$O/ceiling-$res.csv" > "$O/t1-bvh-$res-table.md" 2>&1
+    timeout 120 $H run configs/report-table2-mpi.conf "${S[@]}" --set order=rounds --set ranks="$W" --set backend=mpi --set mpi_schedule=dynamic -q -o "$O/t2-bvh-$res.csv" > /dev/null 2>&1 || log "t2 $res rc $?"
+    $H table "$O/t2-bvh-$res.csv" --ceiling "$O/ceiling-$res.csv" > "$O/t2-bvh-$res-table.md" 2>&1
+    log "tables $res"
+  done ;;
+keys)
+  f() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|join_ms|backups|backups_won|rank_work_ms|rank_end_ms)=' | tr '\n' ' '; echo; }
+  for i in 1 2 3 4 5; do
+    echo "== omp $N 512x384"; $RT -q -b openmp -t $N -r 512x384 $dragon -o /tmp/k.png | f
+    echo "== mpi $N 512x384"; mpirun --bind-to core -np $N $RT -b mpi -q -r 512x384 $dragon -o /tmp/k.png | f
+  done > "$O/keys.txt" 2>&1; log keys ;;
+none)
+  S=(--set scene_dir=$course --set resolution=512x384 --set accel=none --set repeats=3)
+  timeout $(( $(left) - 10 )) $H run configs/report-table1-openmp.conf "${S[@]}" --set threads="$N" --set backend=openmp --set schedule=tiles -q -o "$O/t1-none-512x384.csv" > /dev/null 2>&1 || log "none rc $?"
+  timeout $(( $(left) - 10 )) $H run configs/report-table2-mpi.conf "${S[@]}" --set ranks="$N" --set backend=mpi --set mpi_schedule=dynamic -q -o "$O/t2-none-512x384.csv" > /dev/null 2>&1 || log "none mpi rc $?"
+  log none ;;
+diag)
+  g() { tr ' ' '\n' | grep -E '^(render_ms|fork_ms|join_ms|backups|backups_won|thread_start_ms|thread_work_ms|rank_work_ms|rank_end_ms|render_ms_min)=' | tr '\n' ' '; echo; }
+  export OMP_PLACES=cores OMP_PROC_BIND=close
+  for i in 1 2 3 4 5 6; do
+    echo "== omp $N pinned"; OMP_NUM_THREADS=$N $RT -q -b openmp -t $N -r 512x384 --cache /tmp/cc $dragon -o /tmp/k.png | g
+
+    echo "== omp $N pinned prev"; OMP_NUM_THREADS=$N $PR -q -b openmp -t $N -r 512x384 --cache /tmp/cc $dragon -o /tmp/k.png | g
+    echo "== mpi $N"; mpirun --bind-to core -np $N $RT -b mpi -q -r 512x384 --cache /tmp/cc $dragon -o /tmp/k.png | g
+  done > "$O/diag.txt" 2>&1
+  unset OMP_PLACES OMP_PROC_BIND; log diag ;;
+esac; done
+log done
