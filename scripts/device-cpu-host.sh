@@ -14,12 +14,7 @@ R=$PWD; O=${OUT:-/tmp/device-cpu-host}; mkdir -p "$O"; T0=$(date +%s)
 log() { echo "[$(($(date +%s) - T0))s] $*" | tee -a "$O/log.txt"; }
 left() { echo $((560 - ($(date +%s) - T0))); }
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-P=/tmp/wl-pkgs
-for f in .devwl/debs/*.deb; do dpkg -x "$f" "$P"; done
-sed -i "s|^prefix=.*|prefix=$P/usr|" "$P"/usr/lib/x86_64-linux-gnu/pkgconfig/hwloc.pc
-export PATH=$PATH:$P/usr/bin
-command -v pkg-config > /dev/null || ln -sf "$P/usr/bin/pkgconf" "$P/usr/bin/pkg-config"
-export PKG_CONFIG_PATH=$P/usr/lib/x86_64-linux-gnu/pkgconfig LD_LIBRARY_PATH=$P/usr/lib/x86_64-linux-gnu
+. scripts/device-debs.sh
 tar xzf .devcarry/head.tar.gz -C /tmp; tar xzf .devcarry/basempi.tar.gz -C /tmp
 course=$R/.devcarry/scenes/course
 xx=(); [ -f /usr/include/xxhash.h ] || xx+=("-Dc_args=-I$R/.devcarry/include")

@@ -16,16 +16,11 @@
 # OLD | gzip). Carry [".devcarry", ".devwl"] (scripts/device-ceiling.sh says
 # what they hold).
 set -u
-R=$PWD; O=${OUT:-/tmp/b64}; mkdir -p "$O"; T0=$(date +%s)
+R=$PWD; O=${OUT:-/tmp/device-cpu-stalls}; mkdir -p "$O"; T0=$(date +%s)
 log() { echo "[$(($(date +%s) - T0))s] $*" | tee -a "$O/log.txt"; }
 left() { echo $((${LIMIT:-570} - ($(date +%s) - T0))); }
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-P=/tmp/wl-pkgs
-for f in .devwl/debs/*.deb; do dpkg -x "$f" "$P"; done
-sed -i "s|^prefix=.*|prefix=$P/usr|" "$P"/usr/lib/x86_64-linux-gnu/pkgconfig/hwloc.pc
-export PATH=$PATH:$P/usr/bin
-command -v pkg-config > /dev/null || ln -sf "$P/usr/bin/pkgconf" "$P/usr/bin/pkg-config"
-export PKG_CONFIG_PATH=$P/usr/lib/x86_64-linux-gnu/pkgconfig LD_LIBRARY_PATH=$P/usr/lib/x86_64-linux-gnu
+. scripts/device-debs.sh
 course=$R/.devcarry/scenes/course
 xx=(); [ -f /usr/include/xxhash.h ] || xx+=("-Dc_args=-I$R/.devcarry/include")
 if [ ! -x /tmp/bh/harness/harness ]; then
