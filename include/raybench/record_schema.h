@@ -42,7 +42,9 @@ typedef enum { RT_REC_MAIN, RT_REC_MAIN_IF, RT_REC_BACKEND, RT_REC_LAST } RtRecW
     X(build_ms, F3, "ms", OWN, "build_ms", MAIN, \
       "building the primitive records and the BVH, including its invariant check") \
     X(render_ms, F3, "ms", OWN, "render_ms", MAIN, \
-      "the pixel work only, as the report timed it (max over ranks for mpi); for cuda and mpi-cuda, " \
+      "the pixel work only, until the last pixel is in the image (openmp, mpi: docs/cpu-backends.md, " \
+      "\"Backup tiles\"; mpi across nodes and with block rows: max over ranks, as the report timed it); " \
+      "for cuda and mpi-cuda, " \
       "a frame until its 8-bit image is in (rank 0's) host memory, frames pipelined (docs/gpu.md)") \
     X(write_ms, F3, "ms", OWN, "write_ms", MAIN, "quantizing and writing the image file") \
     X(total_ms, F3, "ms", OWN, "total_ms", MAIN, "the whole command, start to record") \
