@@ -386,6 +386,9 @@ const RtBackend *const *rt_backend_list(void);
 
 /* ---------------------------------------------------------------- helpers */
 
+/* CLOCK_MONOTONIC: one clock for every process of a node (MPI ranks
+ * compare their times on it). */
+int64_t rt_now_ns(void);
 double rt_now_ms(void);
 /* Milliseconds a fixed CPU workload takes on the calling thread now: a
  * measure of the machine's current speed (record key calib_ms). */

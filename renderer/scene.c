@@ -130,12 +130,14 @@ void rt_scene_name(RtScene *s, const char *path)
     snprintf(s->source.path, sizeof s->source.path, "%s", path);
 }
 
-double rt_now_ms(void)
+int64_t rt_now_ns(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
 }
+
+double rt_now_ms(void) { return (double)rt_now_ns() * 1e-6; }
 
 int rt_current_cpu(void)
 {

@@ -17,7 +17,6 @@
 
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "rt.h"
 #include "cpu_trace.h"
@@ -160,16 +159,9 @@ static inline void rt_region_tile(int rx0, int ry0, int rx1, int ry1, int tw, in
 typedef struct RtTileBoard {
     unsigned char *state; /* per tile of the tiling: RT_TILE_* */
     int64_t *done;        /* tiles in the image */
-    int64_t *end_ns;      /* when the last of them arrived (rt_now_ns) */
+    int64_t *end_ns;      /* when the last of them arrived (rt_now_ns, rt.h) */
     int64_t total;        /* tiles in the frame */
 } RtTileBoard;
-
-static inline int64_t rt_now_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
-}
 
 /* What rt_cpu_render_tiles does: claim tiles [first, first + count) of the
  * tw x th tiling of region [rx0,rx1) x [ry0,ry1), one at a time, then back
