@@ -70,13 +70,15 @@ static inline int rt_cpu_threads(int requested, int fallback)
 #endif
 }
 
-/* A pool of nthreads, each with a buffer for one tile of up to tw x th
- * pixels (0 x 0: the pool renders no tiles). */
-static inline int rt_cpu_pool_init(RtCpuPool *p, int nthreads, int tw, int th, RtError *err)
+/* A pool of nthreads, each with a buffer for one tw x th tile of a w x h
+ * image (tw 0: the pool renders no tiles). */
+static inline int rt_cpu_pool_init(RtCpuPool *p, int nthreads, int tw, int th, int w, int h, RtError *err)
 {
     p->nthreads = nthreads;
     p->stride = (sizeof(RtCpuSlot) + 127) / 128 * 128;
     p->mem = aligned_alloc(128, p->stride * (size_t)nthreads);
+    tw = tw < w ? tw : w;
+    th = th < h ? th : h;
     /* whole lines per thread: no two threads write one line */
     p->tile_floats = ((size_t)tw * (size_t)th * 3 + 31) / 32 * 32;
     p->tiles = p->tile_floats ? aligned_alloc(128, p->tile_floats * sizeof(float) * (size_t)nthreads) : NULL;
@@ -165,14 +167,14 @@ typedef struct RtTileBoard {
 
 /* What rt_cpu_render_tiles does: claim tiles [first, first + count) of the
  * tw x th tiling of region [rx0,rx1) x [ry0,ry1), one at a time, then back
- * up tiles of [scan_first, scan_first + scan_count) (all claimed by then),
- * each thread starting its pass at its own place: thread t of a caller
- * that is slot `scan_slot` of `scan_slots` callers (MPI ranks). */
+ * up tiles [0, scan_count) of the tiling (all claimed by then), each thread
+ * starting its pass at its own place: thread t of a caller that is slot
+ * `scan_slot` of `scan_slots` callers (MPI ranks). */
 typedef struct RtTileRun {
     const RtSceneView *v;
     int rx0, ry0, rx1, ry1, tw, th;
     int64_t first, count;
-    int64_t scan_first, scan_count;
+    int64_t scan_count;
     int scan_slot, scan_slots;
     float *rgb;           /* the whole image (stride = width) */
     RtTileBoard *board;   /* states indexed by tile number in the tiling */
@@ -231,7 +233,7 @@ static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtTileRun *r)
         const int64_t n = r->scan_count, k0 = n * (int64_t)(r->scan_slot * p->nthreads + tid) /
                                                ((int64_t)r->scan_slots * p->nthreads);
         for (int64_t k = 0; k < n; k++) {
-            const int64_t t = r->scan_first + (k0 + k) % n;
+            const int64_t t = (k0 + k) % n;
             if (__atomic_load_n(&r->board->state[t], __ATOMIC_RELAXED) ||
                 __atomic_fetch_or(&r->board->state[t], RT_TILE_BACKUP, __ATOMIC_RELAXED))
                 continue;

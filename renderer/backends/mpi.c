@@ -83,12 +83,13 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
     int y0 = displs[rt_mpi_rank] / (w * 3), y1 = y0 + counts[rt_mpi_rank] / (w * 3);
     /* the rank's tiles, backed up among its own threads */
     const int64_t ntiles = y1 > y0 ? rt_tile_count(w, y1 - y0, tw, th) : 0;
-    unsigned char *state = calloc((size_t)ntiles + 1, 1);
+    unsigned char *state = calloc((size_t)ntiles + 1, 1); /* + 1: never calloc(0), which may be NULL */
     if (!state)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
     int64_t done = 0, end_ns = 0;
     RtTileBoard board = {state, &done, &end_ns, ntiles};
-    RtTileRun run = {v, 0, y0, w, y1, tw, th, 0, ntiles, 0, ntiles, 0, 1, rgb, &board, NULL, NULL};
+    RtTileRun run = {.v = v, .ry0 = y0, .rx1 = w, .ry1 = y1, .tw = tw, .th = th, .count = ntiles,
+                     .scan_count = ntiles, .scan_slots = 1, .rgb = rgb, .board = &board};
     RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD));
     const double t0 = rt_now_ms();
     if (y1 > y0) {
@@ -168,8 +169,8 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
         board.end_ns = (int64_t *)m.extra + 1;
         board.state = (unsigned char *)m.extra + 128;
     }
-    RtTileRun run = {v, 0, 0, w, h, tw, th, 0, 0, 0, 0, rt_mpi_rank, rt_mpi_size,
-                     m.direct ? (float *)m.img0 : rgb, &board, NULL, NULL};
+    RtTileRun run = {.v = v, .rx1 = w, .ry1 = h, .tw = tw, .th = th, .scan_slot = rt_mpi_rank,
+                     .scan_slots = rt_mpi_size, .rgb = m.direct ? (float *)m.img0 : rgb, .board = &board};
     rt_mpi_frame_start(&m);
     rt->t0_ns = rt_now_ns();
     const double t0 = rt_now_ms();
@@ -262,8 +263,7 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     if (threads > 1 && rt_mpi_thread_level < MPI_THREAD_FUNNELED)
         failed = rt_fail(err, "--threads %d needs MPI_THREAD_FUNNELED, this MPI library provides level %d", threads,
                          rt_mpi_thread_level) != 0;
-    else if (rt_cpu_pool_init(&pool, threads, tw < job->view.cam.width ? tw : job->view.cam.width,
-                              th < job->view.cam.height ? th : job->view.cam.height, err) != 0)
+    else if (rt_cpu_pool_init(&pool, threads, tw, th, job->view.cam.width, job->view.cam.height, err) != 0)
         failed = 1;
     /* only in tests/cpu's raytrace-testhooks (mpi_fail.sh): an error on one
      * rank only */

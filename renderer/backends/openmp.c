@@ -24,8 +24,7 @@ static int render_openmp(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     const int pixels = job->schedule == RT_SCHED_PIXELS;
     const int64_t ntiles = rt_tile_count(w, h, tw, th);
     RtCpuPool pool;
-    if (rt_cpu_pool_init(&pool, rt_cpu_threads(job->threads, 0), pixels ? 0 : (tw < w ? tw : w),
-                         pixels ? 0 : (th < h ? th : h), err) != 0)
+    if (rt_cpu_pool_init(&pool, rt_cpu_threads(job->threads, 0), pixels ? 0 : tw, th, w, h, err) != 0)
         return -1;
     unsigned char *state = pixels ? NULL : calloc((size_t)ntiles, 1);
     if (!pixels && !state) {
@@ -34,8 +33,9 @@ static int render_openmp(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     }
     int64_t done = 0, end_ns = 0;
     RtTileBoard board = {state, &done, &end_ns, ntiles};
-    RtTileRun run = {v, 0, 0, w, h, tw, th, 0, ntiles, 0, ntiles, 0, 1, out->rgb, &board, job->progress,
-                     job->progress_ctx};
+    RtTileRun run = {.v = v, .rx1 = w, .ry1 = h, .tw = tw, .th = th, .count = ntiles, .scan_count = ntiles,
+                     .scan_slots = 1, .rgb = out->rgb, .board = &board, .progress = job->progress,
+                     .progress_ctx = job->progress_ctx};
 
     const int64_t t0 = rt_now_ns();
     if (pixels)

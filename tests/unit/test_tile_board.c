@@ -65,11 +65,11 @@ static void check_frame(const RtSceneView *v, Frame *f)
         char what[96];
         RtCpuPool p;
         RtError e;
-        CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, &e) == 0, "pool: %s", e.msg);
+        CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, f->w, f->h, &e) == 0, "pool: %s", e.msg);
         /* claims, then the backups' pass: whatever the split, one image */
         frame_reset(f);
-        RtTileRun run = {v, 0, 0, f->w, f->h, f->tw, f->th, 0, f->ntiles, 0, f->ntiles, 0, 1, f->img, &f->board,
-                         NULL, NULL};
+        RtTileRun run = {.v = v, .rx1 = f->w, .ry1 = f->h, .tw = f->tw, .th = f->th, .count = f->ntiles,
+                         .scan_count = f->ntiles, .scan_slots = 1, .rgb = f->img, .board = &f->board};
         rt_cpu_render_tiles(&p, &run);
         snprintf(what, sizeof what, "%d threads, claims", threads[k]);
         frame_check(f, &p, what, 0);
@@ -80,7 +80,7 @@ static void check_frame(const RtSceneView *v, Frame *f)
         rt_cpu_pool_free(&p);
 
         /* nobody claims (the owners stalled): the backups render it all */
-        CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, &e) == 0, "pool: %s", e.msg);
+        CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, f->w, f->h, &e) == 0, "pool: %s", e.msg);
         frame_reset(f);
         run.count = 0;
         rt_cpu_render_tiles(&p, &run);
@@ -92,7 +92,7 @@ static void check_frame(const RtSceneView *v, Frame *f)
         rt_cpu_pool_free(&p);
 
         /* tiles already done elsewhere are neither backed up nor counted */
-        CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, &e) == 0, "pool: %s", e.msg);
+        CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, f->w, f->h, &e) == 0, "pool: %s", e.msg);
         frame_reset(f);
         int64_t skipped = 0;
         for (int64_t t = 0; t < f->ntiles; t += 3, skipped++)
@@ -114,7 +114,8 @@ static void check_frame(const RtSceneView *v, Frame *f)
 static void check_twice(const RtSceneView *v, Frame *f)
 {
     frame_reset(f);
-    RtTileRun run = {v, 0, 0, f->w, f->h, f->tw, f->th, 0, 0, 0, 0, 0, 1, f->img, &f->board, NULL, NULL};
+    RtTileRun run = {.v = v, .rx1 = f->w, .ry1 = f->h, .tw = f->tw, .th = f->th, .scan_slots = 1, .rgb = f->img,
+                     .board = &f->board};
     float *buf = malloc(sizeof(float) * 3 * (size_t)f->tw * (size_t)f->th);
     RtCounters a, b;
     memset(&a, 0, sizeof a);
