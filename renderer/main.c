@@ -201,8 +201,6 @@ static void cache_store(Run *r, const RtScene *parsed)
         fprintf(stderr, "%s: warning: ", cli_prog), rt_say(cerr.msg); /* the run goes on */
 }
 
-/* The scene loaded with the overrides applied, the camera checked, the
- * output checked, the accelerator built and the image buffers allocated. */
 /* The BVH by --builder: on the backend's device where it can build and was
  * asked to, or (auto) for a scene large enough that the GPU gives the
  * earlier image; on the CPU otherwise, and after a GPU build that could not
@@ -228,6 +226,8 @@ static int build_accel(Run *r, const RtBvhSettings *bvh, RtError *err)
     return rt_accel_build_with(&r->scene, o->accel, bvh, &r->accel, err);
 }
 
+/* The scene loaded with the overrides applied, the camera checked, the
+ * output checked, the accelerator built and the image buffers allocated. */
 static int prepare(Run *r, RtError *err)
 {
     const Options *o = r->o;
