@@ -28,9 +28,14 @@ munge_start
 mkdir "$T/spool"
 
 # ---- slurm.conf: two free ports, the node as slurmd -C sees it ----
-listening() { grep -q -i ":$(printf %04X "$1") [0-9A-F:]* 0A " /proc/net/tcp /proc/net/tcp6 2> /dev/null; }
-port=$((20000 + $$ % 10000 * 2)) # even: two tests side by side never share a pair
-while listening $port || listening $((port + 1)); do port=$((port + 2)); done
+# A port is taken if any socket has it as its local port, in any state (a
+# connection's or one in TIME_WAIT, not only a listener: slurmctld's bind
+# fails on those too). The pairs lie below Linux's ephemeral range
+# (32768-60999), so no outgoing connection takes one between the check and
+# the daemons' start.
+in_use() { grep -q -i "^ *[0-9]*: [0-9A-F]*:$(printf %04X "$1") " /proc/net/tcp /proc/net/tcp6 2> /dev/null; }
+port=$((10000 + $$ % 10000 * 2)) # even: two tests side by side never share a pair
+while in_use $port || in_use $((port + 1)); do port=$((port + 2)); done
 node=$(slurmd -C | head -1 | sed 's/^NodeName=[^ ]*/NodeName=localhost/')
 case $node in NodeName=localhost\ CPUs=*) ;; *) fail "unexpected slurmd -C output: $node" ;; esac
 cpus=$(echo "$node" | sed 's/.* CPUs=\([0-9]*\).*/\1/')
