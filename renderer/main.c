@@ -276,6 +276,7 @@ static int prepare(Run *r, RtError *err)
     RtBvhSettings bvh = rt_bvh_settings_default();
     bvh.threads = o->build_threads;
     bvh.huge_pages = o->huge_pages;
+    bvh.gpu_split = o->gpu_split;
     r->builder = loaded ? "cache" : "cpu";
     if (!loaded && build_accel(r, &bvh, err) != 0)
         return -1;
@@ -515,6 +516,8 @@ static void record_values(const Run *r, RecValue *v, char *tile)
         rec_gpu_build_ms(v, r->gpu_build.kernel_ms);
         rec_build_init_ms(v, r->gpu_build.init_ms);
     }
+    if (r->accel.nsplit)
+        rec_bvh_pieces(v, r->accel.nsplit);
     rec_cache(v, r->cache);
     rec_commit(v, RT_COMMIT);
     if (r->col) /* several processes: the fastest rank's time shows the imbalance */

@@ -169,6 +169,8 @@ typedef struct RtBvhSettings {
     int wide_task_min;      /* the same in the 4-wide copy, in records: 65536 */
     int chunk;              /* references per chunk of a large node's parallel binning
                              * and partition: 16384 (64..2^30) */
+    int gpu_split;          /* the GPU build: pieces of large triangles it may add, in
+                             * percent of the triangles: 0 (0..100; bvh_gpu_split.cuh) */
 } RtBvhSettings;
 RtBvhSettings rt_bvh_settings_default(void);
 /* Builds the accelerator with `settings` (NULL: the defaults); the same tree

@@ -14,25 +14,33 @@
 #   quality  each builder's tree rendered (--runs 5, 1920x1080) on the large
 #            stand-ins and every course scene, 3 rounds: SAH cost, visits,
 #            kernel time, image
+#   split    the GPU build with and without its triangle pieces: this tree's
+#            --builder gpu, the same with --gpu-split 30, and --builder cpu,
+#            against the GPU build of the commit in .devcarry/prev.tar.gz
+#            (`git archive --prefix=prev/ OLD | gzip`), --runs 5 at 1920x1080
+#            on the large stand-ins and the dragon, interleaved, ROUNDS rounds
+#            (default 3): build and kernel times, SAH cost, visits, image
 #   cache    the first image from a warm cache of large-4m (an entry stored
-#            by the GPU build, then five loads)
+#            by the GPU build, then five loads), each load beside three by the
+#            OpenMP backend on every core, 16 and 4 (a 64x36 image: the load's
+#            time alone), then benchmarks/cache-check on the entry
 # Output under $OUT (default /tmp/device-gpubvh).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 R=$PWD
 OUT=${OUT:-/tmp/device-gpubvh}
 mkdir -p "$OUT"
-steps=${*:-test ab quality cache}
+steps=${*:-test ab quality split cache}
 course=$R/.devcarry/scenes/course
 xx=()
 [ -f /usr/include/xxhash.h ] || xx+=("-Dc_args=-I$R/.devcarry/include")
 B=/tmp/b-head
 [ -f $B/build.ninja ] || meson setup $B -Dgpu_arch=9.0 "-Dcourse_dir=$course" "${xx[@]}" > "$OUT/setup.log" 2>&1
-ninja -C $B renderer/raytrace renderer/scenegen renderer/imgdiff tests/test_gpu_bvh > "$OUT/build.log" 2>&1 ||
+ninja -C $B renderer/raytrace renderer/scenegen renderer/imgdiff tests/test_gpu_bvh benchmarks/cache-check > "$OUT/build.log" 2>&1 ||
     { tail -20 "$OUT/build.log"; exit 1; }
 SCENEGEN=$B/renderer/scenegen scripts/gen-scenes.sh large-1m large-4m island-1m island-4m objects-1m > /dev/null 2>&1
 export RAYBENCH_COURSE_DIR=$course
-keys='^(scene|backend|builder|parse_ms|build_ms|gpu_build_ms|build_init_ms|init_ms|upload_ms|render_ms|kernel_ms|write_ms|total_ms|sah_cost|node_visits|image_fnv1a|bvh_nodes|prims)='
+keys='^(scene|backend|builder|bvh_pieces|parse_ms|build_ms|gpu_build_ms|build_init_ms|init_ms|upload_ms|render_ms|kernel_ms|write_ms|total_ms|sah_cost|node_visits|image_fnv1a|bvh_nodes|prims)='
 rec() { "$@" | tr ' ' '\n' | grep -E "$keys" | tr '\n' ' '; echo; }
 C=course:InterestingScenes
 for step in $steps; do case $step in
@@ -68,12 +76,37 @@ quality)
             done
         done
     done > "$OUT/quality.txt" ;;
+split)
+    tar xzf .devcarry/prev.tar.gz -C /tmp
+    (cd /tmp/prev && meson setup /tmp/b-prev -Dgpu_arch=9.0 -Dcourse_dir=none "${xx[@]}" > "$OUT/setup-prev.log" 2>&1 &&
+        ninja -C /tmp/b-prev renderer/raytrace > "$OUT/build-prev.log" 2>&1) || { echo "prev build failed"; exit 1; }
+    for round in $(seq "${ROUNDS:-3}"); do
+        for f in scenes/generated/{large-1m,large-4m,island-1m,island-4m,objects-1m}.txt "$course"/InterestingScenes/dragon.txt; do
+            for v in prev:gpu head:gpu head:gpu30 head:cpu; do
+                x=$B/renderer/raytrace; [ ${v%:*} = prev ] && x=/tmp/b-prev/renderer/raytrace
+                b=${v#*:} a=(); [ $b = gpu30 ] && b=gpu a=(--gpu-split 30)
+                echo -n "round=$round version=$v "
+                rec $x --backend cuda --builder $b "${a[@]}" --runs 5 -q -r 1920x1080 "$f" -o /tmp/s-$v.png
+            done
+            $B/renderer/imgdiff /tmp/s-head:gpu30.png /tmp/s-head:cpu.png 2>&1 | head -1
+        done
+    done > "$OUT/split.txt" 2>&1 ;;
 cache)
     rm -rf /tmp/rb-cache && mkdir -m 700 /tmp/rb-cache
     for i in 0 1 2 3 4 5; do
         echo -n "cache run=$i "
         rec $B/renderer/raytrace --backend cuda --builder gpu --cache /tmp/rb-cache -q -r 1920x1080 \
             scenes/generated/large-4m.txt -o /tmp/c.png
-    done > "$OUT/cache.txt" ;;
-*) echo "device-gpubvh: unknown step '$step' (test, ab, quality, cache)" >&2; exit 2 ;;
+        [ $i = 0 ] && continue
+        for nt in $(nproc) 16 4; do
+            echo -n "cache run=$i omp_threads=$nt "
+            OMP_NUM_THREADS=$nt rec $B/renderer/raytrace --backend openmp --cache /tmp/rb-cache -q -r 64x36 \
+                scenes/generated/large-4m.txt -o /tmp/c.png
+        done
+    done > "$OUT/cache.txt"
+    for nt in $(nproc) 16 4; do
+        echo -n "omp_threads=$nt "
+        OMP_NUM_THREADS=$nt $B/benchmarks/cache-check /tmp/rb-cache/*.rbc bvh 5
+    done >> "$OUT/cache.txt" 2>&1 ;;
+*) echo "device-gpubvh: unknown step '$step' (test, ab, quality, split, cache)" >&2; exit 2 ;;
 esac; done

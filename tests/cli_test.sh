@@ -67,6 +67,8 @@ bad() { # bad NAME EXPECTED_SUBSTRING ARGS...
     ls "$tmp" | grep -q '\.tmp\.' && fail "$name: left a temporary file"
 }
 bad "huge pages" "--huge-pages" --huge-pages maybe "$src/scenes/glass.txt"
+bad "gpu split" "--gpu-split" --gpu-split 101 "$src/scenes/glass.txt"
+bad "gpu split" "--gpu-split" --gpu-split -1 "$src/scenes/glass.txt"
 for h in on off; do # the same image and work either way; the record says which
     out=$("$rt" -q --huge-pages $h -r 40x30 -o "$tmp/h.png" "$src/scenes/glass.txt") || fail "--huge-pages $h failed"
     echo "$out" | tr ' ' '\n' | grep -qx "huge_pages=$h" || fail "--huge-pages $h: the record lacks huge_pages=$h"

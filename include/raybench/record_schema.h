@@ -83,6 +83,9 @@ typedef enum { RT_REC_MAIN, RT_REC_MAIN_IF, RT_REC_BACKEND, RT_REC_LAST } RtRecW
       "\"The GPU build\")") \
     X(build_init_ms, F3, "ms", EXTRA, "extra", MAIN_IF, \
       "`builder=gpu` only: how long the build waited for the GPU's context, not in `build_ms`") \
+    X(bvh_pieces, UINT, "", EXTRA, "extra", MAIN_IF, \
+      "where the tree holds records more than once: the copies, from the CPU build's spatial splits or " \
+      "the GPU build's pieces of large triangles (`--gpu-split`); `prims` counts each record once") \
     X(cache, STR, "", EXTRA, "extra", MAIN, \
       "`off`, `built` (parsed, built and stored) or `loaded` (mapped from `--cache DIR`; `build_ms` is then 0)") \
     X(commit, STR, "", EXTRA, "extra", MAIN, \

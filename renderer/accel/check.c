@@ -26,9 +26,10 @@ typedef struct Item {
     float lo[3], hi[3];
 } Item;
 
+/* (an exchange, not an increment: a record in 256 leaves must not wrap to "first") */
 static int first_visit(uint8_t *seen, uint32_t i)
 {
-    return __atomic_fetch_add(&seen[i], 1, __ATOMIC_RELAXED) == 0;
+    return __atomic_exchange_n(&seen[i], 1, __ATOMIC_RELAXED) == 0;
 }
 
 static int inside(const RtBvhNode *c, const RtBvhNode *p)

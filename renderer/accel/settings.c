@@ -31,6 +31,10 @@ RtBvhSettings rt_bvh_settings_default(void)
     s.task_min = 4096;
     s.wide_task_min = 65536;
     s.chunk = 16384;
+    /* Off: on the large stand-ins only objects-1m renders faster with
+     * pieces, and every build takes longer (docs/performance.md, "The GPU
+     * build"). */
+    s.gpu_split = 0;
     return s;
 }
 
@@ -57,7 +61,7 @@ int bvh_settings_check(const RtBvhSettings *s, RtError *err)
         in_range("spatial_share", s->spatial_share, 1, INT32_MAX, err) != 0 ||
         in_range("task_min", s->task_min, 1, INT32_MAX, err) != 0 ||
         in_range("wide_task_min", s->wide_task_min, 1, INT32_MAX, err) != 0 ||
-        in_range("chunk", s->chunk, 64, 1 << 30, err) != 0)
+        in_range("chunk", s->chunk, 64, 1 << 30, err) != 0 || in_range("gpu_split", s->gpu_split, 0, 100, err) != 0)
         return -1;
     if (!(s->spatial_overlap >= 0.0f) || isinf(s->spatial_overlap))
         return rt_fail(err, "BVH settings: spatial_overlap is %g, not a fraction >= 0", (double)s->spatial_overlap);

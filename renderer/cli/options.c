@@ -49,6 +49,9 @@ static void usage(FILE *fp)
             "                           on with 8 or more build threads (the same tree either way)\n"
             "      --builder B          who builds the BVH: cpu, gpu (cuda, mpi-cuda) or auto (default: the\n"
             "                           GPU for the GPU backends from 65536 primitives, else the CPU)\n"
+            "      --gpu-split PCT      the GPU build cuts large triangles into pieces, up to PCT%% more\n"
+            "                           references (0..100, default 0: none); for scenes of very unequal\n"
+            "                           triangles, at a longer build (docs/performance.md)\n"
             "      --tile WxH           tile size in pixels (default %s)\n"
             "      --schedule S         openmp: tiles (dynamic, default) or pixels (the report's collapse(2) static)\n"
             "      --mpi-schedule S     mpi: dynamic (default) or rows (the report's block rows + Gatherv)\n"
@@ -106,7 +109,7 @@ static int opt_error(const char *opt, const char *val, const char *why)
 
 enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE,
        OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE, OPT_ISA, OPT_SHARE_GPU, OPT_HUGE_PAGES,
-       OPT_MAX_MODEL_TRIS, OPT_BUILDER };
+       OPT_MAX_MODEL_TRIS, OPT_BUILDER, OPT_GPU_SPLIT };
 
 static void print_version(void)
 {
@@ -117,7 +120,8 @@ static void print_version(void)
     printf("\nbuild: %s\ncommit: %s\n", RT_BUILD_FLAGS, RT_COMMIT);
 }
 
-/* --cache, --max-model-triangles, --build-threads, --builder, --huge-pages, --runs and --warmup. */
+/* --cache, --max-model-triangles, --build-threads, --builder, --gpu-split, --huge-pages, --runs and
+ * --warmup. */
 static int parse_load_timing(int c, const char *arg, Options *o)
 {
     switch (c) {
@@ -126,6 +130,10 @@ static int parse_load_timing(int c, const char *arg, Options *o)
         else if (strcmp(arg, "gpu") == 0) o->builder = RT_BUILDER_GPU;
         else if (strcmp(arg, "auto") == 0) o->builder = RT_BUILDER_AUTO;
         else return opt_error("--builder", arg, "expected cpu, gpu or auto");
+        return 0;
+    case OPT_GPU_SPLIT:
+        if (rt_parse_int(arg, 0, 100, &o->gpu_split) != 0)
+            return opt_error("--gpu-split", arg, "expected a percentage from 0 to 100");
         return 0;
     case OPT_HUGE_PAGES:
         if (strcmp(arg, "on") != 0 && strcmp(arg, "off") != 0 && strcmp(arg, "auto") != 0)
@@ -219,6 +227,7 @@ static int parse_options(int argc, char **argv, Options *o)
         {"build-threads", required_argument, NULL, OPT_BUILD_THREADS}, {"cache", required_argument, NULL, OPT_CACHE},
         {"max-model-triangles", required_argument, NULL, OPT_MAX_MODEL_TRIS},
         {"huge-pages", required_argument, NULL, OPT_HUGE_PAGES}, {"builder", required_argument, NULL, OPT_BUILDER},
+        {"gpu-split", required_argument, NULL, OPT_GPU_SPLIT},
         {"verify", no_argument, NULL, OPT_VERIFY},    {"calibrate", no_argument, NULL, OPT_CALIBRATE},    {"quiet", no_argument, NULL, 'q'},
         {"isa", required_argument, NULL, OPT_ISA},    {"share-gpu", no_argument, NULL, OPT_SHARE_GPU},
         {"help", no_argument, NULL, 'h'},             {"version", no_argument, NULL, 'V'},
@@ -263,7 +272,7 @@ static int parse_options(int argc, char **argv, Options *o)
                 return -1;
             break;
         case OPT_CACHE: case OPT_BUILD_THREADS: case OPT_RUNS: case OPT_WARMUP: case OPT_HUGE_PAGES:
-        case OPT_MAX_MODEL_TRIS: case OPT_BUILDER:
+        case OPT_MAX_MODEL_TRIS: case OPT_BUILDER: case OPT_GPU_SPLIT:
             if (parse_load_timing(c, optarg, o) != 0)
                 return -1;
             break;

@@ -3,11 +3,15 @@
  * (400,000 identical triangles, zero-area and collinear triangles, one
  * primitive, spheres alone, two records):
  *   - rt_bvh_check holds on the GPU's binary and 4-wide trees;
- *   - every record is in exactly one leaf, bit-identical to the CPU's record
- *     of the same primitive;
+ *   - every record is in a leaf, bit-identical to the CPU's record of the
+ *     same primitive; a record in more than one is a split triangle's
+ *     piece, exactly nsplit of them (bvh_gpu_split.cuh);
+ *   - long diagonal slivers across a grid of small triangles are split, and
+ *     the tree's SAH cost falls against the build without splits;
  *   - every primary ray, and the mirror ray from each hit, gets the same hit
  *     (t, u, v, primitive) from the GPU's tree as from the CPU's;
  *   - a second build gives the same tree size and SAH cost;
+ *   - every scene builds again with --gpu-split 30, every check the same;
  *   - the tree stays on the device until rt_accel_host copies it down.
  * Prints each tree's SAH cost, node visits per ray and build times. Exit 77
  * where no CUDA device is usable (CI); course:PATH as test_wide. */
@@ -24,7 +28,8 @@
 #include "backends/cuda/bvh_gpu.h"
 #include "backends/cuda/cuda_session.h"
 
-/* Each record once, equal to the CPU's record of the same primitive. */
+/* Each record, equal to the CPU's record of the same primitive; the copies
+ * beyond the first are the split pieces. */
 static void check_records(const char *name, const RtAccel *cpu, const RtAccel *gpu, uint32_t nspheres)
 {
     const uint32_t n = cpu->nprims - cpu->nsplit;
@@ -46,8 +51,9 @@ static void check_records(const char *name, const RtAccel *cpu, const RtAccel *g
         dup += seen[g]++ != 0;
         diff += want[g] && memcmp(want[g], &gpu->prims[i], sizeof(RtPrim)) != 0;
     }
-    CHECK(gpu->nprims == n && dup == 0 && bad == 0, "%s: %u records for %u primitives, %ld twice, %ld bad ids",
-          name, gpu->nprims, n, dup, bad);
+    CHECK(gpu->nprims == n + gpu->nsplit && dup == gpu->nsplit && bad == 0,
+          "%s: %u records for %u primitives, %ld copies (%u pieces), %ld bad ids", name, gpu->nprims, n, dup,
+          gpu->nsplit, bad);
     CHECK(diff == 0, "%s: %ld records differ from the CPU's", name, diff);
     free(seen);
     free(want);
@@ -92,8 +98,9 @@ static void check_hits(const char *name, const RtScene *s, const RtAccel *cpu, c
            (double)cc.prim_tests / (double)rays, (double)cg.prim_tests / (double)rays);
 }
 
-/* Both builds of scene s, and every check; with_camera: s has one. */
-static void check_scene(const char *name, const RtScene *s, int with_camera)
+/* Both builds of scene s (the GPU's with set), and every check;
+ * with_camera: s has one. */
+static void check_scene(const char *name, const RtScene *s, const RtBvhSettings *set, int with_camera)
 {
     RtAccel cpu, gpu, again;
     RtBuildInfo info, info2;
@@ -105,7 +112,7 @@ static void check_scene(const char *name, const RtScene *s, int with_camera)
     }
     const double cpu_ms = rt_now_ms() - t0;
     t0 = rt_now_ms();
-    int rc = rt_cuda_accel_build(s, NULL, 0, &gpu, &info, &e);
+    int rc = rt_cuda_accel_build(s, set, 0, &gpu, &info, &e);
     const double gpu_ms = rt_now_ms() - t0;
     CHECK(rc == 0, "%s: GPU build: %d, %s", name, rc, rc ? e.msg : "");
     double down_ms = 0.0;
@@ -118,13 +125,13 @@ static void check_scene(const char *name, const RtScene *s, int with_camera)
         check_records(name, &cpu, &gpu, s->nspheres);
         if (with_camera)
             check_hits(name, s, &cpu, &gpu);
-        rc = rt_cuda_accel_build(s, NULL, 0, &again, &info2, &e);
+        rc = rt_cuda_accel_build(s, set, 0, &again, &info2, &e);
         CHECK(rc == 0 && again.nnodes == gpu.nnodes && again.nwide == gpu.nwide && again.sah_cost == gpu.sah_cost,
               "%s: a second GPU build differs: %u/%u nodes, %u/%u wide, SAH %.4f/%.4f", name, gpu.nnodes,
               again.nnodes, gpu.nwide, again.nwide, gpu.sah_cost, again.sah_cost);
-        printf("%s: %u records; CPU: %u nodes, depth %u, SAH %.3f, %.2f ms; GPU: %u nodes, %u wide, depth %u, "
+        printf("%s: %u records, %u pieces; CPU: %u nodes, depth %u, SAH %.3f, %.2f ms; GPU: %u nodes, %u wide, depth %u, "
                "SAH %.3f (%.3fx), kernels %.3f ms (again %.3f), upload %.2f, whole %.2f ms; tree down %.2f ms\n",
-               name, gpu.nprims, cpu.nnodes, cpu.depth, cpu.sah_cost, cpu_ms, gpu.nnodes, gpu.nwide, gpu.depth,
+               name, gpu.nprims - gpu.nsplit, gpu.nsplit, cpu.nnodes, cpu.depth, cpu.sah_cost, cpu_ms, gpu.nnodes, gpu.nwide, gpu.depth,
                gpu.sah_cost, cpu.sah_cost > 0 ? gpu.sah_cost / cpu.sah_cost : 0.0, info.kernel_ms, info2.kernel_ms,
                info.upload_ms, gpu_ms, down_ms);
         if (rc == 0)
@@ -176,9 +183,67 @@ static void check_degenerate(void)
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
         RtScene s;
         make_scene(&s, v, 5, cases[k].ntri, cases[k].tri, cases[k].nsph);
-        check_scene(cases[k].name, &s, 0);
+        RtBvhSettings split = rt_bvh_settings_default();
+        split.gpu_split = 30;
+        char name[128];
+        snprintf(name, sizeof name, "%s, split", cases[k].name);
+        check_scene(cases[k].name, &s, NULL, 0);
+        check_scene(name, &s, &split, 0);
         rt_scene_free(&s);
     }
+}
+
+/* Twenty long slivers across a 100x100 grid of small triangles, diagonal,
+ * so each one's box covers a sixth of the grid (the case Karras and Aila
+ * split for): with --gpu-split they are split, and the tree costs less
+ * than one without. */
+static void check_split(void)
+{
+    enum { G = 100, S = 20 };
+    const uint32_t ntri = G * G + S, nv = 3 * ntri;
+    RtVec3 *v = malloc(nv * sizeof *v);
+    for (uint32_t i = 0; i < G * G; i++) {
+        const float x = (float)(i % G), z = (float)(i / G);
+        v[3 * i] = (RtVec3){x, 0.0f, z}, v[3 * i + 1] = (RtVec3){x + 0.5f, 0.0f, z};
+        v[3 * i + 2] = (RtVec3){x, 0.5f, z + 0.5f};
+    }
+    for (uint32_t j = 0; j < S; j++) {
+        const uint32_t i = G * G + j;
+        const float x0 = 4.0f * (float)j, z0 = 30.0f;
+        v[3 * i] = (RtVec3){x0, 0.25f, z0}, v[3 * i + 1] = (RtVec3){x0 + 40.0f, 0.25f, z0 + 40.0f};
+        v[3 * i + 2] = (RtVec3){x0 + 0.1f, 0.3f, z0};
+    }
+    RtScene s;
+    memset(&s, 0, sizeof s);
+    s.vertices = v, s.nvertices = nv, s.ntriangles = ntri;
+    s.triangles = calloc(ntri, sizeof *s.triangles);
+    s.spheres = calloc(1, sizeof *s.spheres);
+    for (uint32_t i = 0; i < ntri; i++)
+        for (int k = 0; k < 3; k++)
+            s.triangles[i].v[k] = 3 * i + (uint32_t)k, s.triangles[i].n[k] = -1;
+    RtBvhSettings set = rt_bvh_settings_default();
+    set.gpu_split = 30;
+    check_scene("20 slivers across 10000 triangles, split", &s, &set, 0);
+    RtAccel with, without;
+    RtBuildInfo info;
+    RtError e;
+    int rc = rt_cuda_accel_build(&s, &set, 0, &with, &info, &e);
+    set.gpu_split = 0;
+    const int rc0 = rt_cuda_accel_build(&s, &set, 0, &without, &info, &e);
+    CHECK(rc == 0 && rc0 == 0, "split scene: GPU build: %s", e.msg);
+    if (rc == 0 && rc0 == 0) {
+        CHECK(with.nsplit > 0 && without.nsplit == 0, "split scene: %u pieces with splits, %u without", with.nsplit,
+              without.nsplit);
+        CHECK(with.sah_cost < 0.9 * without.sah_cost, "split scene: SAH %.3f with splits, %.3f without",
+              with.sah_cost, without.sah_cost);
+        printf("split scene: %u pieces, SAH %.3f against %.3f without\n", with.nsplit, with.sah_cost,
+               without.sah_cost);
+    }
+    if (rc == 0)
+        rt_accel_free(&with);
+    if (rc0 == 0)
+        rt_accel_free(&without);
+    rt_scene_free(&s);
 }
 
 int main(int argc, char **argv)
@@ -193,6 +258,7 @@ int main(int argc, char **argv)
     if (check_scenes_present(argc, argv) != 0)
         return 77;
     check_degenerate();
+    check_split();
     for (int k = 1; k < argc; k++) {
         const char *path = check_scene_path(argv[k], buf, sizeof buf);
         RtScene s;
@@ -200,7 +266,12 @@ int main(int argc, char **argv)
             CHECK(0, "%s", e.msg);
             continue;
         }
-        check_scene(path, &s, 1);
+        RtBvhSettings split = rt_bvh_settings_default();
+        split.gpu_split = 30;
+        check_scene(path, &s, NULL, 1);
+        char name[4200];
+        snprintf(name, sizeof name, "%s, split", path);
+        check_scene(name, &s, &split, 1);
         rt_scene_free(&s);
     }
     return check_report("test_gpu_bvh");

@@ -1,6 +1,8 @@
 /* bvh_gpu.cu - the BVH built on the GPU for the CUDA backends.
  *
- *   1. each record's padded box (as the CPU pads it) and the centroids' bounds;
+ *   1. each record's padded box (as the CPU pads it); large triangles split
+ *      into pieces, each a reference with its own box (Karras and Aila
+ *      2013, bvh_gpu_split.cuh); the references' centroids' bounds;
  *   2. 30-bit Morton codes of the centroids, sorted (CUB's radix sort);
  *   3. H-PLOC (Benthin, Meister, Barczak, Mehalwal, Tsakok and Kensler,
  *      "H-PLOC: Hierarchical Parallel Locally-Ordered Clustering for
@@ -14,7 +16,7 @@
  *   4. top-down, a level of 4-wide nodes per launch: each opens its largest
  *      inner child until it has four (as accel/wide.c does), writes the
  *      binary nodes it passes in depth-first order and gathers its leaves'
- *      records in leaf order.
+ *      records in leaf order (a split triangle's in each leaf of a piece).
  * The result is the RtAccel the CPU builder makes, kept on the device for
  * the render to read in place (rt_accel_host copies it down for --verify
  * and the scene cache). The device code is bvh_gpu_kernels.cuh. */
@@ -25,8 +27,12 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <algorithm>
+
 #include <cuda_runtime.h>
 #include <cub/device/device_radix_sort.cuh>
+#include <cub/device/device_reduce.cuh>
+#include <cub/device/device_scan.cuh>
 
 extern "C" {
 #include "rt.h"
@@ -37,6 +43,7 @@ extern "C" {
 #include "schedule.h"
 
 #include "bvh_gpu_kernels.cuh"
+#include "bvh_gpu_split.cuh"
 
 /* ---------------------------------------------------------------- host */
 
@@ -65,8 +72,10 @@ typedef struct Blocks {
     void *sort_temp;
     size_t sort_bytes;
     double *sah; /* SAH_BLOCKS partial sums, then the cost */
+    float *psum; /* the split priorities' sum */
 } Blocks;
 
+/* n: the references at most. */
 static void carve_build(Blocks *k, Build *B, const RtScene *sc, uint32_t n)
 {
     const size_t m = 2 * (size_t)n - 1;
@@ -78,6 +87,8 @@ static void carve_build(Blocks *k, Build *B, const RtScene *sc, uint32_t n)
     B->bnodes = (RtBvhNode *)carve(c, m * sizeof(RtBvhNode));
     B->wide = (RtBvh4Node *)carve(c, (size_t)n * sizeof(RtBvh4Node));
     c = &k->scratch;
+    B->rbox = (GBox *)carve(c, (size_t)n * sizeof(GBox));
+    B->rrec = (uint32_t *)carve(c, (size_t)n * sizeof(uint32_t));
     B->box = (GBox *)carve(c, m * sizeof(GBox));
     B->kids = (uint2 *)carve(c, m * sizeof(uint2));
     B->cost = (float *)carve(c, m * sizeof(float));
@@ -90,16 +101,51 @@ static void carve_build(Blocks *k, Build *B, const RtScene *sc, uint32_t n)
     k->sort_temp = carve(c, k->sort_bytes);
     B->ctr = (uint32_t *)carve(c, C_COUNT * sizeof(uint32_t));
     k->sah = (double *)carve(c, (SAH_BLOCKS + 1) * sizeof(double));
+    k->psum = (float *)carve(c, sizeof(float));
 }
 
-/* Boxes, codes, sort, leaves and H-PLOC. */
+/* The references (bvh_gpu_split.cuh) into rbox and rrec, B->n their count;
+ * the counts and their sums use the sort's buffer, dead until the codes. */
+static int make_refs(Build *B, Blocks *k, RtError *err)
+{
+    const uint32_t nr = B->nrec;
+    uint32_t *count = k->sortbuf, *first = k->sortbuf + 2 * (size_t)nr;
+    size_t bytes = 0; /* (CUB's in-out size: the sort's stays as it is) */
+    if (B->budget == 0) {
+        B->n = nr;
+        k_split_none<<<blocks_for(nr), BLOCK>>>(*B);
+        RT_CUDA_CHECK_LAUNCH("k_split_none");
+        return 0;
+    }
+    k_bounds<<<blocks_for(nr), BLOCK>>>(*B, false);
+    k_split_priority<<<blocks_for(nr), BLOCK>>>(*B);
+    bytes = k->sort_bytes;
+    RT_CUDA_CHECK(cub::DeviceReduce::Sum(k->sort_temp, bytes, B->cost, k->psum, (int)nr));
+    k_split_count<<<blocks_for(nr), BLOCK>>>(*B, k->psum, count);
+    bytes = k->sort_bytes;
+    RT_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(k->sort_temp, bytes, count, first, (int)nr));
+    k_split_total<<<1, 1>>>(*B, count, first);
+    k_split_emit<<<blocks_for(B->n), BLOCK>>>(*B, count, first); /* (B->n: the most references) */
+    RT_CUDA_CHECK_LAUNCH("k_split_emit");
+    RT_CUDA_CHECK(cudaMemcpy(&B->n, B->ctr + C_REFS, sizeof B->n, cudaMemcpyDeviceToHost));
+    if (B->n < nr || B->n > nr + B->budget)
+        return rt_fail(err, "cuda: the GPU build's splits went wrong: %u references for %u records", B->n, nr);
+    return 0;
+fail:
+    return -1;
+}
+
+/* References, codes, sort, leaves and H-PLOC. */
 static int build_binary(Build *B, Blocks *k, RtError *err)
 {
+    k_init<<<1, 128>>>(*B);
+    if (make_refs(B, k, err))
+        return -1;
     const uint32_t n = B->n;
     uint32_t *sb = k->sortbuf;
     cub::DoubleBuffer<uint32_t> keys(sb, sb + n), vals(sb + 2 * (size_t)n, sb + 3 * (size_t)n);
     k_init<<<1, 128>>>(*B);
-    k_bounds<<<blocks_for(n), BLOCK>>>(*B);
+    k_bounds<<<blocks_for(n), BLOCK>>>(*B, true);
     k_morton<<<blocks_for(n), BLOCK>>>(*B, keys.Current(), vals.Current());
     RT_CUDA_CHECK_LAUNCH("k_morton");
     RT_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(k->sort_temp, k->sort_bytes, keys, vals, (int)n, 0, 30));
@@ -168,7 +214,11 @@ static int reserve(Build *B, Blocks *k, const RtScene *sc, int device, unsigned 
     cub::DoubleBuffer<uint32_t> dk(NULL, NULL), dv(NULL, NULL);
     cudaError_t e = cudaSuccess;
     double need = 0.0;
+    size_t reduce_b = 0, scan_b = 0;
     RT_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(NULL, k->sort_bytes, dk, dv, (int)B->n, 0, 30));
+    RT_CUDA_CHECK(cub::DeviceReduce::Sum(NULL, reduce_b, (float *)NULL, (float *)NULL, (int)B->nrec));
+    RT_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(NULL, scan_b, (uint32_t *)NULL, (uint32_t *)NULL, (int)B->nrec));
+    k->sort_bytes = std::max(k->sort_bytes, std::max(reduce_b, scan_b));
     k->keep.base = k->scratch.base = NULL;
     k->keep.off = k->scratch.off = 0;
     carve_build(k, B, sc, B->n);
@@ -258,6 +308,7 @@ static int adopt(const Build *B, const uint32_t *h, double sah, int device, unsi
     t->spheres = B->sph;
     a->kind = RT_ACCEL_BVH;
     a->nprims = B->n;
+    a->nsplit = B->n - B->nrec;
     a->nnodes = h[C_NSUB];
     a->nwide = h[C_QTAIL];
     a->depth = h[C_DEPTH];
@@ -280,14 +331,19 @@ extern "C" int rt_cuda_accel_build(const RtScene *sc, const RtBvhSettings *set, 
         set = &def;
     if (n64 == 0) /* nothing to build: the CPU's empty accelerator */
         return rt_accel_build_with(sc, RT_ACCEL_BVH, set, a, err) ? -1 : 0;
-    if (n64 >= RT_WIDE_MAX_FIRST)
-        return rt_fail(err, "the GPU build takes fewer than %u records, the scene has %llu", RT_WIDE_MAX_FIRST,
-                       (unsigned long long)n64), 1;
+    if (set->gpu_split < 0 || set->gpu_split > 100)
+        return rt_fail(err, "BVH settings: gpu_split is %d, outside 0..100", set->gpu_split);
+    const uint64_t budget = sc->ntriangles * (uint64_t)set->gpu_split / 100u;
+    if (n64 + budget >= RT_WIDE_MAX_FIRST)
+        return rt_fail(err, "the GPU build takes fewer than %u records and pieces, the scene has %llu and %llu",
+                       RT_WIDE_MAX_FIRST, (unsigned long long)n64, (unsigned long long)budget), 1;
     Build B;
     Blocks k;
     memset(&B, 0, sizeof B);
     memset(&k, 0, sizeof k);
-    B.n = (uint32_t)n64;
+    B.nrec = (uint32_t)n64;
+    B.budget = (uint32_t)budget;
+    B.n = (uint32_t)(n64 + budget); /* (the blocks hold the most references) */
     B.nspheres = sc->nspheres;
     B.leaf_max = set->leaf_max;
     unsigned char *keep = NULL, *scratch = NULL;

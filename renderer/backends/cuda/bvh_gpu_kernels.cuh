@@ -14,7 +14,7 @@
 enum { BLOCK = 128, BLOCK_MAX = 1024 };
 
 /* Counters and small results, one device array. */
-enum { C_NODES, C_ROOT, C_PRIMS, C_QTAIL, C_DEPTH, C_LEAVES, C_NSUB, C_CMIN, C_CMAX = C_CMIN + 3,
+enum { C_NODES, C_ROOT, C_PRIMS, C_QTAIL, C_DEPTH, C_LEAVES, C_NSUB, C_REFS, C_CMIN, C_CMAX = C_CMIN + 3,
        C_MARK = C_CMAX + 3, C_COUNT = C_MARK + MAX_LEVELS + 2 };
 
 struct GBox {
@@ -27,13 +27,16 @@ struct Task {
 
 /* Device pointers of one build, passed by value to every kernel. */
 struct Build {
-    uint32_t n, nspheres;
+    uint32_t n;        /* references (bvh_gpu_split.cuh): records and their pieces */
+    uint32_t nrec, nspheres, budget; /* records (spheres first); pieces the splits may add */
     int leaf_max;
     const RtVec3 *verts;
     const RtTriangle *tris;
     const RtSphere *sph;
+    GBox *rbox;        /* each reference's box */
+    uint32_t *rrec;    /* each reference's record */
     GBox *box;         /* 2n-1 nodes: leaves 0..n-1 in Morton order, then the inner ones */
-    uint2 *kids;       /* children; a leaf: (record, INVALID) */
+    uint2 *kids;       /* children; a leaf: (reference, INVALID) */
     float *cost;       /* SAH cost times the node's area */
     uint32_t *meta;    /* records below | COLLAPSED */
     uint32_t *nsub;    /* nodes below in the collapsed tree, itself included */
@@ -130,14 +133,18 @@ __global__ void k_init(Build B)
                                    : i >= C_CMAX && i < C_CMAX + 3 ? 0x80000000u : 0u;
 }
 
-/* The centroids' bounds: a warp's, then one atomic per warp and axis. */
-__global__ void k_bounds(Build B)
+/* The centroids' bounds, of the records or (refs) of the references: a
+ * warp's, then one atomic per warp and axis. */
+__global__ void k_bounds(Build B, bool refs)
 {
     const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    if (i < B.n) {
+    if (i < (refs ? B.n : B.nrec)) {
         GBox b;
-        record_box(B, i, b);
+        if (refs)
+            b = B.rbox[i];
+        else
+            record_box(B, i, b);
         for (int k = 0; k < 3; k++)
             lo[k] = hi[k] = 0.5f * (b.lo[k] + b.hi[k]);
     }
@@ -163,22 +170,26 @@ __device__ static uint32_t spread10(uint32_t v)
     return v;
 }
 
+/* Point p's 30-bit code on the grid of the centroids' bounds (clamped to it). */
+__device__ static uint32_t grid_code(const Build &B, const float p[3])
+{
+    uint32_t code = 0;
+    for (int k = 0; k < 3; k++) {
+        const float lo = order_float((int)B.ctr[C_CMIN + k]), hi = order_float((int)B.ctr[C_CMAX + k]);
+        const float e = hi - lo, t = e > 0.0f ? (p[k] - lo) / e : 0.5f; /* (a flat axis: no 0/0) */
+        code |= spread10((uint32_t)fminf(fmaxf(t * 1024.0f, 0.0f), 1023.0f)) << (2 - k);
+    }
+    return code;
+}
+
 __global__ void k_morton(Build B, uint32_t *keys, uint32_t *vals)
 {
     const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= B.n)
         return;
-    GBox b;
-    record_box(B, i, b);
-    uint32_t code = 0;
-    for (int k = 0; k < 3; k++) {
-        const float lo = order_float((int)B.ctr[C_CMIN + k]), hi = order_float((int)B.ctr[C_CMAX + k]);
-        const float c = 0.5f * (b.lo[k] + b.hi[k]), e = hi - lo;
-        const float t = e > 0.0f ? (c - lo) / e : 0.5f; /* (a flat axis: no 0/0) */
-        const uint32_t q = (uint32_t)fminf(fmaxf(t * 1024.0f, 0.0f), 1023.0f);
-        code |= spread10(q) << (2 - k);
-    }
-    keys[i] = code;
+    const GBox b = B.rbox[i];
+    const float c[3] = {0.5f * (b.lo[0] + b.hi[0]), 0.5f * (b.lo[1] + b.hi[1]), 0.5f * (b.lo[2] + b.hi[2])};
+    keys[i] = grid_code(B, c);
     vals[i] = i;
 }
 
@@ -189,8 +200,7 @@ __global__ void k_leaves(Build B)
     if (i >= B.n)
         return;
     const uint32_t r = B.svals[i];
-    GBox b;
-    record_box(B, r, b);
+    const GBox b = B.rbox[r];
     B.box[i] = b;
     B.kids[i] = make_uint2(r, INVALID);
     B.cost[i] = box_area(b);
@@ -416,7 +426,7 @@ __device__ static void gather(const Build &B, uint32_t c, uint32_t first)
         const uint32_t x = st[--sp];
         const uint2 kk = B.kids[x];
         if (x < B.n) {
-            B.prims[first + k++] = record_prim(B, kk.x);
+            B.prims[first + k++] = record_prim(B, B.rrec[kk.x]);
         } else if (sp + 2 <= 8) {
             st[sp++] = kk.y;
             st[sp++] = kk.x;
