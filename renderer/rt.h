@@ -471,6 +471,13 @@ void *rt_huge_hint(void *p, size_t n);
 /* The threads a loading step runs on when `asked` for (0: as many as
  * OpenMP gives, one per allowed CPU; 1 in a build without OpenMP). */
 int rt_thread_count(int asked);
+/* The threads of a pass that only streams memory -- reading, hashing and
+ * checking a scene cache entry, the CPU backends' copy of the tree: at most
+ * RT_STREAM_THREADS. Past that they only contend: on a 64-vCPU host, 16
+ * threads hash and check a 516 MB entry in 43 ms, 64 threads in 174 ms
+ * (docs/performance.md, "Scene cache"). */
+#define RT_STREAM_THREADS 16
+int rt_stream_threads(void);
 /* Appends the CPU the calling thread runs on to a sorted, unique list. */
 void rt_cores_note(char *list, size_t size, int cpu);
 int rt_current_cpu(void);

@@ -290,12 +290,18 @@ int rt_thread_count(int asked)
 #endif
 }
 
+int rt_stream_threads(void)
+{
+    const int n = rt_thread_count(0);
+    return n < RT_STREAM_THREADS ? n : RT_STREAM_THREADS;
+}
+
 /* The first i in 0..n for which bad(ctx, i), or -1: in parallel (a
  * scene cache entry of millions of triangles is checked on every load). */
 static long first_bad(long n, int (*bad)(const void *, const void *, long), const void *s, const void *a)
 {
     long first = LONG_MAX;
-#pragma omp parallel for reduction(min : first) schedule(static)
+#pragma omp parallel for reduction(min : first) schedule(static) num_threads(rt_stream_threads())
     for (long i = 0; i < n; i++)
         if (i < first && bad(s, a, i))
             first = i;

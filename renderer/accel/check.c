@@ -167,7 +167,7 @@ static int walk(const Walk *w, const Item *root, RtError *err)
         tail += sp;
     }
     long failed = LONG_MAX;
-#pragma omp parallel for schedule(dynamic, 1) if (rc == 0 && tail - head > 1)
+#pragma omp parallel for schedule(dynamic, 1) if (rc == 0 && tail - head > 1) num_threads(rt_stream_threads())
     for (long i = head; i < tail; i++) {
         RtError e;
         if (rc == 0 && walk_subtree(w, &q[i], &e) != 0) {
@@ -186,7 +186,7 @@ static int walk(const Walk *w, const Item *root, RtError *err)
 static long first_unmarked(const uint8_t *seen, uint32_t n)
 {
     long bad = LONG_MAX;
-#pragma omp parallel for reduction(min : bad) schedule(static)
+#pragma omp parallel for reduction(min : bad) schedule(static) num_threads(rt_stream_threads())
     for (long k = 0; k < (long)n; k++)
         if (!seen[k] && k < bad)
             bad = k;
@@ -227,7 +227,8 @@ static int check_ids(const RtAccel *a, RtError *err)
     if (!seen_id)
         return rt_fail(err, "BVH check: out of memory");
     long bad = LONG_MAX, copies = 0;
-#pragma omp parallel for reduction(min : bad) reduction(+ : copies) schedule(static)
+#pragma omp parallel for reduction(min : bad) reduction(+ : copies) schedule(static) \
+    num_threads(rt_stream_threads())
     for (long k = 0; k < (long)a->nprims; k++) {
         const uint32_t id = a->prims[k].id & ~RT_PRIM_SPHERE_BIT;
         if (id >= nscene)

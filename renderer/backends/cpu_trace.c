@@ -57,7 +57,7 @@ static uint32_t pack_leaf(const RtSceneView *v, uint32_t *ref, RtCpuLeaf4 *leave
  * groups in all, or RT_WIDE_MAX_FIRST when there are too many. */
 static size_t group_offsets(const RtBvh4Node *w, uint32_t n, uint32_t *first)
 {
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) num_threads(rt_stream_threads())
     for (uint32_t i = 0; i < n; i++)
         first[i + 1] = node_groups(&w[i]);
     size_t sum = 0;
@@ -88,7 +88,7 @@ void *rt_cpu_prepare(RtSceneView *v)
     }
     RtBvh4Node *w = (RtBvh4Node *)(void *)block;
     RtCpuLeaf4 *leaves = (RtCpuLeaf4 *)(void *)(block + nodes);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) num_threads(rt_stream_threads())
     for (uint32_t i = 0; i < nw; i++) {
         w[i] = v->wide[i];
         /* (lanes past a leaf: zero triangles, which miss) */

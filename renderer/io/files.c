@@ -44,7 +44,7 @@ int rt_read_fd(int fd, char *buf, size_t n)
 {
     const long pieces = (long)((n + RT_READ_PIECE - 1) / RT_READ_PIECE);
     int bad = 0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(| : bad) if (pieces > 2)
+#pragma omp parallel for schedule(dynamic, 1) reduction(| : bad) if (pieces > 2) num_threads(rt_stream_threads())
     for (long i = 0; i < pieces; i++) {
         const size_t a = (size_t)i * RT_READ_PIECE, b = a + RT_READ_PIECE < n ? a + RT_READ_PIECE : n;
         bad |= read_at(fd, buf + a, b - a, (off_t)a) != 0;

@@ -103,7 +103,7 @@ static XXH128_hash_t hash_big(const void *data, size_t len)
         }
         return XXH3_128bits_digest(&st);
     }
-#pragma omp parallel for schedule(dynamic, 1)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(rt_stream_threads())
     for (size_t i = 0; i < n; i++)
         part[i] = hash_piece(data, len, i);
     XXH128_hash_t h = XXH3_128bits(part, n * sizeof *part);
