@@ -11,6 +11,12 @@
 #   diag    6 rounds of OpenMP (pinned, this build and the older one) and MPI
 #           at N workers: fork_ms, thread_start_ms, backups, rank_work_ms
 #   none    brute force at N workers, 3 repeats each
+#   one     serial, OpenMP at one thread and MPI at one rank, interleaved
+#           (`order: rounds`, 10 repeats), both resolutions: the baselines
+#           of tables 1 and 2 on the same core at the same time
+#   hybrid  the hybrid table (configs/hybrid-dragon.conf): every P x T <= N
+#           of powers of two, both resolutions, 3 repeats, `order: rounds`,
+#           against the ceiling (run ceil first)
 # The code measured is .devcarry/head.tar.gz (git archive --prefix=head/ HEAD
 # | gzip), the older one .devcarry/prev.tar.gz (git archive --prefix=prev/
 # OLD | gzip). Carry [".devcarry", ".devwl"] (scripts/device-ceiling.sh says
@@ -71,6 +77,18 @@ none)
   timeout $(( $(left) - 10 )) $H run configs/report-table1-openmp.conf "${S[@]}" --set threads="$N" --set backend=openmp --set schedule=tiles -q -o "$O/t1-none-512x384.csv" > /dev/null 2>&1 || log "none rc $?"
   timeout $(( $(left) - 10 )) $H run configs/report-table2-mpi.conf "${S[@]}" --set ranks="$N" --set backend=mpi --set mpi_schedule=dynamic -q -o "$O/t2-none-512x384.csv" > /dev/null 2>&1 || log "none mpi rc $?"
   log none ;;
+one)
+  for res in 512x384 2048x1536; do
+    printf 'study: one-worker\nscene_dir: %s\nscenes: dragon\nbackend: serial openmp mpi\naccel: bvh\nresolution: %s\nschedule: tiles\nmpi_schedule: dynamic\nthreads: 1\nranks: 1\npin: close\norder: rounds\nrepeats: 10\ntimeout: 60\n' $course $res > /tmp/one.conf
+    timeout 150 $H run /tmp/one.conf -q -o "$O/one-$res.csv" > /dev/null 2>&1 || log "one $res rc $?"
+    $H table "$O/one-$res.csv" > "$O/one-$res-table.md" 2>&1
+  done; log one ;;
+hybrid)
+  P=""; for ((p = 1; p <= N; p *= 2)); do P="$P $p"; done
+  for res in 512x384 2048x1536; do
+    timeout 200 $H run configs/hybrid-dragon.conf --set scene_dir=$course --set resolution=$res --set ranks="$P" --set threads="$P" --set repeats=3 --set order=rounds -q -o "$O/hybrid-$res.csv" > /dev/null 2>&1 || log "hybrid $res rc $?"
+    $H table "$O/hybrid-$res.csv" --ceiling "$O/ceiling-$res.csv" > "$O/hybrid-$res-table.md" 2>&1
+  done; log hybrid ;;
 diag)
   g() { tr ' ' '\n' | grep -E '^(render_ms|fork_ms|join_ms|backups|backups_won|thread_start_ms|thread_work_ms|rank_work_ms|rank_end_ms|render_ms_min)=' | tr '\n' ' '; echo; }
   export OMP_PLACES=cores OMP_PROC_BIND=close
