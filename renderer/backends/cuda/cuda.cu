@@ -283,22 +283,37 @@ static int cuda_parts(CudaRun *c, RtError *err)
     return 0;
 }
 
+/* Out of device memory, in one plain line: what the arena and the kernel's
+ * stacks need, and what the device has free. */
+static int cuda_out_of_memory(const CudaRun *c, size_t stacks, RtError *err)
+{
+    size_t free_b = 0, total_b = 0;
+    cudaGetLastError(); /* clear it: an allocation failure is not sticky */
+    cudaMemGetInfo(&free_b, &total_b);
+    return rt_fail(err, "cuda: out of device memory: the scene, BVH and %dx%d image need %zu bytes (%.1f MiB) "
+                        "and the kernel's stacks %.1f MiB on device %d (%s), which has %.1f MiB free of %.1f MiB",
+                   c->w, c->h, c->arena_bytes, (double)c->arena_bytes / 1048576.0, (double)stacks / 1048576.0,
+                   c->job->device, c->gpu, (double)free_b / 1048576.0, (double)total_b / 1048576.0);
+}
+
 /* The device arrays: allocated (out of memory is one plain message), copied,
- * the image poisoned, and the device view pointed at them. */
+ * the image poisoned, and the device view pointed at them. The launch
+ * reserves the kernel's local memory for every thread the device can hold,
+ * so that is counted before the arena: an arena that fits without it would
+ * fail at the launch instead, with no sizes. */
 static int cuda_upload(CudaRun *c, RtError *err)
 {
     if (cuda_parts(c, err))
         return -1;
+    const size_t stacks = (size_t)c->fa.localSizeBytes * (size_t)c->prop.maxThreadsPerMultiProcessor *
+                          (size_t)c->prop.multiProcessorCount;
+    size_t free_b = 0, total_b = 0;
+    if (cudaMemGetInfo(&free_b, &total_b) == cudaSuccess && c->arena_bytes + stacks > free_b)
+        return cuda_out_of_memory(c, stacks, err);
     cudaError_t e = cudaMalloc((void **)&c->arena, c->arena_bytes);
     if (e == cudaErrorMemoryAllocation) {
-        size_t free_b = 0, total_b = 0;
-        cudaGetLastError(); /* clear it: an allocation failure is not sticky */
-        cudaMemGetInfo(&free_b, &total_b);
         c->arena = NULL;
-        return rt_fail(err, "cuda: out of device memory: the scene, BVH and %dx%d image need %zu bytes (%.1f MiB) "
-                            "on device %d (%s), which has %.1f MiB free of %.1f MiB",
-                       c->w, c->h, c->arena_bytes, (double)c->arena_bytes / 1048576.0, c->job->device, c->gpu,
-                       (double)free_b / 1048576.0, (double)total_b / 1048576.0);
+        return cuda_out_of_memory(c, stacks, err);
     }
     if (e != cudaSuccess) {
         c->arena = NULL;
