@@ -20,10 +20,13 @@
 #            (`git archive --prefix=prev/ OLD | gzip`), --runs 5 at 1920x1080
 #            on the large stand-ins and the dragon, interleaved, ROUNDS rounds
 #            (default 3): build and kernel times, SAH cost, visits, image
-#   cache    the first image from a warm cache of large-4m (an entry stored
-#            by the GPU build, then five loads), each load beside three by the
+#   cache    the first image (--runs 1 --warmup 0) from a warm cache of
+#            large-4m (an entry stored by the GPU build, then five loads,
+#            every key of the record), each load beside three by the
 #            OpenMP backend on every core, 16 and 4 (a 64x36 image: the load's
 #            time alone), then benchmarks/cache-check on the entry
+#   oom      tests/gpu/gpu_oom.sh: a render and a GPU build that do not fit
+#            beside gpu_hog
 # Output under $OUT (default /tmp/device-gpubvh).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -95,8 +98,8 @@ cache)
     rm -rf /tmp/rb-cache && mkdir -m 700 /tmp/rb-cache
     for i in 0 1 2 3 4 5; do
         echo -n "cache run=$i "
-        rec $B/renderer/raytrace --backend cuda --builder gpu --cache /tmp/rb-cache -q -r 1920x1080 \
-            scenes/generated/large-4m.txt -o /tmp/c.png
+        $B/renderer/raytrace --backend cuda --builder gpu --cache /tmp/rb-cache -q -r 1920x1080 --runs 1 \
+            --warmup 0 scenes/generated/large-4m.txt -o /tmp/c.png
         [ $i = 0 ] && continue
         for nt in $(nproc) 16 4; do
             echo -n "cache run=$i omp_threads=$nt "
@@ -108,5 +111,9 @@ cache)
         echo -n "omp_threads=$nt "
         OMP_NUM_THREADS=$nt $B/benchmarks/cache-check /tmp/rb-cache/*.rbc bvh 5
     done >> "$OUT/cache.txt" 2>&1 ;;
-*) echo "device-gpubvh: unknown step '$step' (test, ab, quality, split, cache)" >&2; exit 2 ;;
+oom)
+    ninja -C $B tests/gpu/gpu_hog >> "$OUT/build.log" 2>&1 || { echo "gpu_hog build failed"; exit 1; }
+    sh tests/gpu/gpu_oom.sh $B/renderer/raytrace $B/tests/gpu/gpu_hog $B/renderer/scenegen > "$OUT/oom.txt" 2>&1
+    echo "gpu_oom rc=$?" | tee -a "$OUT/oom.txt" ;;
+*) echo "device-gpubvh: unknown step '$step' (test, ab, quality, split, cache, oom)" >&2; exit 2 ;;
 esac; done
