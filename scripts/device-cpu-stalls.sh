@@ -7,7 +7,8 @@
 #   ceil    `harness ceiling` at 1, N/2 and N copies, both resolutions
 #   tables  the report's tables 1 and 2 (BVH, tiles, dynamic) at 1, N/2 and
 #           N workers, 5 repeats, `order: rounds`; tables against the ceiling
-#   keys    5 unpinned runs of each at N workers, their timing keys
+#   keys    5 unpinned runs of each at N workers (or at each of
+#           KEYS_WORKERS), their timing keys
 #   diag    6 rounds of OpenMP (pinned, this build and the older one) and MPI
 #           at N workers: fork_ms, thread_start_ms, backups, rank_work_ms
 #   none    brute force at N workers, 3 repeats each
@@ -69,8 +70,10 @@ tables)
 keys)
   f() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|join_ms|backups|backups_won|rank_work_ms|rank_end_ms)=' | tr '\n' ' '; echo; }
   for i in 1 2 3 4 5; do
-    echo "== omp $N 512x384"; $RT -q -b openmp -t $N -r 512x384 $dragon -o /tmp/k.png | f
-    echo "== mpi $N 512x384"; mpirun --bind-to core -np $N $RT -b mpi -q -r 512x384 $dragon -o /tmp/k.png | f
+    for w in ${KEYS_WORKERS:-$N}; do
+      echo "== omp $w 512x384"; $RT -q -b openmp -t $w -r 512x384 $dragon -o /tmp/k.png | f
+      echo "== mpi $w 512x384"; mpirun --bind-to core -np $w $RT -b mpi -q -r 512x384 $dragon -o /tmp/k.png | f
+    done
   done > "$O/keys.txt" 2>&1; log keys ;;
 none)
   S=(--set scene_dir=$course --set resolution=512x384 --set accel=none --set repeats=3)
