@@ -23,7 +23,8 @@ conf slow slow 30
 a=$!
 for _ in $(seq 300); do [ "$(wc -l < two.csv 2>/dev/null || echo 0)" -ge 2 ] && break; sleep 0.1; done
 [ "$(wc -l < two.csv 2>/dev/null || echo 0)" -ge 2 ] || fail "the first study wrote no row in 30 s"
-"$H" run slow.conf -o two.csv --resume -q 2> b.err && fail "a second writer with --resume was let in"
+first() { kill -0 $a 2> /dev/null && echo "still running" || echo "ended: $(cat a.err)"; }
+"$H" run slow.conf -o two.csv --resume -q 2> b.err && fail "a second writer with --resume was let in (the first: $(first))"
 grep -q "another harness run is writing it" b.err || fail "second writer's message: $(cat b.err)"
 "$H" run slow.conf -o two.csv --overwrite -q 2> c.err && fail "a second writer with --overwrite was let in"
 grep -q "another harness run is writing it" c.err || fail "third writer's message: $(cat c.err)"

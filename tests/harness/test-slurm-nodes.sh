@@ -43,7 +43,14 @@ on() {
   ip netns exec "$NS$n" unshare --uts sh -c 'hostname "$1" && mount --bind "$2" "$3" && shift 3 && exec "$@"' \
     sh "node$n" "$T/node$n/tmp" "$T/tmp" "$@"
 }
-ns_pids() { ip netns pids "${NS}1" 2> /dev/null; ip netns pids "${NS}2" 2> /dev/null; }
+# (only processes whose network namespace is not this script's: where the
+# namespaces could not be made right, nothing outside them is killed)
+ns_pids() {
+  own=$(readlink /proc/$$/ns/net)
+  for p in $(ip netns pids "${NS}1" 2> /dev/null; ip netns pids "${NS}2" 2> /dev/null); do
+    [ "$(readlink /proc/$p/ns/net 2> /dev/null)" != "$own" ] && echo "$p"
+  done
+}
 # Stop what this test started: jobs, then the daemons and whatever else runs
 # in the two namespaces (job steps, ranks, a --submit), the namespaces
 # (their veths go with them), the folder.
