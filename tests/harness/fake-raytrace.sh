@@ -1,7 +1,8 @@
 #!/bin/sh
 # A stand-in for raytrace that the runner tests drive into every outcome,
 # chosen by the scene file's base name: ok*, crash, hang, fail, wrong, silent,
-# slow (0.3 s), escape (leaves a process in a session of its own, its pid in
+# slow (0.3 s), gate (waits, at most 60 s, until the file $FAKE_GATE exists),
+# escape (leaves a process in a session of its own, its pid in
 # $FAKE_ESCAPE_PID, then hangs).
 backend=serial accel=bvh threads=1
 while [ $# -gt 1 ]; do
@@ -21,6 +22,7 @@ case "$scene" in
   crash) kill -SEGV $$ ;;
   hang) sleep "${FAKE_HANG_S:-31}" & wait; exit 0 ;;   # the grandchild must die with the group
   slow) sleep 0.3 ;;
+  gate) i=0; while [ ! -e "${FAKE_GATE:-/nonexistent}" ] && [ $i -lt 600 ]; do sleep 0.1; i=$((i + 1)); done ;;
   escape) setsid sleep 32 < /dev/null > /dev/null 2>&1 & echo $! > "$FAKE_ESCAPE_PID"; sleep "${FAKE_HANG_S:-31}" & wait; exit 0 ;;
   fail) echo "raytrace: $1:3: bad thing" >&2; exit 1 ;;
   silent) exit 0 ;;

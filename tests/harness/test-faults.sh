@@ -10,26 +10,31 @@
 set -u
 . "$(dirname "$0")/common.sh"
 test_setup faults "$1" "$2"
-for s in ok slow; do echo "# dummy" > "$s.txt"; done
+for s in ok slow gate; do echo "# dummy" > "$s.txt"; done
 conf() { # NAME SCENE REPEATS
     printf 'study: %s\nscene_dir: .\nscenes: %s\nrepeats: %s\npin: none\nraytrace: %s\n' "$1" "$2" "$3" "$FAKE" > "$1.conf"
 }
 
-# ---- two writers (30 runs of 0.3 s: the first study still holds the file
-# while the others start, even on a loaded machine where a process takes
-# seconds to start)
-conf slow slow 30
+# ---- two writers: the first study's runs wait at a gate (the file go) until
+# the others have tried, so it holds the file however slowly they start; its
+# header is written once it holds the lock
+conf slow gate 8
+export FAKE_GATE=$PWD/go
 "$H" run slow.conf -o two.csv -q 2> a.err &
 a=$!
-for _ in $(seq 300); do [ "$(wc -l < two.csv 2>/dev/null || echo 0)" -ge 2 ] && break; sleep 0.1; done
-[ "$(wc -l < two.csv 2>/dev/null || echo 0)" -ge 2 ] || fail "the first study wrote no row in 30 s"
+for _ in $(seq 300); do [ "$(wc -l < two.csv 2>/dev/null || echo 0)" -ge 1 ] && break; sleep 0.1; done
+[ "$(wc -l < two.csv 2>/dev/null || echo 0)" -ge 1 ] || { touch go; fail "the first study wrote no header in 30 s"; }
 first() { kill -0 $a 2> /dev/null && echo "still running" || echo "ended: $(cat a.err)"; }
-"$H" run slow.conf -o two.csv --resume -q 2> b.err && fail "a second writer with --resume was let in (the first: $(first))"
+timeout 20 "$H" run slow.conf -o two.csv --resume -q 2> b.err; rb=$? # (let in, it would wait at the gate)
+timeout 20 "$H" run slow.conf -o two.csv --overwrite -q 2> c.err; rc=$?
+state=$(first)
+touch go
+[ $rb -ne 0 ] || fail "a second writer with --resume was let in (the first: $state)"
 grep -q "another harness run is writing it" b.err || fail "second writer's message: $(cat b.err)"
-"$H" run slow.conf -o two.csv --overwrite -q 2> c.err && fail "a second writer with --overwrite was let in"
+[ $rc -ne 0 ] || fail "a second writer with --overwrite was let in (the first: $state)"
 grep -q "another harness run is writing it" c.err || fail "third writer's message: $(cat c.err)"
 wait $a || { cat a.err; fail "the first study failed"; }
-[ "$(($(wc -l < two.csv) - 1))" -eq 30 ] || fail "the first study kept $(($(wc -l < two.csv) - 1)) of 30 rows"
+[ "$(($(wc -l < two.csv) - 1))" -eq 8 ] || fail "the first study kept $(($(wc -l < two.csv) - 1)) of 8 rows"
 "$H" table two.csv > /dev/null || fail "the first study's CSV does not read back"
 # the lock goes with the study: a later run may continue the file
 "$H" run slow.conf -o two.csv --resume -q 2> d.err || { cat d.err; fail "--resume after the study ended"; }
