@@ -173,6 +173,9 @@ typedef struct RtBvhSettings {
                              * percent of the triangles: 0 (0..100; bvh_gpu_split.cuh) */
 } RtBvhSettings;
 RtBvhSettings rt_bvh_settings_default(void);
+/* 0 when every setting lies in its range (accel/settings.c), else -1 and
+ * err names the first that does not; both builders check theirs. */
+int rt_bvh_settings_check(const RtBvhSettings *settings, RtError *err);
 /* Builds the accelerator with `settings` (NULL: the defaults); the same tree
  * on any number of threads. 0, or -1 with err. */
 int rt_accel_build_with(const RtScene *scene, RtAccelKind kind, const RtBvhSettings *settings, RtAccel *accel,

@@ -71,7 +71,7 @@ int rt_accel_build_with(const RtScene *s, RtAccelKind kind, const RtBvhSettings 
     memset(a, 0, sizeof *a);
     a->kind = kind;
     a->build_threads = 1;
-    if (bvh_settings_check(set, err) != 0)
+    if (rt_bvh_settings_check(set, err) != 0)
         return -1;
     const int nt = bvh_build_threads(set, (uint64_t)s->nspheres + s->ntriangles);
     a->huge_pages = bvh_huge_pages_on(set, nt);

@@ -173,7 +173,6 @@ static inline void chunk_range(uint32_t count, uint32_t chunk, int c, uint32_t *
 /* ---- Each file's entry points ---------------------------------------------- */
 
 /* settings.c */
-int bvh_settings_check(const RtBvhSettings *s, RtError *err);
 int bvh_build_threads(const RtBvhSettings *s, uint64_t nprims);
 int bvh_huge_pages_on(const RtBvhSettings *s, int threads);
 

@@ -48,7 +48,7 @@ static int in_range(const char *name, int v, int lo, int hi, RtError *err)
 
 /* The ranges keep the build's arrays and encodings in bounds: the bins'
  * arrays, the leaf count of both trees' nodes, the traversal stack. */
-int bvh_settings_check(const RtBvhSettings *s, RtError *err)
+int rt_bvh_settings_check(const RtBvhSettings *s, RtError *err)
 {
     if (in_range("prims_per_thread", s->prims_per_thread, 1, INT32_MAX, err) != 0 ||
         in_range("huge_pages", s->huge_pages, -1, 1, err) != 0 ||

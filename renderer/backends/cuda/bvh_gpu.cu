@@ -117,6 +117,7 @@ static int make_refs(Build *B, Blocks *k, RtError *err)
         RT_CUDA_CHECK_LAUNCH("k_split_none");
         return 0;
     }
+    k_init<<<1, 128>>>(*B); /* (the records' centroid bounds; build_binary starts again for the references') */
     k_bounds<<<blocks_for(nr), BLOCK>>>(*B, false);
     k_split_priority<<<blocks_for(nr), BLOCK>>>(*B);
     bytes = k->sort_bytes;
@@ -138,7 +139,6 @@ fail:
 /* References, codes, sort, leaves and H-PLOC. */
 static int build_binary(Build *B, Blocks *k, RtError *err)
 {
-    k_init<<<1, 128>>>(*B);
     if (make_refs(B, k, err))
         return -1;
     const uint32_t n = B->n;
@@ -331,8 +331,8 @@ extern "C" int rt_cuda_accel_build(const RtScene *sc, const RtBvhSettings *set, 
         set = &def;
     if (n64 == 0) /* nothing to build: the CPU's empty accelerator */
         return rt_accel_build_with(sc, RT_ACCEL_BVH, set, a, err) ? -1 : 0;
-    if (set->gpu_split < 0 || set->gpu_split > 100)
-        return rt_fail(err, "BVH settings: gpu_split is %d, outside 0..100", set->gpu_split);
+    if (rt_bvh_settings_check(set, err) != 0)
+        return -1;
     const uint64_t budget = sc->ntriangles * (uint64_t)set->gpu_split / 100u;
     if (n64 + budget >= RT_WIDE_MAX_FIRST)
         return rt_fail(err, "the GPU build takes fewer than %u records and pieces, the scene has %llu and %llu",

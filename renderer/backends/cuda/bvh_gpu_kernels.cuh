@@ -53,8 +53,15 @@ struct Build {
 
 /* ---------------------------------------------------------------- records */
 
-/* Record r's box, padded as accel/build_internal.h's box_pad does (no
- * contraction into FMA: the pad must not shrink). */
+/* The pad of a box's side lo..hi, as accel/build_internal.h's box_pad
+ * computes it (no contraction into FMA: the pad must not shrink), plus
+ * extra. */
+__device__ static float side_pad(float lo, float hi, float extra)
+{
+    return __fadd_rn(__fmul_rn(1e-6f, __fadd_rn(fabsf(lo), fabsf(hi))), extra);
+}
+
+/* Record r's box, padded as the CPU pads it. */
 __device__ static void record_box(const Build &B, uint32_t r, GBox &o)
 {
     if (r < B.nspheres) {
@@ -71,7 +78,7 @@ __device__ static void record_box(const Build &B, uint32_t r, GBox &o)
         o.lo[2] = fminf(fminf(a.z, b.z), c.z), o.hi[2] = fmaxf(fmaxf(a.z, b.z), c.z);
     }
     for (int k = 0; k < 3; k++) {
-        const float pad = __fadd_rn(__fmul_rn(1e-6f, __fadd_rn(fabsf(o.lo[k]), fabsf(o.hi[k]))), 1e-30f);
+        const float pad = side_pad(o.lo[k], o.hi[k], 1e-30f);
         o.lo[k] = __fsub_rn(o.lo[k], pad);
         o.hi[k] = __fadd_rn(o.hi[k], pad);
     }

@@ -104,7 +104,7 @@ __device__ static GBox clip_box(const float (*tri)[3], const GBox &c, float slac
         for (int k = 0; k < 3; k++)
             o.lo[k] = fminf(o.lo[k], poly[cur][i][k]), o.hi[k] = fmaxf(o.hi[k], poly[cur][i][k]);
     for (int k = 0; k < 3 && n > 0; k++) {
-        const float pad = __fadd_rn(__fmul_rn(1e-6f, __fadd_rn(fabsf(o.lo[k]), fabsf(o.hi[k]))), slack);
+        const float pad = side_pad(o.lo[k], o.hi[k], slack);
         o.lo[k] = fmaxf(__fsub_rn(o.lo[k], pad), c.lo[k]);
         o.hi[k] = fminf(__fadd_rn(o.hi[k], pad), c.hi[k]);
     }
