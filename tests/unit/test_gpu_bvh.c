@@ -141,6 +141,14 @@ static void check_scene(const char *name, const RtScene *s, const RtBvhSettings 
     rt_accel_free(&cpu);
 }
 
+/* The settings of the builds with pieces: Karras and Aila's budget. */
+static RtBvhSettings split_settings(void)
+{
+    RtBvhSettings s = rt_bvh_settings_default();
+    s.gpu_split = 30;
+    return s;
+}
+
 /* A scene of ntri triangles over the vertex pool v (nv vertices, copied) and
  * nsph unit spheres along x. */
 static void make_scene(RtScene *s, const RtVec3 *v, uint32_t nv, uint32_t ntri, const uint32_t (*tri)[3],
@@ -183,8 +191,7 @@ static void check_degenerate(void)
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
         RtScene s;
         make_scene(&s, v, 5, cases[k].ntri, cases[k].tri, cases[k].nsph);
-        RtBvhSettings split = rt_bvh_settings_default();
-        split.gpu_split = 30;
+        const RtBvhSettings split = split_settings();
         char name[128];
         snprintf(name, sizeof name, "%s, split", cases[k].name);
         check_scene(cases[k].name, &s, NULL, 0);
@@ -221,8 +228,7 @@ static void check_split(void)
     for (uint32_t i = 0; i < ntri; i++)
         for (int k = 0; k < 3; k++)
             s.triangles[i].v[k] = 3 * i + (uint32_t)k, s.triangles[i].n[k] = -1;
-    RtBvhSettings set = rt_bvh_settings_default();
-    set.gpu_split = 30;
+    RtBvhSettings set = split_settings();
     check_scene("20 slivers across 10000 triangles, split", &s, &set, 0);
     RtAccel with, without;
     RtBuildInfo info;
@@ -266,8 +272,7 @@ int main(int argc, char **argv)
             CHECK(0, "%s", e.msg);
             continue;
         }
-        RtBvhSettings split = rt_bvh_settings_default();
-        split.gpu_split = 30;
+        const RtBvhSettings split = split_settings();
         check_scene(path, &s, NULL, 1);
         char name[4200];
         snprintf(name, sizeof name, "%s, split", path);
