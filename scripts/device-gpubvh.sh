@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# device-gpubvh.sh [test|ab|quality|cache]... - the GPU BVH build on the GPU
+# device-gpubvh.sh [test|ab|quality|split|first|cache|oom]... - the GPU BVH build on the GPU
 # machine (docs/performance.md, "The GPU build"); run through the device tool
 # from the repository root with carry [".devcarry"] (the course scenes in
 # .devcarry/scenes/course, .devcarry/include/xxhash.h where the machine lacks
@@ -20,6 +20,10 @@
 #            (`git archive --prefix=prev/ OLD | gzip`), --runs 5 at 1920x1080
 #            on the large stand-ins and the dragon, interleaved, ROUNDS rounds
 #            (default 3): build and kernel times, SAH cost, visits, image
+#   first    text file to first image (--runs 1 --warmup 0, 1920x1080) of
+#            large-4m and large-1m with --builder gpu: the commit in
+#            .devcarry/prev.tar.gz against this tree, interleaved, ROUNDS
+#            rounds (default 7): parse, context wait, build, write, total
 #   cache    the first image (--runs 1 --warmup 0) from a warm cache of
 #            large-4m (an entry stored by the GPU build, then five loads,
 #            every key of the record), each load beside three by the
@@ -46,6 +50,12 @@ export RAYBENCH_COURSE_DIR=$course
 keys='^(scene|backend|builder|bvh_pieces|parse_ms|build_ms|gpu_build_ms|build_init_ms|init_ms|upload_ms|render_ms|kernel_ms|write_ms|total_ms|sah_cost|node_visits|image_fnv1a|bvh_nodes|prims)='
 rec() { "$@" | tr ' ' '\n' | grep -E "$keys" | tr '\n' ' '; echo; }
 C=course:InterestingScenes
+build_prev() {
+    [ -x /tmp/b-prev/renderer/raytrace ] && return 0
+    rm -rf /tmp/prev && tar xzf .devcarry/prev.tar.gz -C /tmp
+    (cd /tmp/prev && meson setup /tmp/b-prev -Dgpu_arch=9.0 -Dcourse_dir=none "${xx[@]}" > "$OUT/setup-prev.log" 2>&1 &&
+        ninja -C /tmp/b-prev renderer/raytrace > "$OUT/build-prev.log" 2>&1) || { echo "prev build failed"; return 1; }
+}
 for step in $steps; do case $step in
 test)
     timeout 300 $B/tests/test_gpu_bvh scenes/demo.txt scenes/glass.txt tests/scenes/odd.txt $C/dragon.txt \
@@ -80,9 +90,7 @@ quality)
         done
     done > "$OUT/quality.txt" ;;
 split)
-    tar xzf .devcarry/prev.tar.gz -C /tmp
-    (cd /tmp/prev && meson setup /tmp/b-prev -Dgpu_arch=9.0 -Dcourse_dir=none "${xx[@]}" > "$OUT/setup-prev.log" 2>&1 &&
-        ninja -C /tmp/b-prev renderer/raytrace > "$OUT/build-prev.log" 2>&1) || { echo "prev build failed"; exit 1; }
+    build_prev || exit 1
     for round in $(seq "${ROUNDS:-3}"); do
         for f in scenes/generated/{large-1m,large-4m,island-1m,island-4m,objects-1m}.txt "$course"/InterestingScenes/dragon.txt; do
             for v in prev:gpu head:gpu head:gpu30 head:cpu; do
@@ -94,6 +102,18 @@ split)
             $B/renderer/imgdiff /tmp/s-head:gpu30.png /tmp/s-head:cpu.png 2>&1 | head -1
         done
     done > "$OUT/split.txt" 2>&1 ;;
+first)
+    build_prev || exit 1
+    for round in $(seq "${ROUNDS:-7}"); do
+        for sc in large-4m large-1m; do
+            for v in prev head; do
+                x=$B/renderer/raytrace; [ $v = prev ] && x=/tmp/b-prev/renderer/raytrace
+                echo -n "round=$round version=$v "
+                rec $x --backend cuda --builder gpu --runs 1 --warmup 0 -q -r 1920x1080 scenes/generated/$sc.txt \
+                    -o /tmp/f-$v.png
+            done
+        done
+    done > "$OUT/first.txt" ;;
 cache)
     rm -rf /tmp/rb-cache && mkdir -m 700 /tmp/rb-cache
     for i in 0 1 2 3 4 5; do
@@ -115,5 +135,5 @@ oom)
     ninja -C $B tests/gpu/gpu_hog >> "$OUT/build.log" 2>&1 || { echo "gpu_hog build failed"; exit 1; }
     sh tests/gpu/gpu_oom.sh $B/renderer/raytrace $B/tests/gpu/gpu_hog $B/renderer/scenegen > "$OUT/oom.txt" 2>&1
     echo "gpu_oom rc=$?" | tee -a "$OUT/oom.txt" ;;
-*) echo "device-gpubvh: unknown step '$step' (test, ab, quality, split, cache, oom)" >&2; exit 2 ;;
+*) echo "device-gpubvh: unknown step '$step' (test, ab, quality, split, first, cache, oom)" >&2; exit 2 ;;
 esac; done
