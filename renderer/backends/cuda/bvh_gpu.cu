@@ -48,6 +48,7 @@ extern "C" {
 /* ---------------------------------------------------------------- host */
 
 static unsigned blocks_for(uint32_t n) { return (n + BLOCK - 1) / BLOCK; }
+static unsigned bounds_grid(uint32_t n) { return std::min(blocks_for(n), (unsigned)BOUNDS_BLOCKS); }
 
 /* Pieces of one device block at 256-byte aligned offsets: first with base
  * NULL to size it, then again to place them. */
@@ -118,7 +119,7 @@ static int make_refs(Build *B, Blocks *k, RtError *err)
         return 0;
     }
     k_init<<<1, 128>>>(*B); /* (the records' centroid bounds; build_binary starts again for the references') */
-    k_bounds<<<blocks_for(nr), BLOCK>>>(*B, false);
+    k_bounds<<<bounds_grid(nr), BLOCK>>>(*B, false);
     k_split_priority<<<blocks_for(nr), BLOCK>>>(*B);
     bytes = k->sort_bytes;
     RT_CUDA_CHECK(cub::DeviceReduce::Sum(k->sort_temp, bytes, B->cost, k->psum, (int)nr));
@@ -144,8 +145,9 @@ static int build_binary(Build *B, Blocks *k, RtError *err)
     const uint32_t n = B->n;
     uint32_t *sb = k->sortbuf;
     cub::DoubleBuffer<uint32_t> keys(sb, sb + n), vals(sb + 2 * (size_t)n, sb + 3 * (size_t)n);
-    k_init<<<1, 128>>>(*B);
-    k_bounds<<<blocks_for(n), BLOCK>>>(*B, true);
+    if (B->budget) /* (k_split_none set them otherwise) */
+        k_init<<<1, 128>>>(*B);
+    k_bounds<<<bounds_grid(n), BLOCK>>>(*B, true);
     k_morton<<<blocks_for(n), BLOCK>>>(*B, keys.Current(), vals.Current());
     RT_CUDA_CHECK_LAUNCH("k_morton");
     RT_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(k->sort_temp, k->sort_bytes, keys, vals, (int)n, 0, 30));
@@ -167,14 +169,19 @@ static int build_wide(const Build *B, const Blocks *k, int nsm, cudaEvent_t end,
                       RtError *err)
 {
     const unsigned grid = (unsigned)nsm * 8u;
-    int level = 0;
-    k_size<<<1, 1>>>(*B);
+    /* Levels launched before the first look at the queue: about a 4-wide
+     * tree's depth (log4 n, plus 6 for the leaves' sizes and the tree's
+     * imbalance), so a large build waits on the host once; 8 at a time
+     * after that. (Every look drains the GPU: 10-20 us.) */
+    int level = 0, batch = 6;
+    for (uint32_t m = B->n; m > 1; m = (m + 3) / 4)
+        batch++;
+    batch = std::max(batch, 8);
     k_root<<<1, 1>>>(*B);
     for (;;) {
-        for (int j = 0; j < 8 && level < MAX_LEVELS; j++, level++) {
+        for (int j = 0; j < batch && level < MAX_LEVELS; j++, level++)
             k_widen<<<grid, BLOCK>>>(*B, level);
-            k_mark<<<1, 1>>>(*B, level);
-        }
+        batch = 8;
         RT_CUDA_CHECK_LAUNCH("k_widen");
         RT_CUDA_CHECK(cudaMemcpy(h, B->ctr, C_COUNT * sizeof(uint32_t), cudaMemcpyDeviceToHost));
         if (h[C_MARK + level + 1] == h[C_MARK + level])
@@ -183,7 +190,6 @@ static int build_wide(const Build *B, const Blocks *k, int nsm, cudaEvent_t end,
             return 1;
     }
     k_sah<<<SAH_BLOCKS, BLOCK>>>(*B, k->sah);
-    k_sah_total<<<1, 1>>>(*B, k->sah);
     RT_CUDA_CHECK_LAUNCH("k_sah");
     RT_CUDA_CHECK(cudaEventRecord(end));
     RT_CUDA_CHECK(cudaMemcpy(sah, k->sah + SAH_BLOCKS, sizeof *sah, cudaMemcpyDeviceToHost));

@@ -14,7 +14,7 @@
 enum { BLOCK = 128, BLOCK_MAX = 1024 };
 
 /* Counters and small results, one device array. */
-enum { C_NODES, C_ROOT, C_PRIMS, C_QTAIL, C_DEPTH, C_LEAVES, C_NSUB, C_REFS, C_CMIN, C_CMAX = C_CMIN + 3,
+enum { C_NODES, C_ROOT, C_PRIMS, C_QTAIL, C_DEPTH, C_LEAVES, C_NSUB, C_REFS, C_WDONE, C_CMIN, C_CMAX = C_CMIN + 3,
        C_MARK = C_CMAX + 3, C_COUNT = C_MARK + MAX_LEVELS + 2 };
 
 struct GBox {
@@ -132,39 +132,57 @@ __device__ static int float_order(float f)
 }
 __device__ static float order_float(int i) { return __int_as_float(i >= 0 ? i : i ^ 0x7fffffff); }
 
-__global__ void k_init(Build B)
+/* Counter i's starting value (threads 0..C_COUNT-1 of one block). */
+__device__ static void init_counter(const Build &B, uint32_t i)
 {
-    const uint32_t i = threadIdx.x;
     if (i < C_COUNT)
         B.ctr[i] = i == C_NODES ? B.n : i >= C_CMIN && i < C_CMAX ? 0x7fffffffu
                                    : i >= C_CMAX && i < C_CMAX + 3 ? 0x80000000u : 0u;
 }
 
+__global__ void k_init(Build B) { init_counter(B, threadIdx.x); }
+
 /* The centroids' bounds, of the records or (refs) of the references: a
- * warp's, then one atomic per warp and axis. */
+ * block's, over a grid of at most BOUNDS_BLOCKS, then one atomic per block
+ * and axis (one per warp was 28K atomics on six words for 891K records:
+ * 128 us, now the reads' time). */
+enum { BOUNDS_BLOCKS = 1024 };
 __global__ void k_bounds(Build B, bool refs)
 {
-    const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+    __shared__ float part[6][BLOCK_MAX / 32];
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    if (i < (refs ? B.n : B.nrec)) {
+    const uint32_t n = refs ? B.n : B.nrec, lane = threadIdx.x & 31u, warp = threadIdx.x >> 5;
+    for (uint32_t i = blockIdx.x * blockDim.x + threadIdx.x; i < n; i += gridDim.x * blockDim.x) {
         GBox b;
         if (refs)
             b = B.rbox[i];
         else
             record_box(B, i, b);
-        for (int k = 0; k < 3; k++)
-            lo[k] = hi[k] = 0.5f * (b.lo[k] + b.hi[k]);
+        for (int k = 0; k < 3; k++) {
+            const float c = 0.5f * (b.lo[k] + b.hi[k]);
+            lo[k] = fminf(lo[k], c);
+            hi[k] = fmaxf(hi[k], c);
+        }
     }
     for (int k = 0; k < 3; k++)
         for (int s = 16; s > 0; s >>= 1) {
             lo[k] = fminf(lo[k], __shfl_xor_sync(FULL, lo[k], s));
             hi[k] = fmaxf(hi[k], __shfl_xor_sync(FULL, hi[k], s));
         }
-    if ((threadIdx.x & 31) == 0 && lo[0] <= hi[0])
-        for (int k = 0; k < 3; k++) {
-            atomicMin((int *)&B.ctr[C_CMIN + k], float_order(lo[k]));
-            atomicMax((int *)&B.ctr[C_CMAX + k], float_order(hi[k]));
-        }
+    if (lane == 0)
+        for (int k = 0; k < 3; k++)
+            part[k][warp] = lo[k], part[3 + k][warp] = hi[k];
+    __syncthreads();
+    if (threadIdx.x == 0) {
+        for (uint32_t w = 1; w < (blockDim.x + 31u) / 32u; w++)
+            for (int k = 0; k < 3; k++)
+                lo[k] = fminf(lo[k], part[k][w]), hi[k] = fmaxf(hi[k], part[3 + k][w]);
+        if (lo[0] <= hi[0])
+            for (int k = 0; k < 3; k++) {
+                atomicMin((int *)&B.ctr[C_CMIN + k], float_order(lo[k]));
+                atomicMax((int *)&B.ctr[C_CMAX + k], float_order(hi[k]));
+            }
+    }
 }
 
 /* 10 bits spread to every third of 30 (Karras 2012). */
@@ -570,19 +588,24 @@ __global__ void k_widen(Build B, int level)
         atomicMax(&B.ctr[C_DEPTH], maxd);
         atomicAdd(&B.ctr[C_LEAVES], leaves);
     }
+    /* The next level's end, what the queue holds once every block is done:
+     * written by the last block to finish (a kernel of its own after each
+     * level cost 16 launches, 50 us of 1.5 ms for 891K records). */
+    __threadfence();
+    __syncthreads();
+    if (threadIdx.x == 0 && atomicAdd(&B.ctr[C_WDONE], 1u) == gridDim.x - 1) {
+        __threadfence();
+        B.ctr[C_MARK + level + 2] = atomicAdd(&B.ctr[C_QTAIL], 0u);
+        B.ctr[C_WDONE] = 0;
+    }
 }
 
-/* The next level's end: what the queue holds now. */
-__global__ void k_mark(Build B, int level) { B.ctr[C_MARK + level + 2] = B.ctr[C_QTAIL]; }
-
-/* The collapsed tree's size, for the outputs' allocation. */
-__global__ void k_size(Build B) { B.ctr[C_NSUB] = B.nsub[B.ctr[C_ROOT]]; }
-
-/* The first task; for a tree that is one leaf, the whole tree: a root with
- * one leaf child (as accel/wide.c makes it). */
+/* The collapsed tree's size, and the first task; for a tree that is one
+ * leaf, the whole tree: a root with one leaf child (as accel/wide.c makes it). */
 __global__ void k_root(Build B)
 {
     const uint32_t root = B.ctr[C_ROOT];
+    B.ctr[C_NSUB] = B.nsub[root];
     B.ctr[C_QTAIL] = 1;
     if (!(B.meta[root] & COLLAPSED)) {
         B.queue[0] = Task{root, 0, 0, 0};
@@ -604,10 +627,12 @@ __global__ void k_root(Build B)
 enum { SAH_BLOCKS = 256 };
 
 /* The SAH cost as accel/sah.c's bvh_sah_cost sums it (area times records,
- * or 1 for an inner node), in fixed partial sums: the same value every run. */
+ * or 1 for an inner node), in fixed partial sums: the same value every run.
+ * The last block to finish adds the blocks' sums into part[SAH_BLOCKS]. */
 __global__ void k_sah(Build B, double *part)
 {
     __shared__ double warp_sum[BLOCK_MAX / 32];
+    __shared__ bool last;
     const uint32_t nn = B.ctr[C_NSUB], lane = threadIdx.x & 31u;
     double sum = 0.0;
     for (uint32_t i = blockIdx.x * blockDim.x + threadIdx.x; i < nn; i += gridDim.x * blockDim.x) {
@@ -626,18 +651,25 @@ __global__ void k_sah(Build B, double *part)
         for (uint32_t w = 0; w < blockDim.x / 32; w++)
             t += warp_sum[w];
         part[blockIdx.x] = t;
+        __threadfence();
+        last = atomicAdd(&B.ctr[C_WDONE], 1u) == gridDim.x - 1;
     }
-}
-
-__global__ void k_sah_total(Build B, double *part)
-{
-    double t = 0.0;
-    for (int k = 0; k < SAH_BLOCKS; k++)
-        t += part[k];
-    const RtBvhNode *r = &B.bnodes[0];
-    const GBox b = {{r->lo[0], r->lo[1], r->lo[2]}, {r->hi[0], r->hi[1], r->hi[2]}};
-    const double root = box_area(b);
-    part[SAH_BLOCKS] = root > 0.0 ? t / root : 0.0;
+    __syncthreads();
+    if (!last || threadIdx.x >= 32)
+        return;
+    __threadfence();
+    double t = 0.0; /* (lane l adds blocks l, l + 32, ...; then the fixed tree of the warp) */
+    for (uint32_t k = lane; k < gridDim.x; k += 32)
+        t += ((volatile double *)part)[k];
+    for (int s = 16; s > 0; s >>= 1)
+        t += __shfl_xor_sync(FULL, t, s);
+    if (lane == 0) {
+        const RtBvhNode *r = &B.bnodes[0];
+        const GBox b = {{r->lo[0], r->lo[1], r->lo[2]}, {r->hi[0], r->hi[1], r->hi[2]}};
+        const double root = box_area(b);
+        part[SAH_BLOCKS] = root > 0.0 ? t / root : 0.0;
+        B.ctr[C_WDONE] = 0;
+    }
 }
 
 /* schedule.h's slot order, each node in place (no relayout: the same

@@ -193,10 +193,13 @@ __global__ void k_split_emit(Build B, const uint32_t *count, const uint32_t *fir
     B.rrec[i] = r;
 }
 
-/* Without splits: reference r is record r. */
+/* Without splits: reference r is record r; block 0 also sets the counters
+ * (k_init's work, a launch fewer). */
 __global__ void k_split_none(Build B)
 {
     const uint32_t r = blockIdx.x * blockDim.x + threadIdx.x;
+    if (blockIdx.x == 0)
+        init_counter(B, threadIdx.x);
     if (r >= B.nrec)
         return;
     GBox b;
