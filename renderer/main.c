@@ -515,6 +515,9 @@ static void record_values(const Run *r, RecValue *v, char *tile)
     if (r->gpu_build.kernel_ms > 0.0) {
         rec_gpu_build_ms(v, r->gpu_build.kernel_ms);
         rec_build_init_ms(v, r->gpu_build.init_ms);
+        rec_gpu_split(v, r->gpu_build.split_pct);
+        if (r->gpu_build.outsized >= 0.0)
+            rec_gpu_outsized(v, r->gpu_build.outsized);
     }
     if (r->accel.nsplit)
         rec_bvh_pieces(v, r->accel.nsplit);

@@ -170,9 +170,21 @@ typedef struct RtBvhSettings {
     int chunk;              /* references per chunk of a large node's parallel binning
                              * and partition: 16384 (64..2^30) */
     int gpu_split;          /* the GPU build: pieces of large triangles it may add, in
-                             * percent of the triangles: 0 (0..100; bvh_gpu_split.cuh) */
+                             * percent of the triangles (0..100; bvh_gpu_split.cuh), or
+                             * -1 (default): chosen for the scene, rt_bvh_gpu_split_pct */
 } RtBvhSettings;
 RtBvhSettings rt_bvh_settings_default(void);
+/* The GPU build's pieces for a scene, in percent of its triangles:
+ * settings->gpu_split, or for -1 100 where the triangles are very unequal
+ * (rt_bvh_split_outsized at least 0.5, from 65,536 triangles) and 0
+ * otherwise; *outsized (NULL: not wanted) gets the share it was chosen by,
+ * or -1 where no share was taken. */
+int rt_bvh_gpu_split_pct(const RtBvhSettings *settings, const RtScene *scene, double *outsized);
+/* Of the excess box area over Karras and Aila's A_ideal (doubled), the
+ * share held by triangles whose boxes exceed 16 times the median box,
+ * from 16,384 triangles evenly spaced: near 1 where a few large triangles
+ * spoil a tree built from sorted codes, 0 for triangles all alike. */
+double rt_bvh_split_outsized(const RtScene *scene);
 /* 0 when every setting lies in its range (accel/settings.c), else -1 and
  * err names the first that does not; both builders check theirs. */
 int rt_bvh_settings_check(const RtBvhSettings *settings, RtError *err);
@@ -205,6 +217,8 @@ typedef struct RtBuildInfo {
     double kernel_ms;   /* its kernels, first to last (CUDA events) */
     double upload_ms;   /* the scene's vertices, triangles and spheres to the device */
     double init_ms;     /* what it still waited for the device's context */
+    int split_pct;      /* the pieces' budget it used (rt_bvh_gpu_split_pct) */
+    double outsized;    /* the share that chose it, -1 when not chosen by one */
 } RtBuildInfo;
 int rt_accel_parse(const char *s, RtAccelKind *kind);
 

@@ -69,6 +69,8 @@ bad() { # bad NAME EXPECTED_SUBSTRING ARGS...
 bad "huge pages" "--huge-pages" --huge-pages maybe "$src/scenes/glass.txt"
 bad "gpu split" "--gpu-split" --gpu-split 101 "$src/scenes/glass.txt"
 bad "gpu split" "--gpu-split" --gpu-split -1 "$src/scenes/glass.txt"
+bad "gpu split" "--gpu-split" --gpu-split automatic "$src/scenes/glass.txt"
+"$rt" -q --gpu-split auto -r 8x6 -o "$tmp/split.png" "$src/scenes/glass.txt" > /dev/null || fail "--gpu-split auto refused"
 for h in on off; do # the same image and work either way; the record says which
     out=$("$rt" -q --huge-pages $h -r 40x30 -o "$tmp/h.png" "$src/scenes/glass.txt") || fail "--huge-pages $h failed"
     echo "$out" | tr ' ' '\n' | grep -qx "huge_pages=$h" || fail "--huge-pages $h: the record lacks huge_pages=$h"

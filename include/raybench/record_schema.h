@@ -83,6 +83,13 @@ typedef enum { RT_REC_MAIN, RT_REC_MAIN_IF, RT_REC_BACKEND, RT_REC_LAST } RtRecW
       "\"The GPU build\")") \
     X(build_init_ms, F3, "ms", EXTRA, "extra", MAIN_IF, \
       "`builder=gpu` only: how long the build waited for the GPU's context, not in `build_ms`") \
+    X(gpu_split, INT, "", EXTRA, "extra", MAIN_IF, \
+      "`builder=gpu` only: the pieces of large triangles the build might add, in percent of the " \
+      "triangles (`--gpu-split`; `auto`, the default, takes 100 where `gpu_outsized` is 0.5 or more, " \
+      "else 0; docs/performance.md, \"The GPU build\")") \
+    X(gpu_outsized, F3, "", EXTRA, "extra", MAIN_IF, \
+      "`builder=gpu` with `--gpu-split auto` from 65,536 triangles: the share of the triangles' excess " \
+      "box area held by boxes over 16 times the median box, in 16,384 of them evenly spaced") \
     X(bvh_pieces, UINT, "", EXTRA, "extra", MAIN_IF, \
       "where the tree holds records more than once: the copies, from the CPU build's spatial splits or " \
       "the GPU build's pieces of large triangles (`--gpu-split`); `prims` counts each record once") \

@@ -1,7 +1,10 @@
 /* settings.c - the BVH build's settings (RtBvhSettings, rt.h): their
  * defaults, their valid ranges, and what they decide for one build (its
- * threads, its 2 MiB pages). Each build reads its own settings, so builds
- * running at once never decide for each other. */
+ * threads, its 2 MiB pages, the GPU build's pieces). Each build reads its
+ * own settings, so builds running at once never decide for each other. */
+#include <stdlib.h>
+#include <string.h>
+
 #include "build_internal.h"
 #define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf) /* rt_traverse.h asks for it; no ray is traced here */
 #include "core/rt_traverse.h" /* RT_BVH_MAX_DEPTH: the traversal stack bounds the build */
@@ -31,10 +34,10 @@ RtBvhSettings rt_bvh_settings_default(void)
     s.task_min = 4096;
     s.wide_task_min = 65536;
     s.chunk = 16384;
-    /* Off: on the large stand-ins only objects-1m renders faster with
-     * pieces, and every build takes longer (docs/performance.md, "The GPU
+    /* Chosen for each scene (rt_bvh_gpu_split_pct): pieces pay only in
+     * scenes of very unequal triangles (docs/performance.md, "The GPU
      * build"). */
-    s.gpu_split = 0;
+    s.gpu_split = -1;
     return s;
 }
 
@@ -61,7 +64,7 @@ int rt_bvh_settings_check(const RtBvhSettings *s, RtError *err)
         in_range("spatial_share", s->spatial_share, 1, INT32_MAX, err) != 0 ||
         in_range("task_min", s->task_min, 1, INT32_MAX, err) != 0 ||
         in_range("wide_task_min", s->wide_task_min, 1, INT32_MAX, err) != 0 ||
-        in_range("chunk", s->chunk, 64, 1 << 30, err) != 0 || in_range("gpu_split", s->gpu_split, 0, 100, err) != 0)
+        in_range("chunk", s->chunk, 64, 1 << 30, err) != 0 || in_range("gpu_split", s->gpu_split, -1, 100, err) != 0)
         return -1;
     if (!(s->spatial_overlap >= 0.0f) || isinf(s->spatial_overlap))
         return rt_fail(err, "BVH settings: spatial_overlap is %g, not a fraction >= 0", (double)s->spatial_overlap);
@@ -84,4 +87,91 @@ int bvh_build_threads(const RtBvhSettings *s, uint64_t nprims)
 int bvh_huge_pages_on(const RtBvhSettings *s, int threads)
 {
     return s->huge_pages == 1 || (s->huge_pages < 0 && threads >= s->huge_pages_threads);
+}
+
+/* ---- the GPU build's pieces, chosen for a scene ---------------------------- */
+
+#define SPLIT_AUTO_MIN 65536  /* triangles: fewer, no pieces (nor the GPU build by default) */
+#define SPLIT_SAMPLE 16384    /* triangles looked at, evenly spaced */
+#define SPLIT_OUTSIZED 16.0f  /* a box this many times the median box's area is outsized */
+#define SPLIT_AUTO_SHARE 0.5  /* the outsized boxes' share of the excess that calls for pieces */
+
+/* The k-th smallest of a[0..n) (Hoare's selection; a is reordered; no NaN). */
+static float select_kth(float *a, int n, int k)
+{
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        const float pivot = a[lo + (hi - lo) / 2];
+        int i = lo, j = hi;
+        while (i <= j) {
+            while (a[i] < pivot)
+                i++;
+            while (a[j] > pivot)
+                j--;
+            if (i <= j) {
+                const float t = a[i];
+                a[i++] = a[j];
+                a[j--] = t;
+            }
+        }
+        if (k <= j)
+            hi = j;
+        else if (k >= i)
+            lo = i;
+        else
+            return a[k];
+    }
+    return a[k];
+}
+
+/* One sampled triangle's box area and its excess over twice Karras and
+ * Aila's A_ideal (as bvh_gpu_split.cuh counts it); 0 where not finite. */
+static void split_sample(const RtScene *s, const RtTriangle *t, float *area, float *excess)
+{
+    const RtVec3 a = s->vertices[t->v[0]], b = s->vertices[t->v[1]], c = s->vertices[t->v[2]];
+    Box box;
+    box_empty(&box);
+    box_grow_pt(&box, (const float[3]){a.x, a.y, a.z});
+    box_grow_pt(&box, (const float[3]){b.x, b.y, b.z});
+    box_grow_pt(&box, (const float[3]){c.x, c.y, c.z});
+    const float e1[3] = {b.x - a.x, b.y - a.y, b.z - a.z}, e2[3] = {c.x - a.x, c.y - a.y, c.z - a.z};
+    const float ideal = fabsf(e1[1] * e2[2] - e1[2] * e2[1]) + fabsf(e1[2] * e2[0] - e1[0] * e2[2]) +
+                        fabsf(e1[0] * e2[1] - e1[1] * e2[0]);
+    const float ar = box_area(&box), x = ar - 2.0f * ideal;
+    *area = isfinite(ar) ? ar : 0.0f;
+    *excess = isfinite(x) && x > 0.0f ? x : 0.0f;
+}
+
+double rt_bvh_split_outsized(const RtScene *s)
+{
+    const uint32_t n = s->ntriangles, m = n < SPLIT_SAMPLE ? n : SPLIT_SAMPLE;
+    float *area = m ? malloc(3 * (size_t)m * sizeof *area) : NULL;
+    if (!area)
+        return 0.0;
+    float *excess = area + m, *order = area + 2 * (size_t)m;
+    for (uint32_t k = 0; k < m; k++)
+        split_sample(s, &s->triangles[(uint64_t)k * n / m], &area[k], &excess[k]);
+    memcpy(order, area, (size_t)m * sizeof *order);
+    const float limit = SPLIT_OUTSIZED * select_kth(order, (int)m, (int)(m / 2));
+    double total = 0.0, outsized = 0.0;
+    for (uint32_t k = 0; k < m; k++) {
+        total += excess[k];
+        outsized += area[k] > limit ? excess[k] : 0.0;
+    }
+    free(area);
+    return total > 0.0 ? outsized / total : 0.0;
+}
+
+int rt_bvh_gpu_split_pct(const RtBvhSettings *set, const RtScene *s, double *outsized)
+{
+    if (outsized)
+        *outsized = -1.0;
+    if (set->gpu_split >= 0)
+        return set->gpu_split;
+    if (s->ntriangles < SPLIT_AUTO_MIN)
+        return 0;
+    const double share = rt_bvh_split_outsized(s);
+    if (outsized)
+        *outsized = share;
+    return share >= SPLIT_AUTO_SHARE ? 100 : 0;
 }

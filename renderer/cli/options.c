@@ -49,9 +49,9 @@ static void usage(FILE *fp)
             "                           on with 8 or more build threads (the same tree either way)\n"
             "      --builder B          who builds the BVH: cpu, gpu (cuda, mpi-cuda) or auto (default: the\n"
             "                           GPU for the GPU backends from 65536 primitives, else the CPU)\n"
-            "      --gpu-split PCT      the GPU build cuts large triangles into pieces, up to PCT%% more\n"
-            "                           references (0..100, default 0: none); for scenes of very unequal\n"
-            "                           triangles, at a longer build (docs/performance.md)\n"
+            "      --gpu-split PCT|auto the GPU build cuts large triangles into pieces, up to PCT%% more\n"
+            "                           references (0..100); auto (default): 100 for scenes of very unequal\n"
+            "                           triangles, else 0 (the record's gpu_split; docs/performance.md)\n"
             "      --tile WxH           tile size in pixels (default %s)\n"
             "      --schedule S         openmp: tiles (dynamic, default) or pixels (the report's collapse(2) static)\n"
             "      --mpi-schedule S     mpi: dynamic (default) or rows (the report's block rows + Gatherv)\n"
@@ -132,8 +132,10 @@ static int parse_load_timing(int c, const char *arg, Options *o)
         else return opt_error("--builder", arg, "expected cpu, gpu or auto");
         return 0;
     case OPT_GPU_SPLIT:
-        if (rt_parse_int(arg, 0, 100, &o->gpu_split) != 0)
-            return opt_error("--gpu-split", arg, "expected a percentage from 0 to 100");
+        if (strcmp(arg, "auto") == 0)
+            o->gpu_split = -1;
+        else if (rt_parse_int(arg, 0, 100, &o->gpu_split) != 0)
+            return opt_error("--gpu-split", arg, "expected auto or a percentage from 0 to 100");
         return 0;
     case OPT_HUGE_PAGES:
         if (strcmp(arg, "on") != 0 && strcmp(arg, "off") != 0 && strcmp(arg, "auto") != 0)
@@ -239,6 +241,7 @@ static int parse_options(int argc, char **argv, Options *o)
     o->warmup_runs = -1;
     o->warmup_ms = -1.0;
     o->huge_pages = -1;
+    o->gpu_split = -1;
     int c;
     opterr = 0;
     while ((c = getopt_long(argc, argv, ":o:b:a:r:d:t:qhV", longopts, NULL)) != -1) {

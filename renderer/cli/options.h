@@ -16,7 +16,7 @@ typedef struct Options {
     int build_threads;  /* 0: every allowed CPU */
     int huge_pages;     /* 1 on, 0 off, -1 auto (RtBvhSettings.huge_pages) */
     RtBuilder builder;  /* --builder: auto (default), cpu or gpu */
-    int gpu_split;      /* --gpu-split: the GPU build's pieces, percent of the triangles (default 0) */
+    int gpu_split;      /* --gpu-split: the GPU build's pieces, percent of the triangles; -1 (default): auto */
     int tile_w, tile_h; /* 0: the backend's (RtBackend.tile) */
     RtSchedule schedule;
     RtMpiSchedule mpi_schedule;

@@ -339,7 +339,9 @@ extern "C" int rt_cuda_accel_build(const RtScene *sc, const RtBvhSettings *set, 
         return rt_accel_build_with(sc, RT_ACCEL_BVH, set, a, err) ? -1 : 0;
     if (rt_bvh_settings_check(set, err) != 0)
         return -1;
-    const uint64_t budget = sc->ntriangles * (uint64_t)set->gpu_split / 100u;
+    /* (chosen on the host while the context may still be in the making) */
+    info->split_pct = rt_bvh_gpu_split_pct(set, sc, &info->outsized);
+    const uint64_t budget = sc->ntriangles * (uint64_t)info->split_pct / 100u;
     if (n64 + budget >= RT_WIDE_MAX_FIRST)
         return rt_fail(err, "the GPU build takes fewer than %u records and pieces, the scene has %llu and %llu",
                        RT_WIDE_MAX_FIRST, (unsigned long long)n64, (unsigned long long)budget), 1;
