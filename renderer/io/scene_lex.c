@@ -126,8 +126,9 @@ int lex_floats(Parser *p, const char *cmd, const char *v, float *out, int n)
 }
 
 /* Reads n non-negative integer indices (also written as 3.0 by exporters).
- * Parsed in double (or as plain digits), never through float: a float holds
- * integers exactly only up to 2^24, and vertex pools may be larger. */
+ * Up to ten plain digits are read in one pass; anything else in double
+ * (strtod), never through float: a float holds integers exactly only up
+ * to 2^24, and vertex pools may be larger. */
 int lex_indices(Parser *p, const char *cmd, const char *v, int64_t *out, int n)
 {
     const char *s = lex_skip_ws(v);
@@ -135,21 +136,23 @@ int lex_indices(Parser *p, const char *cmd, const char *v, int64_t *out, int n)
         if (*s == '\0')
             return parse_fail(p, "%s: expected %d values, got %d", cmd, n, i);
         const char *tok = s;
+        /* plain digits, the common case, in one pass */
+        uint64_t u = 0;
         int len = 0;
+        while (len < 11 && tok[len] >= '0' && tok[len] <= '9')
+            u = u * 10 + (uint64_t)(tok[len++] - '0');
+        if (len > 0 && len <= 10 && (tok[len] == '\0' || tok[len] == ' ' || tok[len] == '\t')) {
+            if (u > 4294967295u)
+                return parse_fail(p, "%s: index %d is out of range: %.*s", cmd, i + 1, len, tok);
+            out[i] = (int64_t)u;
+            s = lex_skip_ws(tok + len);
+            continue;
+        }
         while (tok[len] && tok[len] != ' ' && tok[len] != '\t')
             len++;
-        double d = 0.0;
-        int digits = len > 0 && len <= 10;
-        for (int k = 0; digits && k < len; k++) {
-            if (tok[k] < '0' || tok[k] > '9')
-                digits = 0;
-            else
-                d = d * 10.0 + (double)(tok[k] - '0'); /* exact: < 2^53 */
-        }
-        char *end = (char *)tok + len;
+        char *end;
         errno = 0;
-        if (!digits) /* the common plain-digit case skips strtod */
-            d = strtod(tok, &end);
+        const double d = strtod(tok, &end);
         if (end != tok + len || errno == ERANGE || !isfinite(d))
             return parse_fail(p, "%s: value %d is not a finite number: '%.*s'", cmd, i + 1, len < 40 ? len : 40, tok);
         if (d != floor(d))

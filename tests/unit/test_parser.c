@@ -209,6 +209,12 @@ static void test_bad_input(void)
     expect_error("output_image:   \n", 1, "expected a file name");
     expect_error("just some words\n", 1, "expected 'command: values'");
     expect_error("sphere: 0 0 0 1\n\x01\x02\x03garbage\n", 2, "binary data");
+    /* the bytes are checked eight at a time: a tab in the word before, the
+     * bad byte in a later word, the column still exact */
+    expect_error("sphere:\t0 0 0 1 \x7f\n", 1, "byte 0x7f at column 17");
+    expect_error("vertex:\t0 0\x1b" "0\n", 1, "byte 0x1b at column 12");
+    expect_error("vertex: 1 2 3\r\nvertex:\t1 2 3 # tabs\t\tand \x80\xff fine, \x1f not\n", 2,
+                 "byte 0x1f at column 36");
     parse_len = 7;
     expect_error("a\0b: 1\n", 1, "binary data");
     {
