@@ -181,7 +181,8 @@ RtBvhSettings rt_bvh_settings_default(void);
  * or -1 where no share was taken. */
 int rt_bvh_gpu_split_pct(const RtBvhSettings *settings, const RtScene *scene, double *outsized);
 /* Of the excess box area over Karras and Aila's A_ideal (doubled), the
- * share held by triangles whose boxes exceed 16 times the median box,
+ * share held by triangles whose boxes exceed 16 times the median box (of
+ * those with an area),
  * from 16,384 triangles evenly spaced: near 1 where a few large triangles
  * spoil a tree built from sorted codes, 0 for triangles all alike. */
 double rt_bvh_split_outsized(const RtScene *scene);

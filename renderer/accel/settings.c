@@ -91,7 +91,8 @@ int bvh_huge_pages_on(const RtBvhSettings *s, int threads)
 
 /* ---- the GPU build's pieces, chosen for a scene ---------------------------- */
 
-#define SPLIT_AUTO_MIN 65536  /* triangles: fewer, no pieces (nor the GPU build by default) */
+#define SPLIT_AUTO_MIN 65536  /* triangles: fewer, no pieces (the GPU build's own default
+                               * starts at as many primitives) */
 #define SPLIT_SAMPLE 16384    /* triangles looked at, evenly spaced */
 #define SPLIT_OUTSIZED 16.0f  /* a box this many times the median box's area is outsized */
 #define SPLIT_AUTO_SHARE 0.5  /* the outsized boxes' share of the excess that calls for pieces */
@@ -151,8 +152,15 @@ double rt_bvh_split_outsized(const RtScene *s)
     float *excess = area + m, *order = area + 2 * (size_t)m;
     for (uint32_t k = 0; k < m; k++)
         split_sample(s, &s->triangles[(uint64_t)k * n / m], &area[k], &excess[k]);
-    memcpy(order, area, (size_t)m * sizeof *order);
-    const float limit = SPLIT_OUTSIZED * select_kth(order, (int)m, (int)(m / 2));
+    uint32_t npos = 0; /* (the median of the boxes with an area: slivers along an axis have none) */
+    for (uint32_t k = 0; k < m; k++)
+        if (area[k] > 0.0f)
+            order[npos++] = area[k];
+    if (npos == 0) {
+        free(area);
+        return 0.0;
+    }
+    const float limit = SPLIT_OUTSIZED * select_kth(order, (int)npos, (int)(npos / 2));
     double total = 0.0, outsized = 0.0;
     for (uint32_t k = 0; k < m; k++) {
         total += excess[k];

@@ -2,7 +2,8 @@
  * which name file and line, and the values of a line: numbers through a
  * fast decimal path (exact for up to 19 significant digits and powers of
  * ten up to 1e22, Clinger 1990) with strtof as the fallback, which is what
- * makes the 500 KB dragon parse in a few ms, and indices parsed in double. */
+ * makes the 500 KB dragon parse in a few ms, and indices read as plain
+ * digits or in double, never through float. */
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>

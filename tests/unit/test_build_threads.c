@@ -17,9 +17,12 @@
 #include "check.h"
 #include "rt.h"
 
+enum { LONG_ONES, ALIKE, AXIS_SLIVERS };
+
 /* n triangles: most small, every 16th long and thin across the scene
- * (none with `alike`). */
-static char *random_scene(int n, int alike, size_t *len)
+ * (LONG_ONES); all small (ALIKE); or 3 in 5 collinear along x, boxes
+ * without area, the rest small (AXIS_SLIVERS). */
+static char *random_scene(int n, int kind, size_t *len)
 {
     unsigned long long seed = 42;
     size_t cap = 256 + (size_t)n * 160;
@@ -27,7 +30,12 @@ static char *random_scene(int n, int alike, size_t *len)
     size_t k = (size_t)snprintf(buf, cap, "film_resolution: 32 24\ncamera_pos: 0 0 30\npoint_light: 1 1 1 0 20 20\n");
     for (int i = 0; i < n; i++) {
         const float x = check_randf(&seed, -20, 20), y = check_randf(&seed, -15, 15), z = check_randf(&seed, -20, 5);
-        const float r = i % 16 == 0 && !alike ? 12.0f : 0.3f;
+        const float r = i % 16 == 0 && kind == LONG_ONES ? 12.0f : 0.3f;
+        if (kind == AXIS_SLIVERS && i % 5 < 3) {
+            k += (size_t)snprintf(buf + k, cap - k, "vertex: %g %g %g\nvertex: %g %g %g\nvertex: %g %g %g\n", x, y, z,
+                                  x + 0.2f, y, z, x + 0.5f, y, z);
+            continue;
+        }
         k += (size_t)snprintf(buf + k, cap - k, "vertex: %g %g %g\nvertex: %g %g %g\nvertex: %g %g %g\n", x, y, z,
                               x + check_randf(&seed, -r, r), y + check_randf(&seed, -0.3f, 0.3f), z,
                               x + check_randf(&seed, -0.3f, 0.3f), y + check_randf(&seed, -r, r),
@@ -85,11 +93,12 @@ static void compare_threads(const char *name, const RtScene *sc, int want_splits
 }
 
 /* The GPU build's pieces as the settings choose them for a scene of n
- * triangles (alike or with long ones), against want. */
-static void split_choice(int n, int alike, int set_pct, int want)
+ * triangles of a kind (random_scene), against want. */
+static void split_choice(int n, int kind, int set_pct, int want)
 {
+    static const char *kinds[] = {"with long ones", "alike", "mostly slivers along an axis"};
     size_t len;
-    char *buf = random_scene(n, alike, &len);
+    char *buf = random_scene(n, kind, &len);
     RtScene sc;
     RtError err;
     if (rt_scene_parse_buffer("split", buf, len, &sc, NULL, NULL, &err) != 0) {
@@ -102,8 +111,8 @@ static void split_choice(int n, int alike, int set_pct, int want)
     set.gpu_split = set_pct;
     double share = -2.0;
     const int got = rt_bvh_gpu_split_pct(&set, &sc, &share);
-    CHECK(got == want, "%d triangles%s, gpu_split %d: %d%% pieces (outsized share %.3f), expected %d%%", n,
-          alike ? " alike" : " with long ones", set_pct, got, share, want);
+    CHECK(got == want, "%d triangles %s, gpu_split %d: %d%% pieces (outsized share %.3f), expected %d%%", n,
+          kinds[kind], set_pct, got, share, want);
     CHECK(set_pct >= 0 || n < 65536 ? share == -1.0 : share >= 0.0 && share <= 1.0,
           "%d triangles, gpu_split %d: share %.3f", n, set_pct, share);
     rt_scene_free(&sc);
@@ -111,15 +120,16 @@ static void split_choice(int n, int alike, int set_pct, int want)
 
 int main(int argc, char **argv)
 {
-    split_choice(80000, 0, -1, 100);
-    split_choice(80000, 1, -1, 0);
-    split_choice(20000, 0, -1, 0); /* (below 65,536 triangles) */
-    split_choice(80000, 0, 30, 30);
-    split_choice(80000, 1, 0, 0);
+    split_choice(80000, LONG_ONES, -1, 100);
+    split_choice(80000, ALIKE, -1, 0);
+    split_choice(80000, AXIS_SLIVERS, -1, 0); /* (the median box has no area: the median of those with one) */
+    split_choice(20000, LONG_ONES, -1, 0);    /* (below 65,536 triangles) */
+    split_choice(80000, LONG_ONES, 30, 30);
+    split_choice(80000, ALIKE, 0, 0);
     RtScene sc;
     RtError err;
     size_t len;
-    char *buf = random_scene(80000, 0, &len);
+    char *buf = random_scene(80000, LONG_ONES, &len);
     CHECK(rt_scene_parse_buffer("random", buf, len, &sc, NULL, NULL, &err) == 0, "random scene: %s", err.msg);
     free(buf);
     compare_threads("random", &sc, 1);
@@ -131,7 +141,7 @@ int main(int argc, char **argv)
         rt_accel_free(&a);
     }
     rt_scene_free(&sc);
-    buf = random_scene(100, 0, &len);
+    buf = random_scene(100, LONG_ONES, &len);
     CHECK(rt_scene_parse_buffer("small", buf, len, &sc, NULL, NULL, &err) == 0, "small scene: %s", err.msg);
     free(buf);
     {

@@ -341,7 +341,10 @@ extern "C" int rt_cuda_accel_build(const RtScene *sc, const RtBvhSettings *set, 
         return -1;
     /* (chosen on the host while the context may still be in the making) */
     info->split_pct = rt_bvh_gpu_split_pct(set, sc, &info->outsized);
-    const uint64_t budget = sc->ntriangles * (uint64_t)info->split_pct / 100u;
+    uint64_t budget = sc->ntriangles * (uint64_t)info->split_pct / 100u;
+    const int chosen = set->gpu_split < 0; /* (pieces chosen for the scene give way where they do not fit) */
+    if (chosen && n64 + budget >= RT_WIDE_MAX_FIRST)
+        budget = 0, info->split_pct = 0;
     if (n64 + budget >= RT_WIDE_MAX_FIRST)
         return rt_fail(err, "the GPU build takes fewer than %u records and pieces, the scene has %llu and %llu",
                        RT_WIDE_MAX_FIRST, (unsigned long long)n64, (unsigned long long)budget), 1;
@@ -363,7 +366,18 @@ extern "C" int rt_cuda_accel_build(const RtScene *sc, const RtBvhSettings *set, 
     if (rt_cuda_device_open(device, &info->init_ms, err))
         return -1;
     RT_CUDA_CHECK(cudaDeviceGetAttribute(&nsm, cudaDevAttrMultiProcessorCount, device));
-    if ((rc = reserve(&B, &k, sc, device, &keep, &scratch, err)) != 0)
+    rc = reserve(&B, &k, sc, device, &keep, &scratch, err);
+    if (rc == 1 && chosen && B.budget) { /* without the pieces' room it may fit */
+        cudaFree(keep);
+        cudaFree(scratch);
+        keep = scratch = NULL;
+        memset(&k, 0, sizeof k);
+        B.budget = 0;
+        B.n = B.nrec;
+        info->split_pct = 0;
+        rc = reserve(&B, &k, sc, device, &keep, &scratch, err);
+    }
+    if (rc != 0)
         goto done;
     rc = -1;
     t0 = rt_now_ms();
