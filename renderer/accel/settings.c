@@ -135,10 +135,7 @@ static void split_sample(const RtScene *s, const RtTriangle *t, float *area, flo
     box_grow_pt(&box, (const float[3]){a.x, a.y, a.z});
     box_grow_pt(&box, (const float[3]){b.x, b.y, b.z});
     box_grow_pt(&box, (const float[3]){c.x, c.y, c.z});
-    const float e1[3] = {b.x - a.x, b.y - a.y, b.z - a.z}, e2[3] = {c.x - a.x, c.y - a.y, c.z - a.z};
-    const float ideal = fabsf(e1[1] * e2[2] - e1[2] * e2[1]) + fabsf(e1[2] * e2[0] - e1[0] * e2[2]) +
-                        fabsf(e1[0] * e2[1] - e1[1] * e2[0]);
-    const float ar = box_area(&box), x = ar - 2.0f * ideal;
+    const float ar = box_area(&box), x = ar - 2.0f * rt_tri_ideal_area(a, b, c);
     *area = isfinite(ar) ? ar : 0.0f;
     *excess = isfinite(x) && x > 0.0f ? x : 0.0f;
 }

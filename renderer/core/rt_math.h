@@ -27,6 +27,15 @@ static inline RT_HD RtVec3 rt_cross(RtVec3 a, RtVec3 b)
     return rt_v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
 }
 static inline RT_HD float rt_length(RtVec3 a) { return sqrtf(rt_dot(a, a)); }
+/* Karras and Aila's A_ideal (HPG 2013) of triangle (a, b, c): twice the
+ * areas of its projections on the three axis planes, what the boxes of
+ * ever smaller pieces tend to (the GPU build's pieces, and their choice in
+ * accel/settings.c). */
+static inline RT_HD float rt_tri_ideal_area(RtVec3 a, RtVec3 b, RtVec3 c)
+{
+    const RtVec3 n = rt_cross(rt_sub(b, a), rt_sub(c, a));
+    return fabsf(n.x) + fabsf(n.y) + fabsf(n.z);
+}
 /* Normalizes; a zero vector stays zero instead of becoming NaN. */
 static inline RT_HD RtVec3 rt_normalize(RtVec3 a)
 {

@@ -28,15 +28,10 @@ __global__ void k_split_priority(Build B)
         B.box[r] = b;
         if (r >= B.nspheres) {
             const RtTriangle t = B.tris[r - B.nspheres];
-            const RtVec3 a = B.verts[t.v[0]], u = B.verts[t.v[1]], v = B.verts[t.v[2]];
-            const float e1[3] = {u.x - a.x, u.y - a.y, u.z - a.z}, e2[3] = {v.x - a.x, v.y - a.y, v.z - a.z};
-            /* Karras and Aila's A_ideal, what the boxes of ever smaller pieces
-             * tend to: twice the triangle's projections. A flat triangle's own
-             * box has at least twice that, which no split gains back (a floor
-             * of two triangles cut into pieces only spreads it through the
-             * tree), so the excess counts from there. */
-            const float ideal = fabsf(e1[1] * e2[2] - e1[2] * e2[1]) + fabsf(e1[2] * e2[0] - e1[0] * e2[2]) +
-                                fabsf(e1[0] * e2[1] - e1[1] * e2[0]);
+            /* A flat triangle's own box has at least twice A_ideal, which no
+             * split gains back (a floor of two triangles cut into pieces only
+             * spreads it through the tree), so the excess counts from there. */
+            const float ideal = rt_tri_ideal_area(B.verts[t.v[0]], B.verts[t.v[1]], B.verts[t.v[2]]);
             const uint32_t d = grid_code(B, b.lo) ^ grid_code(B, b.hi);
             const float excess = box_area(b) - 2.0f * ideal;
             GBox c;
