@@ -2,11 +2,14 @@
 # device-cpu-stalls.sh - a large CPU host (64 cores on the nvidia-h100-x4 and
 # nvidia-h200-x4 kinds): how its stalls reach the OpenMP and MPI frames.
 # STEPS (default "ab ceil tables keys"), each into $OUT:
-#   ab      `harness ab` of OpenMP and MPI at N workers, 512x384 and
-#           2048x1536, the older build against this one (ROUNDS, default 7)
-#   ceil    `harness ceiling` at 1, N/2 and N copies, both resolutions
+#   ab      `harness ab` of OpenMP and MPI (AB_BACKENDS) at N workers (ABW),
+#           512x384 and 2048x1536, the older build against this one
+#           (ROUNDS, default 7)
+#   ceil    `harness ceiling` at 1, N/2 and N copies (WORKERS), both
+#           resolutions
 #   tables  the report's tables 1 and 2 (BVH, tiles, dynamic) at 1, N/2 and
-#           N workers, 5 repeats, `order: rounds`; tables against the ceiling
+#           N workers (WORKERS), 5 repeats, `order: rounds`; tables against
+#           the ceiling
 #   keys    5 unpinned runs of each at N workers (or at each of
 #           KEYS_WORKERS), their timing keys
 #   diag    6 rounds of OpenMP (pinned, this build and the older one) and MPI
@@ -45,20 +48,20 @@ dragon=$(find $course -name dragon.txt | head -1)
 cd /tmp/head
 for step in ${STEPS:-ab ceil tables keys}; do case $step in
 ab)
-  for b in openmp mpi; do
+  for b in ${AB_BACKENDS:-openmp mpi}; do
     k=threads; [ $b = mpi ] && k=ranks
     printf 'study: %s%s\nscene_dir: %s\nscenes: dragon\nbackend: %s\naccel: bvh\nresolution: 512x384 2048x1536\n%s: %s\npin: close\nrepeats: 1\ntimeout: 60\n' $b $N $course $b $k "${ABW:-$N}" > /tmp/ab-$b.conf
     timeout $(( $(left) - 20 )) $H ab --config /tmp/ab-$b.conf $PR $RT --rounds ${ROUNDS:-7} > "$O/ab-$b.txt" 2> "$O/ab-$b.err"; log "ab $b rc $?"
     grep -E '^(IMPROVEMENT|REGRESSION|INCONCLUSIVE|no change)' "$O/ab-$b.txt" | cut -c1-250
   done ;;
 ceil)
-  W="1 $((N / 2)) $N"
+  W=${WORKERS:-1 $((N / 2)) $N}
   for res in 512x384 2048x1536; do
     timeout 100 $H ceiling configs/openmp-scaling-bvh.conf --set scene_dir=$course --set resolution=$res --set threads="$W" --set schedule=tiles --repeats 5 -o "$O/ceiling-$res.csv" > "$O/ceiling-$res.log" 2>&1 || log "ceiling $res rc $?"
     tail -5 "$O/ceiling-$res.log"
   done; log ceilings ;;
 tables)
-  W="1 $((N / 2)) $N"
+  W=${WORKERS:-1 $((N / 2)) $N}
   for res in 512x384 2048x1536; do
     S=(--set scene_dir=$course --set resolution=$res --set repeats=5 --set accel=bvh)
     timeout 120 $H run configs/report-table1-openmp.conf "${S[@]}" --set order=rounds --set threads="$W" --set backend=openmp --set schedule=tiles -q -o "$O/t1-bvh-$res.csv" > /dev/null 2>&1 || log "t1 $res rc $?"
@@ -68,7 +71,7 @@ tables)
     log "tables $res"
   done ;;
 keys)
-  f() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|join_ms|backups|backups_won|rank_work_ms|rank_end_ms)=' | tr '\n' ' '; echo; }
+  f() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|join_ms|backups|backups_won|rank_claims|rank_start_ms|rank_work_ms|rank_end_ms|rank_faults)=' | tr '\n' ' '; echo; }
   for i in 1 2 3 4 5; do
     for w in ${KEYS_WORKERS:-$N}; do
       echo "== omp $w 512x384"; $RT -q -b openmp -t $w -r 512x384 $dragon -o /tmp/k.png | f

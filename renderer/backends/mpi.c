@@ -24,6 +24,7 @@
  * mpi_cuda.c. */
 #include <mpi.h>
 #include <stdio.h>
+#include <sys/resource.h>
 #include <stdlib.h>
 #include <unistd.h>
 #include <string.h>
@@ -43,6 +44,8 @@ enum {
     T_PUT_MS,   /* in puts (dynamic, across nodes) */
     T_WORK_MS,  /* to the end of its last tile */
     T_END_MS,   /* to the image complete on rank 0: the frame's end (dynamic) or the gather (rows) */
+    T_START_MS, /* left the starting barrier after the first rank did */
+    T_FAULTS,   /* page faults (minor) from the start to the end of the frame */
     T_N
 };
 typedef struct RankTimes {
@@ -51,6 +54,13 @@ typedef struct RankTimes {
     int64_t end_ns;     /* when the last tile reached rank 0's image (shared board), else 0 */
     uint64_t backups[2]; /* second renders started, won */
 } RankTimes;
+
+/* This process's minor page faults so far. */
+static double minor_faults(void)
+{
+    struct rusage u;
+    return getrusage(RUSAGE_SELF, &u) == 0 ? (double)u.ru_minflt : 0;
+}
 
 /* Test hook: the window of separate memory (MPI_Fetch_and_op claims and
  * MPI_Put tiles, as across nodes) on one node: tests/cpu/mpi_fail.sh. */
@@ -91,7 +101,8 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
     RtTileRun run = {.v = v, .ry0 = y0, .rx1 = w, .ry1 = y1, .tw = tw, .th = th, .count = ntiles,
                      .scan_count = ntiles, .scan_slots = 1, .rgb = rgb, .board = &board};
     RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD));
-    const double t0 = rt_now_ms();
+    rt->t0_ns = rt_now_ns();
+    const double t0 = rt_now_ms(), f0 = minor_faults();
     if (y1 > y0) {
         if (job->schedule == RT_SCHED_PIXELS)
             rt_cpu_render_pixels(pool, v, 0, y0, w, y1, rgb);
@@ -106,6 +117,7 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
         RT_MPI_CHECK(MPI_Gatherv(rgb + displs[rt_mpi_rank], counts[rt_mpi_rank], MPI_FLOAT, NULL, NULL, NULL, MPI_FLOAT, 0,
                                  MPI_COMM_WORLD));
     rt->t[T_END_MS] = rt_now_ms() - t0;
+    rt->t[T_FAULTS] = minor_faults() - f0;
     free(counts);
 }
 
@@ -173,7 +185,7 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
                      .scan_slots = rt_mpi_size, .rgb = m.direct ? (float *)m.img0 : rgb, .board = &board};
     rt_mpi_frame_start(&m);
     rt->t0_ns = rt_now_ns();
-    const double t0 = rt_now_ms();
+    const double t0 = rt_now_ms(), f0 = minor_faults();
 
     const int64_t min_claim = tiles_per_claim(pool->nthreads);
     TileTypes tt;
@@ -207,6 +219,7 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
     }
     rt_mpi_frame_end(&m);
     rt->t[T_END_MS] = rt_now_ms() - t0;
+    rt->t[T_FAULTS] = minor_faults() - f0;
     if (rt_mpi_rank == 0)
         rt->end_ns = shared ? *board.end_ns : rt_mpi_size == 1 ? local_end : 0;
     rt_mpi_image_close(&m, rgb);
@@ -245,8 +258,10 @@ static void rank_keys(const RankTimes *mine, int dynamic, char *e, size_t size)
         len = rank_key(e, size, len, "rank_claim_ms", all, T_CLAIM_MS, "%.3f");
         len = rank_key(e, size, len, "rank_put_ms", all, T_PUT_MS, "%.3f");
     }
+    len = rank_key(e, size, len, "rank_start_ms", all, T_START_MS, "%.3f");
     len = rank_key(e, size, len, "rank_work_ms", all, T_WORK_MS, "%.3f");
-    rank_key(e, size, len, "rank_end_ms", all, T_END_MS, "%.3f");
+    len = rank_key(e, size, len, "rank_end_ms", all, T_END_MS, "%.3f");
+    rank_key(e, size, len, "rank_faults", all, T_FAULTS, "%.0f");
     free(all);
 }
 
@@ -295,7 +310,8 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     rt_cpu_pool_free(&pool);
     RT_MPI_CHECK(MPI_Reduce(times.backups, backups, 2, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD));
     int64_t t0_min;
-    RT_MPI_CHECK(MPI_Reduce(&times.t0_ns, &t0_min, 1, MPI_INT64_T, MPI_MIN, 0, MPI_COMM_WORLD));
+    RT_MPI_CHECK(MPI_Allreduce(&times.t0_ns, &t0_min, 1, MPI_INT64_T, MPI_MIN, MPI_COMM_WORLD));
+    times.t[T_START_MS] = (double)(times.t0_ns - t0_min) * 1e-6;
     _Static_assert(sizeof(RtCounters) == 5 * sizeof(uint64_t), "RtCounters is reduced as 5 uint64");
     RT_MPI_CHECK(MPI_Reduce(&mine, &sum, 5, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD));
     double ms_max, ms_min, load_max;
