@@ -140,36 +140,58 @@ static inline void rt_region_tile(int rx0, int ry0, int rx1, int ry1, int tw, in
     *y1 += ry0;
 }
 
-/* ---- tiles, and their second renders ----------------------------------
+/* ---- strips, and their second renders ---------------------------------
+ *
+ * The unit of work is a strip: one row of a tile, tile-major (strip s is
+ * row s % th of tile s / th), so a tile's rows stay together on one thread
+ * while work is plentiful and the frame's last tile can still be shared. A
+ * thread claims up to a tile of strips at a time, fewer as the claims run
+ * out (guided, Polychronopoulos and Kuck 1987).
  *
  * A thread that the operating system (or a hypervisor) takes off its core
- * while it holds a tile holds the frame: on a 64-core virtual machine such
- * stalls reach milliseconds, as long as a whole 512x384 frame. So once the
- * tiles are all claimed, a thread with nothing left starts a second render
- * of a tile that is claimed and not yet finished, at most one per tile:
- * MapReduce's backup tasks (Dean and Ghemawat, OSDI 2004). Both renders go
- * into buffers of their own; whichever finishes first sets the tile's DONE
- * bit and copies its pixels into the image, and only its counters count.
- * A tile's pixels depend only on the scene, so image and counters are those
- * of one render, whoever wins. */
+ * while it holds work holds the frame: on a 64-core virtual machine such
+ * stalls reach milliseconds, as long as a whole 512x384 frame. And the
+ * frame's last tiles cost up to several times the average one: at 32 MPI
+ * ranks the ranks ran out of work 0.5 ms apart in a 4 ms frame. So once
+ * every strip is claimed, a thread with nothing left starts a second
+ * render of a strip that is claimed and not yet finished, at most one per
+ * strip: MapReduce's backup tasks (Dean and Ghemawat, OSDI 2004). Strips
+ * claimed but not yet started are taken this way too, and their owner then
+ * skips them. Both renders go into buffers of their own; whichever finishes
+ * first sets the strip's DONE bit and copies its pixels into the image, and
+ * only its counters count. A strip's pixels depend only on the scene, so
+ * image and counters are those of one render, whoever wins. */
 #define RT_TILE_DONE 1u   /* its pixels are in the image */
 #define RT_TILE_BACKUP 2u /* its second render has started */
+#define RT_TILE_OWNER 4u  /* its claimed render has started */
 
-/* A frame's tiles: a state byte each, and the count of tiles in the image.
- * The MPI backend keeps it in rank 0's shared window, so that ranks back up
- * each other's tiles too. */
+/* A frame's strips: a state byte each, and the count of strips in the
+ * image. The MPI backend keeps it in rank 0's shared window, so that ranks
+ * back up each other's strips too. */
 typedef struct RtTileBoard {
-    unsigned char *state; /* per tile of the tiling: RT_TILE_* */
-    int64_t *done;        /* tiles in the image */
+    unsigned char *state; /* per strip of the tiling (rt_strip_count): RT_TILE_* */
+    int64_t *done;        /* strips in the image */
     int64_t *end_ns;      /* when the last of them arrived (rt_now_ns, rt.h) */
-    int64_t total;        /* tiles in the frame */
+    int64_t total;        /* strips in the frame (rt_strip_total) */
 } RtTileBoard;
 
-/* What rt_cpu_render_tiles does: claim tiles [first, first + count) of the
- * tw x th tiling of region [rx0,rx1) x [ry0,ry1), one at a time, then back
- * up tiles [0, scan_count) of the tiling (all claimed by then), each thread
- * starting its pass at its own place: thread t of a caller that is slot
- * `scan_slot` of `scan_slots` callers (MPI ranks). */
+/* Strip numbers of the tw x th tiling of a rw x rh region: th per tile; a
+ * tile cut short by the region's bottom edge leaves its last ones empty. */
+static inline int64_t rt_strip_count(int rw, int rh, int tw, int th)
+{
+    return (int64_t)rt_tile_count(rw, rh, tw, th) * th;
+}
+/* ... and the strips that are not empty: one per tile column and row. */
+static inline int64_t rt_strip_total(int rw, int rh, int tw)
+{
+    return (int64_t)((rw + tw - 1) / tw) * rh;
+}
+
+/* What rt_cpu_render_tiles does: claim strips [first, first + count) of the
+ * tw x th tiling of region [rx0,rx1) x [ry0,ry1), then back up strips
+ * [0, scan_count) of the tiling (all claimed by then), each thread starting
+ * its pass at its own place: thread t of a caller that is slot `scan_slot`
+ * of `scan_slots` callers (MPI ranks). */
 typedef struct RtTileRun {
     const RtSceneView *v;
     int rx0, ry0, rx1, ry1, tw, th;
@@ -177,39 +199,53 @@ typedef struct RtTileRun {
     int64_t scan_count;
     int scan_slot, scan_slots;
     float *rgb;           /* the whole image (stride = width) */
-    RtTileBoard *board;   /* states indexed by tile number in the tiling */
+    RtTileBoard *board;   /* states indexed by strip number in the tiling */
     RtProgressFn progress;
     void *progress_ctx;
 } RtTileRun;
 
-/* Tile t rendered into buf; its pixels copied into the image and its
- * counters added to *cnt only if this render is the first to finish it. */
-static inline int rt_tile_render(const RtTileRun *r, int64_t t, float *buf, RtCounters *cnt)
+/* Strip s's pixels [x0, x1) of image row y; 0 if it is empty. */
+static inline int rt_strip_rect(const RtTileRun *r, int64_t s, int *x0, int *y, int *x1)
 {
-    int x0, y0, x1, y1;
-    rt_region_tile(r->rx0, r->ry0, r->rx1, r->ry1, r->tw, r->th, (int)t, &x0, &y0, &x1, &y1);
-    const size_t cw = (size_t)(x1 - x0) * 3, w = (size_t)r->v->cam.width;
+    int y0, y1;
+    rt_region_tile(r->rx0, r->ry0, r->rx1, r->ry1, r->tw, r->th, (int)(s / r->th), x0, &y0, x1, &y1);
+    *y = y0 + (int)(s % r->th);
+    return *y < y1;
+}
+
+/* Strip s rendered into buf; its pixels copied into the image and its
+ * counters added to *cnt only if this render is the first to finish it.
+ * 1 if it was; the board's count is the caller's (rt_strips_done). */
+static inline int rt_strip_render(const RtTileRun *r, int64_t s, float *buf, RtCounters *cnt)
+{
+    int x0, y, x1;
+    if (!rt_strip_rect(r, s, &x0, &y, &x1))
+        return 0;
+    const size_t cw = (size_t)(x1 - x0) * 3;
     RtCounters c;
     memset(&c, 0, sizeof c);
-    rt_cpu_render_tile(r->v, x0, y0, x1, y1, buf, cw, &c);
-    RtTileBoard *b = r->board;
-    if (__atomic_fetch_or(&b->state[t], RT_TILE_DONE, __ATOMIC_ACQ_REL) & RT_TILE_DONE)
+    rt_cpu_render_tile(r->v, x0, y, x1, y + 1, buf, cw, &c);
+    if (__atomic_fetch_or(&r->board->state[s], RT_TILE_DONE, __ATOMIC_ACQ_REL) & RT_TILE_DONE)
         return 0;
-    for (int j = y0; j < y1; j++)
-        memcpy(r->rgb + 3 * ((size_t)j * w + (size_t)x0), buf + (size_t)(j - y0) * cw, cw * sizeof(float));
+    memcpy(r->rgb + 3 * ((size_t)y * (size_t)r->v->cam.width + (size_t)x0), buf, cw * sizeof(float));
     rt_counters_add(cnt, &c);
-    if (__atomic_add_fetch(b->done, 1, __ATOMIC_ACQ_REL) == b->total)
-        __atomic_store_n(b->end_ns, rt_now_ns(), __ATOMIC_RELEASE);
     return 1;
 }
 
-/* Renders r's tiles on the pool's threads: ray cost varies by orders of
- * magnitude across an image (sky vs. a glass dragon), so tiles are handed
- * out one at a time to whichever thread is free (dynamic), then backed up. */
+/* n more strips are in the image; the last one stamps the frame's end. */
+static inline void rt_strips_done(RtTileBoard *b, int64_t n)
+{
+    if (n && __atomic_add_fetch(b->done, n, __ATOMIC_ACQ_REL) == b->total)
+        __atomic_store_n(b->end_ns, rt_now_ns(), __ATOMIC_RELEASE);
+}
+
+/* Renders r's strips on the pool's threads: ray cost varies by orders of
+ * magnitude across an image (sky vs. a glass dragon), so work is handed
+ * out to whichever thread is free (dynamic), then backed up. */
 static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtTileRun *r)
 {
     int64_t next = r->first, done = 0; /* done: for progress only */
-    const int64_t end = r->first + r->count;
+    const int64_t end = r->first + r->count, guide = 4 * (int64_t)p->nthreads;
 #pragma omp parallel num_threads(p->nthreads)
     {
         int tid = rt_cpu_thread_id();
@@ -219,12 +255,20 @@ static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtTileRun *r)
         memset(&cnt, 0, sizeof cnt);
         slot->start_ns = rt_now_ns();
         rt_cpu_note(slot);
-        for (int64_t t; (t = __atomic_fetch_add(&next, 1, __ATOMIC_RELAXED)) < end;) {
-            rt_tile_render(r, t, buf, &cnt);
+        for (int64_t at; (at = __atomic_load_n(&next, __ATOMIC_RELAXED)) < end;) {
+            int64_t k = (end - at) / guide, won = 0;
+            k = k < 1 ? 1 : k > r->th ? r->th : k;
+            const int64_t s0 = __atomic_fetch_add(&next, k, __ATOMIC_RELAXED);
+            k = s0 >= end ? 0 : end - s0 < k ? end - s0 : k;
+            for (int64_t s = s0; s < s0 + k; s++) /* skipped if a backup took it first */
+                if (!(__atomic_fetch_or(&r->board->state[s], RT_TILE_OWNER, __ATOMIC_RELAXED) &
+                      (RT_TILE_DONE | RT_TILE_BACKUP)))
+                    won += rt_strip_render(r, s, buf, &cnt);
+            rt_strips_done(r->board, won);
             rt_cpu_note(slot);
-            if (r->progress) {
+            if (r->progress && k) {
                 /* only thread 0 prints: no thread ever waits for the terminal */
-                int64_t d = __atomic_add_fetch(&done, 1, __ATOMIC_RELAXED);
+                int64_t d = __atomic_add_fetch(&done, k, __ATOMIC_RELAXED);
                 if (tid == 0)
                     r->progress(r->progress_ctx, (uint64_t)d, (uint64_t)r->count);
             }
@@ -233,12 +277,16 @@ static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtTileRun *r)
         const int64_t n = r->scan_count, k0 = n * (int64_t)(r->scan_slot * p->nthreads + tid) /
                                                ((int64_t)r->scan_slots * p->nthreads);
         for (int64_t k = 0; k < n; k++) {
-            const int64_t t = (k0 + k) % n;
-            if (__atomic_load_n(&r->board->state[t], __ATOMIC_RELAXED) ||
-                __atomic_fetch_or(&r->board->state[t], RT_TILE_BACKUP, __ATOMIC_RELAXED))
+            const int64_t s = (k0 + k) % n;
+            const unsigned busy = RT_TILE_DONE | RT_TILE_BACKUP;
+            int x0, y, x1;
+            if (__atomic_load_n(&r->board->state[s], __ATOMIC_RELAXED) & busy || !rt_strip_rect(r, s, &x0, &y, &x1) ||
+                __atomic_fetch_or(&r->board->state[s], RT_TILE_BACKUP, __ATOMIC_RELAXED) & busy)
                 continue;
+            const int won = rt_strip_render(r, s, buf, &cnt);
             slot->backups++;
-            slot->backups_won += (uint64_t)rt_tile_render(r, t, buf, &cnt);
+            slot->backups_won += (uint64_t)won;
+            rt_strips_done(r->board, won);
         }
         rt_counters_add(&slot->cnt, &cnt);
     }

@@ -91,15 +91,15 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
         displs[r] = y0 * w * 3;
     }
     int y0 = displs[rt_mpi_rank] / (w * 3), y1 = y0 + counts[rt_mpi_rank] / (w * 3);
-    /* the rank's tiles, backed up among its own threads */
-    const int64_t ntiles = y1 > y0 ? rt_tile_count(w, y1 - y0, tw, th) : 0;
-    unsigned char *state = calloc((size_t)ntiles + 1, 1); /* + 1: never calloc(0), which may be NULL */
+    /* the rank's strips, backed up among its own threads */
+    const int64_t nstrips = y1 > y0 ? rt_strip_count(w, y1 - y0, tw, th) : 0;
+    unsigned char *state = calloc((size_t)nstrips + 1, 1); /* + 1: never calloc(0), which may be NULL */
     if (!state)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
     int64_t done = 0, end_ns = 0;
-    RtTileBoard board = {state, &done, &end_ns, ntiles};
-    RtTileRun run = {.v = v, .ry0 = y0, .rx1 = w, .ry1 = y1, .tw = tw, .th = th, .count = ntiles,
-                     .scan_count = ntiles, .scan_slots = 1, .rgb = rgb, .board = &board};
+    RtTileBoard board = {state, &done, &end_ns, y1 > y0 ? rt_strip_total(w, y1 - y0, tw) : 0};
+    RtTileRun run = {.v = v, .ry0 = y0, .rx1 = w, .ry1 = y1, .tw = tw, .th = th, .count = nstrips,
+                     .scan_count = nstrips, .scan_slots = 1, .rgb = rgb, .board = &board};
     RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD));
     rt->t0_ns = rt_now_ns();
     const double t0 = rt_now_ms(), f0 = minor_faults();
@@ -123,59 +123,58 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
 
 /* ---------------------------------------------------------------- dynamic */
 
-typedef struct TileTypes {
-    int n;
-    int cw[4], ch[4];      /* a full-image tiling has at most 4 tile shapes */
-    MPI_Datatype t[4];
-} TileTypes;
+/* The smallest claim: one strip (a tile's row, cpu_tiles.h) for a
+ * single-threaded rank, the finest balance at the end of the frame. With T
+ * threads per rank, 4*T strips, so the rank's threads share out a batch
+ * dynamically. Earlier claims are larger (rt_mpi_claim). */
+static int64_t strips_per_claim(int threads) { return threads > 1 ? 4 * (int64_t)threads : 1; }
 
-/* A tile is ch rows of cw RGB pixels, one image row apart. */
-static MPI_Datatype tile_type(TileTypes *tt, int cw, int ch, int w)
+/* Puts strips [first, first + count) from rgb into rank 0's image: one
+ * MPI_Put per tile they belong to (its rows, one image row apart). */
+static void put_strips(RtMpiImage *m, const float *rgb, int w, int h, int tw, int th, int64_t first, int64_t count)
 {
-    for (int i = 0; i < tt->n; i++)
-        if (tt->cw[i] == cw && tt->ch[i] == ch)
-            return tt->t[i];
-    int i = tt->n++;
-    tt->cw[i] = cw;
-    tt->ch[i] = ch;
-    RT_MPI_CHECK(MPI_Type_vector(ch, cw * 3, w * 3, MPI_FLOAT, &tt->t[i]));
-    RT_MPI_CHECK(MPI_Type_commit(&tt->t[i]));
-    return tt->t[i];
+    for (int64_t s = first, e; s < first + count; s = e) {
+        for (e = s + 1; e < first + count && e / th == s / th;)
+            e++;
+        int x0, y0, x1, y1;
+        rt_tile_rect(w, h, tw, th, (int)(s / th), &x0, &y0, &x1, &y1);
+        const int ya = y0 + (int)(s % th);
+        int yb = y0 + (int)((e - 1) % th) + 1; /* past the last, or the tile's edge */
+        yb = yb < y1 ? yb : y1;
+        const size_t px = 3 * sizeof(float);
+        if (ya < yb)
+            rt_mpi_put_runs(m, rgb, ((size_t)ya * (size_t)w + (size_t)x0) * px, (size_t)(x1 - x0) * px,
+                            (size_t)w * px, (size_t)(yb - ya));
+    }
 }
 
-/* The smallest claim: one tile for a single-threaded rank (finest balance at
- * the end of the frame). With T threads per rank, 4*T tiles, so the rank's
- * threads share out a batch dynamically and the batch's last tile does not
- * leave them idle for long. Earlier claims are larger (rt_mpi_claim). */
-static int64_t tiles_per_claim(int threads) { return threads > 1 ? 4 * (int64_t)threads : 1; }
-
-/* One rank's frame: claim, render, put, until no tile is left. On one node
+/* One rank's frame: claim, render, put, until no strip is left. On one node
  * (every rank in rank 0's shared memory) a claim is one CPU atomic and the
  * pixels go straight into rank 0's image; across nodes a claim is an
- * MPI_Fetch_and_op and each tile an MPI_Put. The frame ends when every
+ * MPI_Fetch_and_op and each claim's tiles an MPI_Put each. The frame ends when every
  * rank's pixels are in rank 0's image; the copy into main's buffer after it
  * is not part of the frame. */
 static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int th, float *rgb, RankTimes *rt)
 {
     const RtSceneView *v = &job->view;
     int w = v->cam.width, h = v->cam.height;
-    int64_t ntiles = rt_tile_count(w, h, tw, th);
+    const int64_t nstrips = rt_strip_count(w, h, tw, th);
     RtMpiImage m;
     /* Each thread's CPU, claim or no claim: a rank that gets no tile still
      * ran where it was bound (the record's cores, the harness's pinning check). */
 #pragma omp parallel num_threads(pool->nthreads)
     rt_cpu_note(rt_cpu_slot(pool, rt_cpu_thread_id()));
-    /* On one node the tile board lives in rank 0's window, after two
-     * int64s (tiles done, the time of the last) on a line pair of their
-     * own, so ranks back up each other's tiles (cpu_tiles.h); across nodes
-     * each rank keeps one for its own threads. */
+    /* On one node the board lives in rank 0's window, after two int64s
+     * (strips done, the time of the last) on a line pair of their own, so
+     * ranks back up each other's strips (cpu_tiles.h); across nodes each
+     * rank keeps one for its own threads. */
     const int shared = rt_mpi_local_size == rt_mpi_size && !test_separate() && rt_mpi_size > 1;
-    rt_mpi_image_open(&m, (size_t)w * (size_t)h * 3 * sizeof(float), rgb, shared, shared ? 128 + (size_t)ntiles : 0);
-    unsigned char *local = shared ? NULL : calloc((size_t)ntiles, 1);
+    rt_mpi_image_open(&m, (size_t)w * (size_t)h * 3 * sizeof(float), rgb, shared, shared ? 128 + (size_t)nstrips : 0);
+    unsigned char *local = shared ? NULL : calloc((size_t)nstrips, 1);
     int64_t local_done = 0, local_end = 0;
     if (!shared && !local)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
-    RtTileBoard board = {local, &local_done, &local_end, ntiles};
+    RtTileBoard board = {local, &local_done, &local_end, rt_strip_total(w, h, tw)};
     if (shared) {
         board.done = (int64_t *)m.extra;
         board.end_ns = (int64_t *)m.extra + 1;
@@ -187,13 +186,11 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
     rt->t0_ns = rt_now_ns();
     const double t0 = rt_now_ms(), f0 = minor_faults();
 
-    const int64_t min_claim = tiles_per_claim(pool->nthreads);
-    TileTypes tt;
-    tt.n = 0;
-    /* Which rank renders a tile never changes the image. */
+    const int64_t min_claim = strips_per_claim(pool->nthreads);
+    /* Which rank renders a strip never changes the image. */
     for (;;) {
         double t = rt_now_ms();
-        run.count = rt_mpi_claim(&m, ntiles, min_claim, &run.first);
+        run.count = rt_mpi_claim(&m, nstrips, min_claim, &run.first);
         rt->t[T_CLAIM_MS] += rt_now_ms() - t;
         if (run.count <= 0)
             break;
@@ -202,19 +199,13 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
         if (m.direct)
             continue;
         t = rt_now_ms();
-        for (int k = (int)run.first; k < run.first + run.count; k++) {
-            int x0, y0, x1, y1;
-            rt_tile_rect(w, h, tw, th, k, &x0, &y0, &x1, &y1);
-            MPI_Datatype ty = tile_type(&tt, x1 - x0, y1 - y0, w);
-            size_t off = ((size_t)y0 * (size_t)w + (size_t)x0) * 3;
-            RT_MPI_CHECK(MPI_Put(rgb + off, 1, ty, 0, (MPI_Aint)(m.img_off + off * sizeof(float)), 1, ty, m.win));
-        }
+        put_strips(&m, rgb, w, h, tw, th, run.first, run.count);
         rt->t[T_PUT_MS] += rt_now_ms() - t;
     }
     rt->t[T_WORK_MS] = rt_now_ms() - t0;
-    if (shared) { /* every tile is claimed: back up those still unfinished */
+    if (shared) { /* every strip is claimed: back up those still unfinished */
         run.count = 0;
-        run.scan_count = ntiles;
+        run.scan_count = nstrips;
         rt_cpu_render_tiles(pool, &run);
     }
     rt_mpi_frame_end(&m);
@@ -224,8 +215,6 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
         rt->end_ns = shared ? *board.end_ns : rt_mpi_size == 1 ? local_end : 0;
     rt_mpi_image_close(&m, rgb);
     free(local);
-    for (int i = 0; i < tt.n; i++)
-        MPI_Type_free(&tt.t[i]);
 }
 
 /* Appends " key=v0/v1/..." of time `f` of every rank. */
@@ -356,12 +345,12 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     }
     free(all);
     snprintf(out->extra, sizeof out->extra,
-             " mpi_schedule=%s schedule=%s mpi_scene=%s load_ms_max=%.3f tiles_per_claim=%lld"
+             " mpi_schedule=%s schedule=%s mpi_scene=%s load_ms_max=%.3f strips_per_claim=%lld"
              " backups=%llu backups_won=%llu rank_cores=%s nodes=%d rank_node=%s%s",
              job->mpi_schedule == RT_MPI_ROWS ? "rows" : "dynamic",
              job->schedule == RT_SCHED_PIXELS ? "pixels" : "tiles",
              rt_mpi_scene_how, load_max,
-             (long long)tiles_per_claim(threads), (unsigned long long)backups[0], (unsigned long long)backups[1],
+             (long long)strips_per_claim(threads), (unsigned long long)backups[0], (unsigned long long)backups[1],
              per_rank, rt_mpi_nodes, nodes, keys);
     if (job->progress)
         job->progress(job->progress_ctx, 1, 1);

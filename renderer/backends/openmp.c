@@ -22,18 +22,18 @@ static int render_openmp(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     int w = v->cam.width, h = v->cam.height;
     int tw = job->tile_w > 0 ? job->tile_w : RT_OMP_TILE, th = job->tile_h > 0 ? job->tile_h : RT_OMP_TILE;
     const int pixels = job->schedule == RT_SCHED_PIXELS;
-    const int64_t ntiles = rt_tile_count(w, h, tw, th);
+    const int64_t nstrips = rt_strip_count(w, h, tw, th);
     RtCpuPool pool;
     if (rt_cpu_pool_init(&pool, rt_cpu_threads(job->threads, 0), pixels ? 0 : tw, th, w, h, err) != 0)
         return -1;
-    unsigned char *state = pixels ? NULL : calloc((size_t)ntiles, 1);
+    unsigned char *state = pixels ? NULL : calloc((size_t)nstrips, 1);
     if (!pixels && !state) {
         rt_cpu_pool_free(&pool);
-        return rt_fail(err, "out of memory for %lld tiles", (long long)ntiles);
+        return rt_fail(err, "out of memory for %lld tile rows", (long long)nstrips);
     }
     int64_t done = 0, end_ns = 0;
-    RtTileBoard board = {state, &done, &end_ns, ntiles};
-    RtTileRun run = {.v = v, .rx1 = w, .ry1 = h, .tw = tw, .th = th, .count = ntiles, .scan_count = ntiles,
+    RtTileBoard board = {state, &done, &end_ns, rt_strip_total(w, h, tw)};
+    RtTileRun run = {.v = v, .rx1 = w, .ry1 = h, .tw = tw, .th = th, .count = nstrips, .scan_count = nstrips,
                      .scan_slots = 1, .rgb = out->rgb, .board = &board, .progress = job->progress,
                      .progress_ctx = job->progress_ctx};
 

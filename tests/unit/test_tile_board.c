@@ -1,10 +1,11 @@
-/* test_tile_board.c SCENE - the tile loop's backup renders (cpu_tiles.h):
- * however a frame's tiles are split between first renders and backups, and
- * whichever render of a tile finishes first, the image and the counters are
- * the serial ones, every tile is in the image once, and the board's count
- * and end time say so. The races themselves are forced here: a tile
- * published twice, a frame rendered by backups alone, and tiles that the
- * board already calls done. */
+/* test_tile_board.c SCENE - the tile loop's strips and their backup renders
+ * (cpu_tiles.h): however a frame's strips are split between first renders
+ * and backups, and whichever render of a strip finishes first, the image
+ * and the counters are the serial ones, every strip is in the image once,
+ * and the board's count and end time say so. The races themselves are
+ * forced here: a strip published twice, a frame rendered by backups alone,
+ * strips that the board already calls done, and strips whose backup has
+ * started before their owner reaches them. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -18,7 +19,7 @@
 typedef struct {
     const RtSceneView *v;
     int w, h, tw, th;
-    int64_t ntiles;
+    int64_t nstrips, total; /* strip numbers, and strips that are not empty */
     float *ref, *img;
     RtCounters cref;
     unsigned char *state;
@@ -30,13 +31,21 @@ static void frame_reset(Frame *f)
 {
     for (size_t i = 0; i < (size_t)f->w * (size_t)f->h * 3; i++)
         f->img[i] = NAN;
-    memset(f->state, 0, (size_t)f->ntiles);
+    memset(f->state, 0, (size_t)f->nstrips);
     f->done = f->end_ns = 0;
-    f->board = (RtTileBoard){f->state, &f->done, &f->end_ns, f->ntiles};
+    f->board = (RtTileBoard){f->state, &f->done, &f->end_ns, f->total};
 }
 
-/* The pool's counters and the image against the serial ones. */
-static void frame_check(Frame *f, RtCpuPool *p, const char *what, int64_t skipped)
+/* The first pixel of strip s, or NULL if the strip is empty. */
+static const float *strip_pixel(const Frame *f, const RtTileRun *r, int64_t s)
+{
+    int x0, y, x1;
+    return rt_strip_rect(r, s, &x0, &y, &x1) ? &f->img[3 * ((size_t)y * (size_t)f->w + (size_t)x0)] : NULL;
+}
+
+/* The pool's counters and the image against the serial ones; `skipped`
+ * strips were left to others. */
+static void frame_check(Frame *f, RtCpuPool *p, const RtTileRun *r, const char *what, int64_t skipped)
 {
     RtCounters sum;
     char cores[256] = "";
@@ -48,14 +57,15 @@ static void frame_check(Frame *f, RtCpuPool *p, const char *what, int64_t skippe
         CHECK(bad == 0, "%s: %zu of %zu floats differ from the serial image", what, bad, n);
         CHECK(memcmp(&sum, &f->cref, sizeof sum) == 0, "%s: counters differ (%llu node visits against %llu)", what,
               (unsigned long long)sum.node_visits, (unsigned long long)f->cref.node_visits);
-        CHECK(f->done == f->ntiles && f->end_ns > 0, "%s: %lld of %lld tiles done, end %lld", what,
-              (long long)f->done, (long long)f->ntiles, (long long)f->end_ns);
+        CHECK(f->done == f->total && f->end_ns > 0, "%s: %lld of %lld strips done, end %lld", what,
+              (long long)f->done, (long long)f->total, (long long)f->end_ns);
+        for (int64_t s = 0; s < f->nstrips; s++)
+            CHECK(!strip_pixel(f, r, s) || f->state[s] & RT_TILE_DONE, "%s: strip %lld not marked done", what,
+                  (long long)s);
     } else {
-        CHECK(f->done == f->ntiles - skipped && f->end_ns == 0, "%s: %lld tiles done, %lld expected", what,
-              (long long)f->done, (long long)(f->ntiles - skipped));
+        CHECK(f->done == f->total - skipped && f->end_ns == 0, "%s: %lld strips done, %lld expected", what,
+              (long long)f->done, (long long)(f->total - skipped));
     }
-    for (int64_t t = 0; t < f->ntiles; t++)
-        CHECK(f->state[t] & RT_TILE_DONE, "%s: tile %lld not marked done", what, (long long)t);
 }
 
 static void check_frame(const RtSceneView *v, Frame *f)
@@ -68,14 +78,14 @@ static void check_frame(const RtSceneView *v, Frame *f)
         CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, f->w, f->h, &e) == 0, "pool: %s", e.msg);
         /* claims, then the backups' pass: whatever the split, one image */
         frame_reset(f);
-        RtTileRun run = {.v = v, .rx1 = f->w, .ry1 = f->h, .tw = f->tw, .th = f->th, .count = f->ntiles,
-                         .scan_count = f->ntiles, .scan_slots = 1, .rgb = f->img, .board = &f->board};
+        RtTileRun run = {.v = v, .rx1 = f->w, .ry1 = f->h, .tw = f->tw, .th = f->th, .count = f->nstrips,
+                         .scan_count = f->nstrips, .scan_slots = 1, .rgb = f->img, .board = &f->board};
         rt_cpu_render_tiles(&p, &run);
         snprintf(what, sizeof what, "%d threads, claims", threads[k]);
-        frame_check(f, &p, what, 0);
+        frame_check(f, &p, &run, what, 0);
         uint64_t runs, won;
         rt_cpu_pool_backups(&p, &runs, &won);
-        CHECK(won <= runs && runs <= (uint64_t)f->ntiles, "%s: %llu backups, %llu won", what,
+        CHECK(won <= runs && runs <= (uint64_t)f->total, "%s: %llu backups, %llu won", what,
               (unsigned long long)runs, (unsigned long long)won);
         rt_cpu_pool_free(&p);
 
@@ -85,47 +95,60 @@ static void check_frame(const RtSceneView *v, Frame *f)
         run.count = 0;
         rt_cpu_render_tiles(&p, &run);
         snprintf(what, sizeof what, "%d threads, backups only", threads[k]);
-        frame_check(f, &p, what, 0);
+        frame_check(f, &p, &run, what, 0);
         rt_cpu_pool_backups(&p, &runs, &won);
-        CHECK(runs == (uint64_t)f->ntiles && won == runs, "%s: %llu backups, %llu won, %lld tiles", what,
-              (unsigned long long)runs, (unsigned long long)won, (long long)f->ntiles);
+        CHECK(runs == (uint64_t)f->total && won == runs, "%s: %llu backups, %llu won, %lld strips", what,
+              (unsigned long long)runs, (unsigned long long)won, (long long)f->total);
         rt_cpu_pool_free(&p);
 
-        /* tiles already done elsewhere are neither backed up nor counted */
-        CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, f->w, f->h, &e) == 0, "pool: %s", e.msg);
-        frame_reset(f);
-        int64_t skipped = 0;
-        for (int64_t t = 0; t < f->ntiles; t += 3, skipped++)
-            f->state[t] = RT_TILE_DONE;
-        rt_cpu_render_tiles(&p, &run);
-        snprintf(what, sizeof what, "%d threads, a third done elsewhere", threads[k]);
-        frame_check(f, &p, what, skipped);
-        for (int64_t t = 0; t < f->ntiles; t += 3) {
-            int x0, y0, x1, y1;
-            rt_tile_rect(f->w, f->h, f->tw, f->th, (int)t, &x0, &y0, &x1, &y1);
-            CHECK(isnan(f->img[3 * ((size_t)y0 * (size_t)f->w + (size_t)x0)]), "%s: tile %lld written", what,
-                  (long long)t);
+        /* strips already done elsewhere are neither rendered nor counted;
+         * strips whose backup started elsewhere are left to it by their
+         * owner (here the backup never ends: they stay unwritten) */
+        for (unsigned mark = RT_TILE_DONE; mark <= RT_TILE_BACKUP; mark <<= 1) {
+            CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, f->w, f->h, &e) == 0, "pool: %s", e.msg);
+            frame_reset(f);
+            int64_t skipped = 0;
+            for (int64_t s = 0; s < f->nstrips; s += 3)
+                if (strip_pixel(f, &run, s)) {
+                    f->state[s] = (unsigned char)mark;
+                    skipped++;
+                }
+            run.count = f->nstrips;
+            rt_cpu_render_tiles(&p, &run);
+            snprintf(what, sizeof what, "%d threads, a third %s elsewhere", threads[k],
+                     mark == RT_TILE_DONE ? "done" : "backed up");
+            frame_check(f, &p, &run, what, skipped);
+            for (int64_t s = 0; s < f->nstrips; s += 3) {
+                const float *px = strip_pixel(f, &run, s);
+                CHECK(!px || (isnan(*px) && f->state[s] == (mark | RT_TILE_OWNER)), "%s: strip %lld written (%u)",
+                      what, (long long)s, f->state[s]);
+            }
+            rt_cpu_pool_free(&p);
         }
-        rt_cpu_pool_free(&p);
     }
 }
 
-/* One tile rendered twice: the first publishes, the second does not. */
+/* One strip rendered twice: the first publishes, the second does not. */
 static void check_twice(const RtSceneView *v, Frame *f)
 {
     frame_reset(f);
     RtTileRun run = {.v = v, .rx1 = f->w, .ry1 = f->h, .tw = f->tw, .th = f->th, .scan_slots = 1, .rgb = f->img,
                      .board = &f->board};
-    float *buf = malloc(sizeof(float) * 3 * (size_t)f->tw * (size_t)f->th);
+    float *buf = malloc(sizeof(float) * 3 * (size_t)f->tw);
     RtCounters a, b;
     memset(&a, 0, sizeof a);
     memset(&b, 0, sizeof b);
-    CHECK(rt_tile_render(&run, 1, buf, &a) == 1, "the first render of a tile publishes");
-    CHECK(rt_tile_render(&run, 1, buf, &b) == 0, "the second render of a tile does not");
-    CHECK(a.primary_rays == (uint64_t)f->tw * (uint64_t)f->th && b.primary_rays == 0,
+    CHECK(rt_strip_render(&run, 1, buf, &a) == 1, "the first render of a strip publishes");
+    CHECK(rt_strip_render(&run, 1, buf, &b) == 0, "the second render of a strip does not");
+    CHECK(a.primary_rays == (uint64_t)f->tw && b.primary_rays == 0,
           "only the first render counts: %llu, %llu primary rays", (unsigned long long)a.primary_rays,
           (unsigned long long)b.primary_rays);
-    CHECK(f->done == 1 && f->end_ns == 0, "one tile done (%lld), frame not complete", (long long)f->done);
+    rt_strips_done(&f->board, 1);
+    CHECK(f->done == 1 && f->end_ns == 0, "one strip done (%lld), frame not complete", (long long)f->done);
+    /* the bottom tiles' strips past the image's edge are empty */
+    const int64_t last = f->nstrips - 1;
+    CHECK(f->h % f->th != 0 && rt_strip_render(&run, last, buf, &a) == 0 && f->state[last] == 0,
+          "an empty strip renders nothing");
     free(buf);
 }
 
@@ -148,16 +171,17 @@ int main(int argc, char **argv)
     CHECK(rt_scene_camera(&s, &cam, &e) == 0, "camera: %s", e.msg);
     v = rt_scene_view(&s, &a, &cam);
     void *soa = rt_cpu_prepare(&v);
-    Frame f = {&v, 61, 47, 7, 5, rt_tile_count(61, 47, 7, 5), NULL, NULL, {0}, NULL, 0, 0, {0}};
+    Frame f = {&v, 61, 47, 7, 5, rt_strip_count(61, 47, 7, 5), rt_strip_total(61, 47, 7), NULL, NULL, {0}, NULL, 0,
+               0, {0}};
     size_t n = (size_t)f.w * (size_t)f.h * 3;
     f.ref = malloc(n * sizeof(float));
     f.img = malloc(n * sizeof(float));
-    f.state = malloc((size_t)f.ntiles);
+    f.state = malloc((size_t)f.nstrips);
     memset(&f.cref, 0, sizeof f.cref);
     rt_cpu_render_tile(&v, 0, 0, f.w, f.h, f.ref, 3 * (size_t)f.w, &f.cref);
     check_twice(&v, &f);
     check_frame(&v, &f);
-    printf("%s: %lld tiles of %dx%d\n", path, (long long)f.ntiles, f.tw, f.th);
+    printf("%s: %lld strips of %dx%d tiles\n", path, (long long)f.total, f.tw, f.th);
     free(f.ref);
     free(f.img);
     free(f.state);
