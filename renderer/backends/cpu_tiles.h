@@ -15,6 +15,7 @@
 #ifndef RT_CPU_TILES_H
 #define RT_CPU_TILES_H
 
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -144,32 +145,39 @@ static inline void rt_region_tile(int rx0, int ry0, int rx1, int ry1, int tw, in
  *
  * The unit of work is a strip: one row of a tile, tile-major (strip s is
  * row s % th of tile s / th), so a tile's rows stay together on one thread
- * while work is plentiful and the frame's last tile can still be shared. A
- * thread claims up to a tile of strips at a time, fewer as the claims run
+ * while work is plentiful and the frame's last tiles can still be shared.
+ * A thread claims up to a tile of strips at a time, fewer as the claims run
  * out (guided, Polychronopoulos and Kuck 1987).
  *
  * A thread that the operating system (or a hypervisor) takes off its core
  * while it holds work holds the frame: on a 64-core virtual machine such
  * stalls reach milliseconds, as long as a whole 512x384 frame. And the
  * frame's last tiles cost up to several times the average one: at 32 MPI
- * ranks the ranks ran out of work 0.5 ms apart in a 4 ms frame. So once
- * every strip is claimed, a thread with nothing left starts a second
- * render of a strip that is claimed and not yet finished, at most one per
- * strip: MapReduce's backup tasks (Dean and Ghemawat, OSDI 2004). Strips
- * claimed but not yet started are taken this way too, and their owner then
- * skips them. Both renders go into buffers of their own; whichever finishes
- * first sets the strip's DONE bit and copies its pixels into the image, and
- * only its counters count. A strip's pixels depend only on the scene, so
- * image and counters are those of one render, whoever wins. */
-#define RT_TILE_DONE 1u   /* its pixels are in the image */
-#define RT_TILE_BACKUP 2u /* its second render has started */
-#define RT_TILE_OWNER 4u  /* its claimed render has started */
+ * ranks, ranks ran out of work 0.5 ms apart in a 4 ms frame. So once every
+ * strip is claimed, a thread with nothing left starts a second render of a
+ * strip that is claimed and not yet finished, at most one per strip:
+ * MapReduce's backup tasks (Dean and Ghemawat, OSDI 2004). Strips claimed
+ * but not yet started are taken this way too, and their owner then skips
+ * them. Both renders go into buffers of their own; whichever is published
+ * first copies its pixels into the image, and only its counters count. A
+ * strip's pixels depend only on the scene, so image and counters are those
+ * of one render, whoever wins.
+ *
+ * States are bits, 16 strips of a tile to a 32-bit word: bit i says strip
+ * i's pixels are in the image, bit 16 + i that its backup has started. An
+ * owner publishes a tile's rows with one atomic per word (the frame's last
+ * claims, smaller than a tile, row by row), so a tile costs the atomics it
+ * did when the tile was the unit, and 16 tiles share a cache line. */
+#define RT_STRIP_DONE(i) (1u << (i))
+#define RT_STRIP_BACKUP(i) (1u << (16 + (i)))
 
-/* A frame's strips: a state byte each, and the count of strips in the
+static inline int rt_strip_words(int th) { return (th + 15) / 16; }
+
+/* A frame's strips: their state words, and the count of strips in the
  * image. The MPI backend keeps it in rank 0's shared window, so that ranks
  * back up each other's strips too. */
 typedef struct RtTileBoard {
-    unsigned char *state; /* per strip of the tiling (rt_strip_count): RT_TILE_* */
+    uint32_t *state;      /* rt_board_words of them: RT_STRIP_* */
     int64_t *done;        /* strips in the image */
     int64_t *end_ns;      /* when the last of them arrived (rt_now_ns, rt.h) */
     int64_t total;        /* strips in the frame (rt_strip_total) */
@@ -181,10 +189,15 @@ static inline int64_t rt_strip_count(int rw, int rh, int tw, int th)
 {
     return (int64_t)rt_tile_count(rw, rh, tw, th) * th;
 }
-/* ... and the strips that are not empty: one per tile column and row. */
+/* ... the strips that are not empty: one per tile column and row ... */
 static inline int64_t rt_strip_total(int rw, int rh, int tw)
 {
     return (int64_t)((rw + tw - 1) / tw) * rh;
+}
+/* ... and the board's state words. */
+static inline int64_t rt_board_words(int rw, int rh, int tw, int th)
+{
+    return (int64_t)rt_tile_count(rw, rh, tw, th) * rt_strip_words(th);
 }
 
 /* What rt_cpu_render_tiles does: claim strips [first, first + count) of the
@@ -199,37 +212,90 @@ typedef struct RtTileRun {
     int64_t scan_count;
     int scan_slot, scan_slots;
     float *rgb;           /* the whole image (stride = width) */
-    RtTileBoard *board;   /* states indexed by strip number in the tiling */
+    RtTileBoard *board;
     RtProgressFn progress;
     void *progress_ctx;
 } RtTileRun;
 
-/* Strip s's pixels [x0, x1) of image row y; 0 if it is empty. */
-static inline int rt_strip_rect(const RtTileRun *r, int64_t s, int *x0, int *y, int *x1)
+/* Where strip s is: its tile's pixels [x0, x1), the image row of its
+ * word's first strip (*yw), its bit in the word (*i), and whether it is
+ * not empty. */
+static inline uint32_t *rt_strip_at(const RtTileRun *r, int64_t s, int *x0, int *x1, int *yw, int *i, int *real)
 {
     int y0, y1;
-    rt_region_tile(r->rx0, r->ry0, r->rx1, r->ry1, r->tw, r->th, (int)(s / r->th), x0, &y0, x1, &y1);
-    *y = y0 + (int)(s % r->th);
-    return *y < y1;
+    const int64_t t = s / r->th;
+    const int row = (int)(s % r->th);
+    rt_region_tile(r->rx0, r->ry0, r->rx1, r->ry1, r->tw, r->th, (int)t, x0, &y0, x1, &y1);
+    *yw = y0 + row / 16 * 16;
+    *i = row % 16;
+    *real = y0 + row < y1;
+    return &r->board->state[t * rt_strip_words(r->th) + row / 16];
 }
 
-/* Strip s rendered into buf; its pixels copied into the image and its
- * counters added to *cnt only if this render is the first to finish it.
- * 1 if it was; the board's count is the caller's (rt_strips_done). */
+/* Publishes the rendered strips `mine` of one word: row i of buf (counters
+ * rc[i]) is bit i's, image row yw + i. Copies those no other render
+ * published first, adds their counters; how many it copied. */
+static inline int rt_strips_publish(const RtTileRun *r, uint32_t *word, uint32_t mine, int x0, int x1, int yw,
+                                    const float *buf, const RtCounters *rc, RtCounters *cnt)
+{
+    const uint32_t won = mine & ~__atomic_fetch_or(word, mine, __ATOMIC_ACQ_REL);
+    const size_t cw = (size_t)(x1 - x0) * 3, w = (size_t)r->v->cam.width;
+    for (uint32_t b = won; b; b &= b - 1) {
+        const int i = __builtin_ctz(b);
+        memcpy(r->rgb + 3 * ((size_t)(yw + i) * w + (size_t)x0), buf + (size_t)i * cw, cw * sizeof(float));
+        rt_counters_add(cnt, &rc[i]);
+    }
+    return __builtin_popcount(won);
+}
+
+/* Strip s rendered into buf (a tile buffer) and published: 1 if this
+ * render put it in the image. The board's count is the caller's
+ * (rt_strips_done). */
 static inline int rt_strip_render(const RtTileRun *r, int64_t s, float *buf, RtCounters *cnt)
 {
-    int x0, y, x1;
-    if (!rt_strip_rect(r, s, &x0, &y, &x1))
+    int x0, x1, yw, i, real;
+    uint32_t *word = rt_strip_at(r, s, &x0, &x1, &yw, &i, &real);
+    if (!real)
         return 0;
     const size_t cw = (size_t)(x1 - x0) * 3;
-    RtCounters c;
-    memset(&c, 0, sizeof c);
-    rt_cpu_render_tile(r->v, x0, y, x1, y + 1, buf, cw, &c);
-    if (__atomic_fetch_or(&r->board->state[s], RT_TILE_DONE, __ATOMIC_ACQ_REL) & RT_TILE_DONE)
-        return 0;
-    memcpy(r->rgb + 3 * ((size_t)y * (size_t)r->v->cam.width + (size_t)x0), buf, cw * sizeof(float));
-    rt_counters_add(cnt, &c);
-    return 1;
+    RtCounters rc[16];
+    memset(&rc[i], 0, sizeof rc[i]);
+    rt_cpu_render_tile(r->v, x0, yw + i, x1, yw + i + 1, buf + (size_t)i * cw, cw, &rc[i]);
+    return rt_strips_publish(r, word, RT_STRIP_DONE(i), x0, x1, yw, buf, rc, cnt);
+}
+
+/* The owner's render of claimed strips [s0, s0 + k): those no backup has
+ * taken, published a word at a time, or row by row when the claim is
+ * smaller than a tile (the frame's end, when backups run). */
+static inline int64_t rt_strips_render(const RtTileRun *r, int64_t s0, int64_t k, float *buf, RtCounters *cnt)
+{
+    const int per_row = k < r->th;
+    int64_t won = 0;
+    for (int64_t s = s0; s < s0 + k;) {
+        int x0, x1, yw, i, real;
+        uint32_t *word = rt_strip_at(r, s, &x0, &x1, &yw, &i, &real);
+        /* the claim's strips in this word: to the word's or the tile's end */
+        int64_t e = s - i + 16, tile_end = (s / r->th + 1) * r->th;
+        e = e < tile_end ? e : tile_end;
+        e = e < s0 + k ? e : s0 + k;
+        const size_t cw = (size_t)(x1 - x0) * 3;
+        RtCounters rc[16];
+        uint32_t mine = 0;
+        for (; s < e; s++) {
+            rt_strip_at(r, s, &x0, &x1, &yw, &i, &real);
+            if (!real || __atomic_load_n(word, __ATOMIC_RELAXED) & (RT_STRIP_DONE(i) | RT_STRIP_BACKUP(i)))
+                continue;
+            memset(&rc[i], 0, sizeof rc[i]);
+            rt_cpu_render_tile(r->v, x0, yw + i, x1, yw + i + 1, buf + (size_t)i * cw, cw, &rc[i]);
+            if (per_row)
+                won += rt_strips_publish(r, word, RT_STRIP_DONE(i), x0, x1, yw, buf, rc, cnt);
+            else
+                mine |= RT_STRIP_DONE(i);
+        }
+        if (mine)
+            won += rt_strips_publish(r, word, mine, x0, x1, yw, buf, rc, cnt);
+    }
+    return won;
 }
 
 /* n more strips are in the image; the last one stamps the frame's end. */
@@ -256,15 +322,11 @@ static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtTileRun *r)
         slot->start_ns = rt_now_ns();
         rt_cpu_note(slot);
         for (int64_t at; (at = __atomic_load_n(&next, __ATOMIC_RELAXED)) < end;) {
-            int64_t k = (end - at) / guide, won = 0;
+            int64_t k = (end - at) / guide;
             k = k < 1 ? 1 : k > r->th ? r->th : k;
             const int64_t s0 = __atomic_fetch_add(&next, k, __ATOMIC_RELAXED);
             k = s0 >= end ? 0 : end - s0 < k ? end - s0 : k;
-            for (int64_t s = s0; s < s0 + k; s++) /* skipped if a backup took it first */
-                if (!(__atomic_fetch_or(&r->board->state[s], RT_TILE_OWNER, __ATOMIC_RELAXED) &
-                      (RT_TILE_DONE | RT_TILE_BACKUP)))
-                    won += rt_strip_render(r, s, buf, &cnt);
-            rt_strips_done(r->board, won);
+            rt_strips_done(r->board, rt_strips_render(r, s0, k, buf, &cnt));
             rt_cpu_note(slot);
             if (r->progress && k) {
                 /* only thread 0 prints: no thread ever waits for the terminal */
@@ -278,10 +340,11 @@ static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtTileRun *r)
                                                ((int64_t)r->scan_slots * p->nthreads);
         for (int64_t k = 0; k < n; k++) {
             const int64_t s = (k0 + k) % n;
-            const unsigned busy = RT_TILE_DONE | RT_TILE_BACKUP;
-            int x0, y, x1;
-            if (__atomic_load_n(&r->board->state[s], __ATOMIC_RELAXED) & busy || !rt_strip_rect(r, s, &x0, &y, &x1) ||
-                __atomic_fetch_or(&r->board->state[s], RT_TILE_BACKUP, __ATOMIC_RELAXED) & busy)
+            int x0, x1, yw, i, real;
+            uint32_t *word = rt_strip_at(r, s, &x0, &x1, &yw, &i, &real);
+            const uint32_t busy = RT_STRIP_DONE(i) | RT_STRIP_BACKUP(i);
+            if (!real || __atomic_load_n(word, __ATOMIC_RELAXED) & busy ||
+                __atomic_fetch_or(word, RT_STRIP_BACKUP(i), __ATOMIC_RELAXED) & busy)
                 continue;
             const int won = rt_strip_render(r, s, buf, &cnt);
             slot->backups++;

@@ -93,7 +93,8 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
     int y0 = displs[rt_mpi_rank] / (w * 3), y1 = y0 + counts[rt_mpi_rank] / (w * 3);
     /* the rank's strips, backed up among its own threads */
     const int64_t nstrips = y1 > y0 ? rt_strip_count(w, y1 - y0, tw, th) : 0;
-    unsigned char *state = calloc((size_t)nstrips + 1, 1); /* + 1: never calloc(0), which may be NULL */
+    /* + 1: never calloc(0), which may be NULL */
+    uint32_t *state = calloc((size_t)(y1 > y0 ? rt_board_words(w, y1 - y0, tw, th) : 0) + 1, sizeof *state);
     if (!state)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
     int64_t done = 0, end_ns = 0;
@@ -158,7 +159,7 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
 {
     const RtSceneView *v = &job->view;
     int w = v->cam.width, h = v->cam.height;
-    const int64_t nstrips = rt_strip_count(w, h, tw, th);
+    const int64_t nstrips = rt_strip_count(w, h, tw, th), words = rt_board_words(w, h, tw, th);
     RtMpiImage m;
     /* Each thread's CPU, claim or no claim: a rank that gets no tile still
      * ran where it was bound (the record's cores, the harness's pinning check). */
@@ -169,8 +170,8 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
      * ranks back up each other's strips (cpu_tiles.h); across nodes each
      * rank keeps one for its own threads. */
     const int shared = rt_mpi_local_size == rt_mpi_size && !test_separate() && rt_mpi_size > 1;
-    rt_mpi_image_open(&m, (size_t)w * (size_t)h * 3 * sizeof(float), rgb, shared, shared ? 128 + (size_t)nstrips : 0);
-    unsigned char *local = shared ? NULL : calloc((size_t)nstrips, 1);
+    rt_mpi_image_open(&m, (size_t)w * (size_t)h * 3 * sizeof(float), rgb, shared, shared ? 128 + 4 * (size_t)words : 0);
+    uint32_t *local = shared ? NULL : calloc((size_t)words, sizeof *local);
     int64_t local_done = 0, local_end = 0;
     if (!shared && !local)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
@@ -178,7 +179,7 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
     if (shared) {
         board.done = (int64_t *)m.extra;
         board.end_ns = (int64_t *)m.extra + 1;
-        board.state = (unsigned char *)m.extra + 128;
+        board.state = (uint32_t *)(void *)((char *)m.extra + 128);
     }
     RtTileRun run = {.v = v, .rx1 = w, .ry1 = h, .tw = tw, .th = th, .scan_slot = rt_mpi_rank,
                      .scan_slots = rt_mpi_size, .rgb = m.direct ? (float *)m.img0 : rgb, .board = &board};

@@ -26,7 +26,7 @@ static int render_openmp(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     RtCpuPool pool;
     if (rt_cpu_pool_init(&pool, rt_cpu_threads(job->threads, 0), pixels ? 0 : tw, th, w, h, err) != 0)
         return -1;
-    unsigned char *state = pixels ? NULL : calloc((size_t)nstrips, 1);
+    uint32_t *state = pixels ? NULL : calloc((size_t)rt_board_words(w, h, tw, th), sizeof *state);
     if (!pixels && !state) {
         rt_cpu_pool_free(&pool);
         return rt_fail(err, "out of memory for %lld tile rows", (long long)nstrips);

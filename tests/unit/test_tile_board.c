@@ -19,10 +19,10 @@
 typedef struct {
     const RtSceneView *v;
     int w, h, tw, th;
-    int64_t nstrips, total; /* strip numbers, and strips that are not empty */
+    int64_t nstrips, total, words; /* strip numbers, strips that are not empty, state words */
     float *ref, *img;
     RtCounters cref;
-    unsigned char *state;
+    uint32_t *state;
     int64_t done, end_ns;
     RtTileBoard board;
 } Frame;
@@ -31,7 +31,7 @@ static void frame_reset(Frame *f)
 {
     for (size_t i = 0; i < (size_t)f->w * (size_t)f->h * 3; i++)
         f->img[i] = NAN;
-    memset(f->state, 0, (size_t)f->nstrips);
+    memset(f->state, 0, (size_t)f->words * sizeof *f->state);
     f->done = f->end_ns = 0;
     f->board = (RtTileBoard){f->state, &f->done, &f->end_ns, f->total};
 }
@@ -39,8 +39,17 @@ static void frame_reset(Frame *f)
 /* The first pixel of strip s, or NULL if the strip is empty. */
 static const float *strip_pixel(const Frame *f, const RtTileRun *r, int64_t s)
 {
-    int x0, y, x1;
-    return rt_strip_rect(r, s, &x0, &y, &x1) ? &f->img[3 * ((size_t)y * (size_t)f->w + (size_t)x0)] : NULL;
+    int x0, x1, yw, i, real;
+    rt_strip_at(r, s, &x0, &x1, &yw, &i, &real);
+    return real ? &f->img[3 * ((size_t)(yw + i) * (size_t)f->w + (size_t)x0)] : NULL;
+}
+
+/* Strip s's state: 1 if done, 2 if backed up, 3 both. */
+static unsigned strip_state(const RtTileRun *r, int64_t s)
+{
+    int x0, x1, yw, i, real;
+    const uint32_t w = *rt_strip_at(r, s, &x0, &x1, &yw, &i, &real);
+    return (w >> i & 1) | (w >> (16 + i) & 1) << 1;
 }
 
 /* The pool's counters and the image against the serial ones; `skipped`
@@ -60,7 +69,7 @@ static void frame_check(Frame *f, RtCpuPool *p, const RtTileRun *r, const char *
         CHECK(f->done == f->total && f->end_ns > 0, "%s: %lld of %lld strips done, end %lld", what,
               (long long)f->done, (long long)f->total, (long long)f->end_ns);
         for (int64_t s = 0; s < f->nstrips; s++)
-            CHECK(!strip_pixel(f, r, s) || f->state[s] & RT_TILE_DONE, "%s: strip %lld not marked done", what,
+            CHECK(!strip_pixel(f, r, s) || strip_state(r, s) & 1, "%s: strip %lld not marked done", what,
                   (long long)s);
     } else {
         CHECK(f->done == f->total - skipped && f->end_ns == 0, "%s: %lld strips done, %lld expected", what,
@@ -104,24 +113,25 @@ static void check_frame(const RtSceneView *v, Frame *f)
         /* strips already done elsewhere are neither rendered nor counted;
          * strips whose backup started elsewhere are left to it by their
          * owner (here the backup never ends: they stay unwritten) */
-        for (unsigned mark = RT_TILE_DONE; mark <= RT_TILE_BACKUP; mark <<= 1) {
+        for (unsigned mark = 1; mark <= 2; mark <<= 1) {
             CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, f->w, f->h, &e) == 0, "pool: %s", e.msg);
             frame_reset(f);
             int64_t skipped = 0;
             for (int64_t s = 0; s < f->nstrips; s += 3)
                 if (strip_pixel(f, &run, s)) {
-                    f->state[s] = (unsigned char)mark;
+                    int x0, x1, yw, i, real;
+                    *rt_strip_at(&run, s, &x0, &x1, &yw, &i, &real) |= mark == 1 ? RT_STRIP_DONE(i) : RT_STRIP_BACKUP(i);
                     skipped++;
                 }
             run.count = f->nstrips;
             rt_cpu_render_tiles(&p, &run);
             snprintf(what, sizeof what, "%d threads, a third %s elsewhere", threads[k],
-                     mark == RT_TILE_DONE ? "done" : "backed up");
+                     mark == 1 ? "done" : "backed up");
             frame_check(f, &p, &run, what, skipped);
             for (int64_t s = 0; s < f->nstrips; s += 3) {
                 const float *px = strip_pixel(f, &run, s);
-                CHECK(!px || (isnan(*px) && f->state[s] == (mark | RT_TILE_OWNER)), "%s: strip %lld written (%u)",
-                      what, (long long)s, f->state[s]);
+                CHECK(!px || (isnan(*px) && strip_state(&run, s) == mark), "%s: strip %lld written (%u)", what,
+                      (long long)s, strip_state(&run, s));
             }
             rt_cpu_pool_free(&p);
         }
@@ -134,7 +144,7 @@ static void check_twice(const RtSceneView *v, Frame *f)
     frame_reset(f);
     RtTileRun run = {.v = v, .rx1 = f->w, .ry1 = f->h, .tw = f->tw, .th = f->th, .scan_slots = 1, .rgb = f->img,
                      .board = &f->board};
-    float *buf = malloc(sizeof(float) * 3 * (size_t)f->tw);
+    float *buf = malloc(sizeof(float) * 3 * (size_t)f->tw * (size_t)f->th);
     RtCounters a, b;
     memset(&a, 0, sizeof a);
     memset(&b, 0, sizeof b);
@@ -147,7 +157,7 @@ static void check_twice(const RtSceneView *v, Frame *f)
     CHECK(f->done == 1 && f->end_ns == 0, "one strip done (%lld), frame not complete", (long long)f->done);
     /* the bottom tiles' strips past the image's edge are empty */
     const int64_t last = f->nstrips - 1;
-    CHECK(f->h % f->th != 0 && rt_strip_render(&run, last, buf, &a) == 0 && f->state[last] == 0,
+    CHECK(f->h % f->th != 0 && rt_strip_render(&run, last, buf, &a) == 0 && strip_state(&run, last) == 0,
           "an empty strip renders nothing");
     free(buf);
 }
@@ -164,27 +174,32 @@ int main(int argc, char **argv)
     const char *path = check_scene_path(argv[1], buf, sizeof buf);
     if (fixture_load(path, &s, &a, &cam, &v) != 0)
         return check_report("test_tile_board");
-    /* 61x47 in 7x5 tiles: uneven edges */
+    /* 61x47: uneven edges, in 7x5 tiles (one state word per tile) and in
+     * 9x20 tiles (two, the second half used; the bottom tiles 7 rows) */
     RtError e;
     s.settings.width = 61;
     s.settings.height = 47;
     CHECK(rt_scene_camera(&s, &cam, &e) == 0, "camera: %s", e.msg);
     v = rt_scene_view(&s, &a, &cam);
     void *soa = rt_cpu_prepare(&v);
-    Frame f = {&v, 61, 47, 7, 5, rt_strip_count(61, 47, 7, 5), rt_strip_total(61, 47, 7), NULL, NULL, {0}, NULL, 0,
-               0, {0}};
-    size_t n = (size_t)f.w * (size_t)f.h * 3;
-    f.ref = malloc(n * sizeof(float));
-    f.img = malloc(n * sizeof(float));
-    f.state = malloc((size_t)f.nstrips);
-    memset(&f.cref, 0, sizeof f.cref);
-    rt_cpu_render_tile(&v, 0, 0, f.w, f.h, f.ref, 3 * (size_t)f.w, &f.cref);
-    check_twice(&v, &f);
-    check_frame(&v, &f);
-    printf("%s: %lld strips of %dx%d tiles\n", path, (long long)f.total, f.tw, f.th);
-    free(f.ref);
-    free(f.img);
-    free(f.state);
+    const int tiles[2][2] = {{7, 5}, {9, 20}};
+    for (int k = 0; k < 2; k++) {
+        const int tw = tiles[k][0], th = tiles[k][1];
+        Frame f = {&v, 61, 47, tw, th, rt_strip_count(61, 47, tw, th), rt_strip_total(61, 47, tw),
+                   rt_board_words(61, 47, tw, th), NULL, NULL, {0}, NULL, 0, 0, {0}};
+        size_t n = (size_t)f.w * (size_t)f.h * 3;
+        f.ref = malloc(n * sizeof(float));
+        f.img = malloc(n * sizeof(float));
+        f.state = malloc((size_t)f.words * sizeof *f.state);
+        memset(&f.cref, 0, sizeof f.cref);
+        rt_cpu_render_tile(&v, 0, 0, f.w, f.h, f.ref, 3 * (size_t)f.w, &f.cref);
+        check_twice(&v, &f);
+        check_frame(&v, &f);
+        printf("%s: %lld strips of %dx%d tiles\n", path, (long long)f.total, f.tw, f.th);
+        free(f.ref);
+        free(f.img);
+        free(f.state);
+    }
     free(soa);
     fixture_free(&s, &a);
     return check_report("test_tile_board");
