@@ -265,11 +265,11 @@ static inline int rt_strip_render(const RtTileRun *r, int64_t s, float *buf, RtC
 }
 
 /* The owner's render of claimed strips [s0, s0 + k): those no backup has
- * taken, published a word at a time, or row by row when the claim is
- * smaller than a tile (the frame's end, when backups run). */
+ * taken, published a word at a time, or row by row when the claim is a
+ * quarter of a tile or less (the frame's end, when backups run). */
 static inline int64_t rt_strips_render(const RtTileRun *r, int64_t s0, int64_t k, float *buf, RtCounters *cnt)
 {
-    const int per_row = k < r->th;
+    const int per_row = 4 * k <= r->th;
     int64_t won = 0;
     for (int64_t s = s0; s < s0 + k;) {
         int x0, x1, yw, i, real;
@@ -296,6 +296,18 @@ static inline int64_t rt_strips_render(const RtTileRun *r, int64_t s0, int64_t k
             won += rt_strips_publish(r, word, mine, x0, x1, yw, buf, rc, cnt);
     }
     return won;
+}
+
+/* The strips of state word wd that exist: a tile at the region's bottom
+ * edge, or the last word of a tile when th is not a multiple of 16, has
+ * fewer. */
+static inline uint32_t rt_word_strips(const RtTileRun *r, int64_t wd)
+{
+    const int wpt = rt_strip_words(r->th), cols = (r->rx1 - r->rx0 + r->tw - 1) / r->tw;
+    int rows = r->ry1 - r->ry0 - (int)(wd / wpt / cols) * r->th;
+    rows = rows < r->th ? rows : r->th;
+    const int n = rows - (int)(wd % wpt) * 16;
+    return n >= 16 ? 0xffffu : n > 0 ? (1u << n) - 1 : 0;
 }
 
 /* n more strips are in the image; the last one stamps the frame's end. */
@@ -336,20 +348,29 @@ static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtTileRun *r)
             }
         }
         slot->end_ns = rt_now_ns();
-        const int64_t n = r->scan_count, k0 = n * (int64_t)(r->scan_slot * p->nthreads + tid) /
-                                               ((int64_t)r->scan_slots * p->nthreads);
+        /* the backups' pass, a state word at a time: a word of finished
+         * strips costs one load */
+        const int wpt = rt_strip_words(r->th);
+        const int64_t n = r->scan_count / r->th * wpt, k0 = n * (int64_t)(r->scan_slot * p->nthreads + tid) /
+                                                             ((int64_t)r->scan_slots * p->nthreads);
         for (int64_t k = 0; k < n; k++) {
-            const int64_t s = (k0 + k) % n;
-            int x0, x1, yw, i, real;
-            uint32_t *word = rt_strip_at(r, s, &x0, &x1, &yw, &i, &real);
-            const uint32_t busy = RT_STRIP_DONE(i) | RT_STRIP_BACKUP(i);
-            if (!real || __atomic_load_n(word, __ATOMIC_RELAXED) & busy ||
-                __atomic_fetch_or(word, RT_STRIP_BACKUP(i), __ATOMIC_RELAXED) & busy)
-                continue;
-            const int won = rt_strip_render(r, s, buf, &cnt);
-            slot->backups++;
-            slot->backups_won += (uint64_t)won;
-            rt_strips_done(r->board, won);
+            const int64_t wd = (k0 + k) % n;
+            uint32_t *word = &r->board->state[wd];
+            uint32_t st = __atomic_load_n(word, __ATOMIC_RELAXED), open = ~(st | st >> 16) & 0xffffu;
+            if (open)
+                open &= rt_word_strips(r, wd);
+            while (open) {
+                const int i = __builtin_ctz(open);
+                if (!(__atomic_fetch_or(word, RT_STRIP_BACKUP(i), __ATOMIC_RELAXED) &
+                      (RT_STRIP_DONE(i) | RT_STRIP_BACKUP(i)))) {
+                    const int won = rt_strip_render(r, wd / wpt * r->th + wd % wpt * 16 + i, buf, &cnt);
+                    slot->backups++;
+                    slot->backups_won += (uint64_t)won;
+                    rt_strips_done(r->board, won);
+                }
+                st = __atomic_load_n(word, __ATOMIC_RELAXED);
+                open &= ~(st | st >> 16) & ~RT_STRIP_DONE(i);
+            }
         }
         rt_counters_add(&slot->cnt, &cnt);
     }
