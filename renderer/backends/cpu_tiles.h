@@ -156,12 +156,14 @@ static inline void rt_region_tile(int rx0, int ry0, int rx1, int ry1, int tw, in
  * ranks, ranks ran out of work 0.5 ms apart in a 4 ms frame. So once every
  * strip is claimed, a thread with nothing left starts a second render of a
  * strip that is claimed and not yet finished, at most one per strip:
- * MapReduce's backup tasks (Dean and Ghemawat, OSDI 2004). Strips claimed
- * but not yet started are taken this way too, and their owner then skips
- * them. Both renders go into buffers of their own; whichever is published
- * first copies its pixels into the image, and only its counters count. A
- * strip's pixels depend only on the scene, so image and counters are those
- * of one render, whoever wins.
+ * MapReduce's backup tasks (Dean and Ghemawat, OSDI 2004). Backups take a
+ * tile's strips from its last row up, while the owner renders from its
+ * first, skipping those already in the image: the two meet in the middle,
+ * and a backup that is itself taken off its core never holds a strip whose
+ * owner is running. Both renders go into buffers of their own; whichever
+ * is published first copies its pixels into the image, and only its
+ * counters count. A strip's pixels depend only on the scene, so image and
+ * counters are those of one render, whoever wins.
  *
  * States are bits, 16 strips of a tile to a 32-bit word: bit i says strip
  * i's pixels are in the image, bit 16 + i that its backup has started. An
@@ -264,8 +266,8 @@ static inline int rt_strip_render(const RtTileRun *r, int64_t s, float *buf, RtC
     return rt_strips_publish(r, word, RT_STRIP_DONE(i), x0, x1, yw, buf, rc, cnt);
 }
 
-/* The owner's render of claimed strips [s0, s0 + k): those no backup has
- * taken, published a word at a time, or row by row when the claim is a
+/* The owner's render of claimed strips [s0, s0 + k): those not yet in the
+ * image, published a word at a time, or row by row when the claim is a
  * quarter of a tile or less (the frame's end, when backups run). */
 static inline int64_t rt_strips_render(const RtTileRun *r, int64_t s0, int64_t k, float *buf, RtCounters *cnt)
 {
@@ -283,7 +285,7 @@ static inline int64_t rt_strips_render(const RtTileRun *r, int64_t s0, int64_t k
         uint32_t mine = 0;
         for (; s < e; s++) {
             rt_strip_at(r, s, &x0, &x1, &yw, &i, &real);
-            if (!real || __atomic_load_n(word, __ATOMIC_RELAXED) & (RT_STRIP_DONE(i) | RT_STRIP_BACKUP(i)))
+            if (!real || __atomic_load_n(word, __ATOMIC_RELAXED) & RT_STRIP_DONE(i))
                 continue;
             memset(&rc[i], 0, sizeof rc[i]);
             rt_cpu_render_tile(r->v, x0, yw + i, x1, yw + i + 1, buf + (size_t)i * cw, cw, &rc[i]);
@@ -359,8 +361,8 @@ static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtTileRun *r)
             uint32_t st = __atomic_load_n(word, __ATOMIC_RELAXED), open = ~(st | st >> 16) & 0xffffu;
             if (open)
                 open &= rt_word_strips(r, wd);
-            while (open) {
-                const int i = __builtin_ctz(open);
+            while (open) { /* from the word's last strip: the owner works up from its first */
+                const int i = 31 - __builtin_clz(open);
                 if (!(__atomic_fetch_or(word, RT_STRIP_BACKUP(i), __ATOMIC_RELAXED) &
                       (RT_STRIP_DONE(i) | RT_STRIP_BACKUP(i)))) {
                     const int won = rt_strip_render(r, wd / wpt * r->th + wd % wpt * 16 + i, buf, &cnt);
