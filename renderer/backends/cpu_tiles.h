@@ -33,7 +33,7 @@
  * line: counters merged at the end, never atomics in the pixel loop. */
 typedef struct RtCpuSlot {
     RtCounters cnt;                         /* work counters of this thread (40 bytes) */
-    uint64_t backups;                       /* second renders of a tile it started */
+    uint64_t backups;                       /* second renders of a strip it started */
     uint64_t backups_won;                   /* ... whose pixels went into the image */
     int64_t start_ns, end_ns;               /* its last tile loop: entered, out of claims */
     uint64_t cpus[RT_CPU_MAX_CPUS / 64];    /* bitmask of CPUs it ran on (128 bytes) */
@@ -71,8 +71,8 @@ static inline int rt_cpu_threads(int requested, int fallback)
 #endif
 }
 
-/* A pool of nthreads, each with a buffer for one tw x th tile of a w x h
- * image (tw 0: the pool renders no tiles). */
+/* A pool of nthreads, each with a buffer for the strips of one tw x th
+ * tile of a w x h image (tw 0: the pool renders no tiles). */
 static inline int rt_cpu_pool_init(RtCpuPool *p, int nthreads, int tw, int th, int w, int h, RtError *err)
 {
     p->nthreads = nthreads;
@@ -80,8 +80,9 @@ static inline int rt_cpu_pool_init(RtCpuPool *p, int nthreads, int tw, int th, i
     p->mem = aligned_alloc(128, p->stride * (size_t)nthreads);
     tw = tw < w ? tw : w;
     th = th < h ? th : h;
-    /* whole lines per thread: no two threads write one line */
-    p->tile_floats = ((size_t)tw * (size_t)th * 3 + 31) / 32 * 32;
+    /* a strip is rendered into row (its row in the tile) % 16, so 16 rows
+     * at most; whole lines per thread: no two threads write one line */
+    p->tile_floats = ((size_t)tw * (size_t)(th < 16 ? th : 16) * 3 + 31) / 32 * 32;
     p->tiles = p->tile_floats ? aligned_alloc(128, p->tile_floats * sizeof(float) * (size_t)nthreads) : NULL;
     if (!p->mem || (p->tile_floats && !p->tiles)) {
         free(p->mem);
@@ -168,7 +169,7 @@ static inline void rt_region_tile(int rx0, int ry0, int rx1, int ry1, int tw, in
  * States are bits, 16 strips of a tile to a 32-bit word: bit i says strip
  * i's pixels are in the image, bit 16 + i that its backup has started. An
  * owner publishes a tile's rows with one atomic per word (the frame's last
- * claims, smaller than a tile, row by row), so a tile costs the atomics it
+ * claims, a quarter of a tile or less, row by row), so a tile costs the atomics it
  * did when the tile was the unit, and 16 tiles share a cache line. */
 #define RT_STRIP_DONE(i) (1u << (i))
 #define RT_STRIP_BACKUP(i) (1u << (16 + (i)))

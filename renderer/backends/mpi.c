@@ -5,19 +5,19 @@
  *   --mpi-schedule rows     the report's scheme: rank r renders a contiguous
  *                           block of rows (the first H % P ranks one extra),
  *                           then one MPI_Gatherv of float RGB to rank 0.
- *   --mpi-schedule dynamic  (default) the load-balanced scheme: tiles are
- *                           claimed from a shared counter with MPI-3
- *                           MPI_Fetch_and_op, and each finished tile is
- *                           MPI_Put straight into rank 0's image, so the image
- *                           is complete when the last tile lands: no second
- *                           gather. Rank 0 renders like every other rank; it
- *                           never has to answer requests, because the
- *                           counter and the image live in an MPI window
- *                           (one-sided: on one node Open MPI's osc/sm turns
- *                           both into plain shared-memory atomics and copies).
- *                           On one node the window also holds the tile
- *                           board, so ranks back up each other's tiles once
- *                           the counter is spent (cpu_tiles.h).
+ *   --mpi-schedule dynamic  (default) the load-balanced scheme: strips (rows
+ *                           of tiles, cpu_tiles.h) are claimed from a shared
+ *                           counter with MPI-3 MPI_Fetch_and_op, and each
+ *                           claim's pixels are MPI_Put straight into rank 0's
+ *                           image, so the image is complete when the last
+ *                           strip lands: no second gather. Rank 0 renders
+ *                           like every other rank; it never has to answer
+ *                           requests, because the counter and the image live
+ *                           in an MPI window (one-sided: on one node a shared
+ *                           window, where both are plain shared-memory
+ *                           atomics and stores). On one node the window also
+ *                           holds the strips' board, so ranks back up each
+ *                           other's strips once the counter is spent.
  *
  * Start and end, the scene on every rank, agreeing on failures and the
  * shared image's window and claims are mpi_common.c's, shared with

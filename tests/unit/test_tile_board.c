@@ -120,7 +120,8 @@ static void check_frame(const RtSceneView *v, Frame *f)
             for (int64_t s = 0; s < f->nstrips; s += 3)
                 if (strip_pixel(f, &run, s)) {
                     int x0, x1, yw, i, real;
-                    *rt_strip_at(&run, s, &x0, &x1, &yw, &i, &real) |= mark == 1 ? RT_STRIP_DONE(i) : RT_STRIP_BACKUP(i);
+                    uint32_t *word = rt_strip_at(&run, s, &x0, &x1, &yw, &i, &real); /* sets i */
+                    *word |= mark == 1 ? RT_STRIP_DONE(i) : RT_STRIP_BACKUP(i);
                     skipped += mark == 1;
                 }
             run.count = f->nstrips;
