@@ -220,10 +220,22 @@ typedef struct RtTileRun {
     void *progress_ctx;
 } RtTileRun;
 
+/* The strips of state word wd that exist: a tile at the region's bottom
+ * edge, or the last word of a tile when th is not a multiple of 16, has
+ * fewer. */
+static inline uint32_t rt_word_strips(const RtTileRun *r, int64_t wd)
+{
+    const int wpt = rt_strip_words(r->th), cols = (r->rx1 - r->rx0 + r->tw - 1) / r->tw;
+    int rows = r->ry1 - r->ry0 - (int)(wd / wpt / cols) * r->th;
+    rows = rows < r->th ? rows : r->th;
+    const int n = rows - (int)(wd % wpt) * 16;
+    return n >= 16 ? 0xffffu : n > 0 ? (1u << n) - 1 : 0;
+}
+
 /* Where strip s is: its tile's pixels [x0, x1), the image row of its
- * word's first strip (*yw), its bit in the word (*i), and whether it is
- * not empty. */
-static inline uint32_t *rt_strip_at(const RtTileRun *r, int64_t s, int *x0, int *x1, int *yw, int *i, int *real)
+ * word's first strip (*yw) and its bit in the word (*i); whether it exists
+ * is rt_word_strips's. */
+static inline uint32_t *rt_strip_at(const RtTileRun *r, int64_t s, int *x0, int *x1, int *yw, int *i)
 {
     int y0, y1;
     const int64_t t = s / r->th;
@@ -231,7 +243,6 @@ static inline uint32_t *rt_strip_at(const RtTileRun *r, int64_t s, int *x0, int 
     rt_region_tile(r->rx0, r->ry0, r->rx1, r->ry1, r->tw, r->th, (int)t, x0, &y0, x1, &y1);
     *yw = y0 + row / 16 * 16;
     *i = row % 16;
-    *real = y0 + row < y1;
     return &r->board->state[t * rt_strip_words(r->th) + row / 16];
 }
 
@@ -256,9 +267,9 @@ static inline int rt_strips_publish(const RtTileRun *r, uint32_t *word, uint32_t
  * (rt_strips_done). */
 static inline int rt_strip_render(const RtTileRun *r, int64_t s, float *buf, RtCounters *cnt)
 {
-    int x0, x1, yw, i, real;
-    uint32_t *word = rt_strip_at(r, s, &x0, &x1, &yw, &i, &real);
-    if (!real)
+    int x0, x1, yw, i;
+    uint32_t *word = rt_strip_at(r, s, &x0, &x1, &yw, &i);
+    if (!(rt_word_strips(r, word - r->board->state) & RT_STRIP_DONE(i)))
         return 0;
     const size_t cw = (size_t)(x1 - x0) * 3;
     RtCounters rc[16];
@@ -275,8 +286,9 @@ static inline int64_t rt_strips_render(const RtTileRun *r, int64_t s0, int64_t k
     const int per_row = 4 * k <= r->th;
     int64_t won = 0;
     for (int64_t s = s0; s < s0 + k;) {
-        int x0, x1, yw, i, real;
-        uint32_t *word = rt_strip_at(r, s, &x0, &x1, &yw, &i, &real);
+        int x0, x1, yw, i;
+        uint32_t *word = rt_strip_at(r, s, &x0, &x1, &yw, &i);
+        const uint32_t exist = rt_word_strips(r, word - r->board->state);
         /* the claim's strips in this word: to the word's or the tile's end */
         int64_t e = s - i + 16, tile_end = (s / r->th + 1) * r->th;
         e = e < tile_end ? e : tile_end;
@@ -284,9 +296,8 @@ static inline int64_t rt_strips_render(const RtTileRun *r, int64_t s0, int64_t k
         const size_t cw = (size_t)(x1 - x0) * 3;
         RtCounters rc[16];
         uint32_t mine = 0;
-        for (; s < e; s++) {
-            rt_strip_at(r, s, &x0, &x1, &yw, &i, &real);
-            if (!real || __atomic_load_n(word, __ATOMIC_RELAXED) & RT_STRIP_DONE(i))
+        for (; s < e; s++, i++) {
+            if (!(exist & RT_STRIP_DONE(i)) || __atomic_load_n(word, __ATOMIC_RELAXED) & RT_STRIP_DONE(i))
                 continue;
             memset(&rc[i], 0, sizeof rc[i]);
             rt_cpu_render_tile(r->v, x0, yw + i, x1, yw + i + 1, buf + (size_t)i * cw, cw, &rc[i]);
@@ -299,18 +310,6 @@ static inline int64_t rt_strips_render(const RtTileRun *r, int64_t s0, int64_t k
             won += rt_strips_publish(r, word, mine, x0, x1, yw, buf, rc, cnt);
     }
     return won;
-}
-
-/* The strips of state word wd that exist: a tile at the region's bottom
- * edge, or the last word of a tile when th is not a multiple of 16, has
- * fewer. */
-static inline uint32_t rt_word_strips(const RtTileRun *r, int64_t wd)
-{
-    const int wpt = rt_strip_words(r->th), cols = (r->rx1 - r->rx0 + r->tw - 1) / r->tw;
-    int rows = r->ry1 - r->ry0 - (int)(wd / wpt / cols) * r->th;
-    rows = rows < r->th ? rows : r->th;
-    const int n = rows - (int)(wd % wpt) * 16;
-    return n >= 16 ? 0xffffu : n > 0 ? (1u << n) - 1 : 0;
 }
 
 /* n more strips are in the image; the last one stamps the frame's end. */

@@ -39,16 +39,18 @@ static void frame_reset(Frame *f)
 /* The first pixel of strip s, or NULL if the strip is empty. */
 static const float *strip_pixel(const Frame *f, const RtTileRun *r, int64_t s)
 {
-    int x0, x1, yw, i, real;
-    rt_strip_at(r, s, &x0, &x1, &yw, &i, &real);
-    return real ? &f->img[3 * ((size_t)(yw + i) * (size_t)f->w + (size_t)x0)] : NULL;
+    int x0, x1, yw, i;
+    const uint32_t *word = rt_strip_at(r, s, &x0, &x1, &yw, &i);
+    return rt_word_strips(r, word - r->board->state) & RT_STRIP_DONE(i)
+               ? &f->img[3 * ((size_t)(yw + i) * (size_t)f->w + (size_t)x0)]
+               : NULL;
 }
 
 /* Strip s's state: 1 if done, 2 if backed up, 3 both. */
 static unsigned strip_state(const RtTileRun *r, int64_t s)
 {
-    int x0, x1, yw, i, real;
-    const uint32_t w = *rt_strip_at(r, s, &x0, &x1, &yw, &i, &real);
+    int x0, x1, yw, i;
+    const uint32_t w = *rt_strip_at(r, s, &x0, &x1, &yw, &i);
     return (w >> i & 1) | (w >> (16 + i) & 1) << 1;
 }
 
@@ -119,8 +121,8 @@ static void check_frame(const RtSceneView *v, Frame *f)
             int64_t skipped = 0;
             for (int64_t s = 0; s < f->nstrips; s += 3)
                 if (strip_pixel(f, &run, s)) {
-                    int x0, x1, yw, i, real;
-                    uint32_t *word = rt_strip_at(&run, s, &x0, &x1, &yw, &i, &real); /* sets i */
+                    int x0, x1, yw, i;
+                    uint32_t *word = rt_strip_at(&run, s, &x0, &x1, &yw, &i); /* sets i */
                     *word |= mark == 1 ? RT_STRIP_DONE(i) : RT_STRIP_BACKUP(i);
                     skipped += mark == 1;
                 }
