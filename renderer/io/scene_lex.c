@@ -142,24 +142,21 @@ int lex_indices(Parser *p, const char *cmd, const char *v, int64_t *out, int n)
         int len = 0;
         while (len < 11 && tok[len] >= '0' && tok[len] <= '9')
             u = u * 10 + (uint64_t)(tok[len++] - '0');
-        if (len > 0 && len <= 10 && (tok[len] == '\0' || tok[len] == ' ' || tok[len] == '\t')) {
-            if (u > 4294967295u)
-                return parse_fail(p, "%s: index %d is out of range: %.*s", cmd, i + 1, len, tok);
-            out[i] = (int64_t)u;
-            s = lex_skip_ws(tok + len);
-            continue;
+        double d = (double)u; /* exact: < 2^53 */
+        if (len == 0 || len > 10 || (tok[len] != '\0' && tok[len] != ' ' && tok[len] != '\t')) {
+            while (tok[len] && tok[len] != ' ' && tok[len] != '\t')
+                len++;
+            char *end;
+            errno = 0;
+            d = strtod(tok, &end);
+            if (end != tok + len || errno == ERANGE || !isfinite(d))
+                return parse_fail(p, "%s: value %d is not a finite number: '%.*s'", cmd, i + 1, len < 40 ? len : 40,
+                                  tok);
+            if (d != floor(d))
+                return parse_fail(p, "%s: index %d is not an integer: %.*s", cmd, i + 1, len < 40 ? len : 40, tok);
+            if (d < 0.0)
+                return parse_fail(p, "%s: index %d is negative: %.*s", cmd, i + 1, len < 40 ? len : 40, tok);
         }
-        while (tok[len] && tok[len] != ' ' && tok[len] != '\t')
-            len++;
-        char *end;
-        errno = 0;
-        const double d = strtod(tok, &end);
-        if (end != tok + len || errno == ERANGE || !isfinite(d))
-            return parse_fail(p, "%s: value %d is not a finite number: '%.*s'", cmd, i + 1, len < 40 ? len : 40, tok);
-        if (d != floor(d))
-            return parse_fail(p, "%s: index %d is not an integer: %.*s", cmd, i + 1, len < 40 ? len : 40, tok);
-        if (d < 0.0)
-            return parse_fail(p, "%s: index %d is negative: %.*s", cmd, i + 1, len < 40 ? len : 40, tok);
         if (d > 4294967295.0)
             return parse_fail(p, "%s: index %d is out of range: %.*s", cmd, i + 1, len < 40 ? len : 40, tok);
         out[i] = (int64_t)d;
