@@ -326,6 +326,15 @@ static int adopt(const Build *B, const uint32_t *h, double sah, int device, unsi
     return 0;
 }
 
+/* The build without pieces: where the auto budget's pieces would pass the
+ * records' limit, or their room does not fit the device. */
+static void pieces_give_way(Build *B, RtBuildInfo *info)
+{
+    B->budget = 0;
+    B->n = B->nrec;
+    info->split_pct = 0;
+}
+
 extern "C" int rt_cuda_accel_build(const RtScene *sc, const RtBvhSettings *set, int device, RtAccel *a,
                                    RtBuildInfo *info, RtError *err)
 {
@@ -341,11 +350,9 @@ extern "C" int rt_cuda_accel_build(const RtScene *sc, const RtBvhSettings *set, 
         return -1;
     /* (chosen on the host while the context may still be in the making) */
     info->split_pct = rt_bvh_gpu_split_pct(set, sc, &info->outsized);
-    uint64_t budget = sc->ntriangles * (uint64_t)info->split_pct / 100u;
+    const uint64_t budget = sc->ntriangles * (uint64_t)info->split_pct / 100u;
     const int chosen = set->gpu_split < 0; /* (pieces chosen for the scene give way where they do not fit) */
-    if (chosen && n64 + budget >= RT_WIDE_MAX_FIRST)
-        budget = 0, info->split_pct = 0;
-    if (n64 + budget >= RT_WIDE_MAX_FIRST)
+    if (n64 + (chosen ? 0 : budget) >= RT_WIDE_MAX_FIRST)
         return rt_fail(err, "the GPU build takes fewer than %u records and pieces, the scene has %llu and %llu",
                        RT_WIDE_MAX_FIRST, (unsigned long long)n64, (unsigned long long)budget), 1;
     Build B;
@@ -355,6 +362,8 @@ extern "C" int rt_cuda_accel_build(const RtScene *sc, const RtBvhSettings *set, 
     B.nrec = (uint32_t)n64;
     B.budget = (uint32_t)budget;
     B.n = (uint32_t)(n64 + budget); /* (the blocks hold the most references) */
+    if (n64 + budget >= RT_WIDE_MAX_FIRST)
+        pieces_give_way(&B, info);
     B.nspheres = sc->nspheres;
     B.leaf_max = set->leaf_max;
     unsigned char *keep = NULL, *scratch = NULL;
@@ -372,9 +381,7 @@ extern "C" int rt_cuda_accel_build(const RtScene *sc, const RtBvhSettings *set, 
         cudaFree(scratch);
         keep = scratch = NULL;
         memset(&k, 0, sizeof k);
-        B.budget = 0;
-        B.n = B.nrec;
-        info->split_pct = 0;
+        pieces_give_way(&B, info);
         rc = reserve(&B, &k, sc, device, &keep, &scratch, err);
     }
     if (rc != 0)
