@@ -36,14 +36,14 @@ typedef enum { RT_REC_MAIN, RT_REC_MAIN_IF, RT_REC_BACKEND, RT_REC_LAST } RtRecW
     X(height, INT, "px", OWN, "height", MAIN, "image height") \
     X(backend, STR, "", OWN, "rec_backend", MAIN, "serial, openmp, mpi, cuda or mpi-cuda") \
     X(accel, STR, "", OWN, "rec_accel", MAIN, "none (brute force) or bvh") \
-    X(threads, INT, "", OWN, "rec_threads", MAIN, "worker threads (per rank for mpi)") \
+    X(threads, INT, "", OWN, "rec_threads", MAIN, "worker threads (per rank for mpi); cuda: GPU threads launched, mpi-cuda: 1") \
     X(ranks, INT, "", OWN, "rec_ranks", MAIN, "MPI ranks (1 otherwise)") \
     X(parse_ms, F3, "ms", OWN, "parse_ms", MAIN, "reading and parsing the scene file") \
     X(build_ms, F3, "ms", OWN, "build_ms", MAIN, \
       "building the primitive records and the BVH, including its invariant check") \
     X(render_ms, F3, "ms", OWN, "render_ms", MAIN, \
       "the pixel work only, until the last pixel is in the image (openmp, mpi: docs/cpu-backends.md, " \
-      "\"Backup tiles\"; mpi across nodes and with block rows: max over ranks, as the report timed it); " \
+      "\"Strips and backups\"; mpi across nodes and with block rows: max over ranks, as the report timed it); " \
       "for cuda and mpi-cuda, " \
       "a frame until its 8-bit image is in (rank 0's) host memory, frames pipelined (docs/gpu.md)") \
     X(write_ms, F3, "ms", OWN, "write_ms", MAIN, "quantizing and writing the image file") \
