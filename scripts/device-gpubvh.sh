@@ -21,9 +21,15 @@
 #            on the large stand-ins and the dragon, interleaved, ROUNDS rounds
 #            (default 3): build and kernel times, SAH cost, visits, image
 #   first    text file to first image (--runs 1 --warmup 0, 1920x1080) of
-#            large-4m and large-1m with --builder gpu: the commit in
-#            .devcarry/prev.tar.gz against this tree, interleaved, ROUNDS
-#            rounds (default 7): parse, context wait, build, write, total
+#            large-4m and large-1m with --builder gpu and --builder cpu, and
+#            of large-4m from a warm cache (an entry each version stored
+#            first): the commit in .devcarry/prev.tar.gz against this tree,
+#            interleaved, ROUNDS rounds (default 7): parse, context wait,
+#            build, upload, write, total
+#   context  the CUDA context's time: the demo scene's first image (its
+#            init_ms is nearly all of the context), and large-4m and large-1m
+#            with 16, 15, 14, 12 and 8 parse threads (--build-threads),
+#            interleaved, ROUNDS rounds (default 5)
 #   cache    the first image (--runs 1 --warmup 0) from a warm cache of
 #            large-4m (an entry stored by the GPU build, then five loads,
 #            every key of the record), each load beside three by the
@@ -47,7 +53,7 @@ ninja -C $B renderer/raytrace renderer/scenegen renderer/imgdiff tests/test_gpu_
     { tail -20 "$OUT/build.log"; exit 1; }
 SCENEGEN=$B/renderer/scenegen scripts/gen-scenes.sh large-1m large-4m island-1m island-4m objects-1m > /dev/null 2>&1
 export RAYBENCH_COURSE_DIR=$course
-keys='^(scene|backend|builder|bvh_pieces|parse_ms|build_ms|gpu_build_ms|build_init_ms|init_ms|upload_ms|render_ms|kernel_ms|write_ms|total_ms|sah_cost|node_visits|image_fnv1a|bvh_nodes|prims)='
+keys='^(scene|backend|builder|cache|bvh_pieces|parse_ms|build_ms|gpu_build_ms|build_init_ms|init_ms|upload_ms|render_ms|kernel_ms|write_ms|total_ms|sah_cost|node_visits|image_fnv1a|bvh_nodes|prims)='
 rec() { "$@" | tr ' ' '\n' | grep -E "$keys" | tr '\n' ' '; echo; }
 C=course:InterestingScenes
 build_prev() {
@@ -104,16 +110,34 @@ split)
     done > "$OUT/split.txt" 2>&1 ;;
 first)
     build_prev || exit 1
+    ver() { x=$B/renderer/raytrace; [ "$1" = prev ] && x=/tmp/b-prev/renderer/raytrace; echo $x; }
+    for v in prev head; do
+        rm -rf /tmp/rb-first-$v && mkdir -m 700 /tmp/rb-first-$v
+        $(ver $v) --backend cuda --builder gpu --cache /tmp/rb-first-$v -q -r 1920x1080 --runs 1 --warmup 0 \
+            scenes/generated/large-4m.txt -o /tmp/f.png > /dev/null
+    done
     for round in $(seq "${ROUNDS:-7}"); do
-        for sc in large-4m large-1m; do
-            for v in prev head; do
-                x=$B/renderer/raytrace; [ $v = prev ] && x=/tmp/b-prev/renderer/raytrace
-                echo -n "round=$round version=$v "
-                rec $x --backend cuda --builder gpu --runs 1 --warmup 0 -q -r 1920x1080 scenes/generated/$sc.txt \
-                    -o /tmp/f-$v.png
-            done
+        for sc in large-4m large-1m; do for b in gpu cpu; do for v in prev head; do
+            echo -n "round=$round case=$sc version=$v "
+            rec $(ver $v) --backend cuda --builder $b --runs 1 --warmup 0 -q -r 1920x1080 \
+                scenes/generated/$sc.txt -o /tmp/f-$v.png
+        done; done; done
+        for v in prev head; do
+            echo -n "round=$round case=large-4m-cache version=$v "
+            rec $(ver $v) --backend cuda --builder gpu --cache /tmp/rb-first-$v --runs 1 --warmup 0 -q \
+                -r 1920x1080 scenes/generated/large-4m.txt -o /tmp/f-$v.png
         done
     done > "$OUT/first.txt" ;;
+context)
+    for round in $(seq "${ROUNDS:-5}"); do
+        for sc in large-4m large-1m; do for bt in 16 15 14 12 8; do
+            echo -n "round=$round case=$sc threads=$bt "
+            rec $B/renderer/raytrace --backend cuda --builder gpu --runs 1 --warmup 0 --build-threads $bt -q \
+                -r 1920x1080 scenes/generated/$sc.txt -o /tmp/f.png
+        done; done
+        echo -n "round=$round case=demo "
+        rec $B/renderer/raytrace --backend cuda --runs 1 --warmup 0 -q -r 64x36 scenes/demo.txt -o /tmp/f.png
+    done > "$OUT/context.txt" ;;
 cache)
     rm -rf /tmp/rb-cache && mkdir -m 700 /tmp/rb-cache
     for i in 0 1 2 3 4 5; do
@@ -135,5 +159,5 @@ oom)
     ninja -C $B tests/gpu/gpu_hog >> "$OUT/build.log" 2>&1 || { echo "gpu_hog build failed"; exit 1; }
     sh tests/gpu/gpu_oom.sh $B/renderer/raytrace $B/tests/gpu/gpu_hog $B/renderer/scenegen > "$OUT/oom.txt" 2>&1
     echo "gpu_oom rc=$?" | tee -a "$OUT/oom.txt" ;;
-*) echo "device-gpubvh: unknown step '$step' (test, ab, quality, split, first, cache, oom)" >&2; exit 2 ;;
+*) echo "device-gpubvh: unknown step '$step' (test, ab, quality, split, first, context, cache, oom)" >&2; exit 2 ;;
 esac; done

@@ -201,12 +201,9 @@ fail:
 /* The scene's records, vertices and spheres to the device. */
 static int upload(const Build *B, const RtScene *sc, RtError *err)
 {
-    RT_CUDA_CHECK(cudaMemcpy((void *)B->verts, sc->vertices, (size_t)sc->nvertices * sizeof(RtVec3),
-                             cudaMemcpyHostToDevice));
-    RT_CUDA_CHECK(cudaMemcpy((void *)B->tris, sc->triangles, (size_t)sc->ntriangles * sizeof(RtTriangle),
-                             cudaMemcpyHostToDevice));
-    RT_CUDA_CHECK(cudaMemcpy((void *)B->sph, sc->spheres, (size_t)sc->nspheres * sizeof(RtSphere),
-                             cudaMemcpyHostToDevice));
+    RT_CUDA_CHECK(rt_cuda_copy_up((void *)B->verts, sc->vertices, (size_t)sc->nvertices * sizeof(RtVec3)));
+    RT_CUDA_CHECK(rt_cuda_copy_up((void *)B->tris, sc->triangles, (size_t)sc->ntriangles * sizeof(RtTriangle)));
+    RT_CUDA_CHECK(rt_cuda_copy_up((void *)B->sph, sc->spheres, (size_t)sc->nspheres * sizeof(RtSphere)));
     return 0;
 fail:
     return -1;

@@ -322,8 +322,7 @@ static int cuda_upload(CudaRun *c, RtError *err)
     const double t0 = rt_now_ms();
     for (int i = 0; i < P_COUNT; i++)
         if (c->parts[i].host && c->parts[i].bytes)
-            RT_CUDA_CHECK(cudaMemcpy(c->arena + c->parts[i].offset, c->parts[i].host, c->parts[i].bytes,
-                                     cudaMemcpyHostToDevice));
+            RT_CUDA_CHECK(rt_cuda_copy_up(c->arena + c->parts[i].offset, c->parts[i].host, c->parts[i].bytes));
     c->upload_ms = rt_now_ms() - t0;
     /* NaN in every channel: a pixel the kernel never writes cannot pass as black. */
     RT_CUDA_CHECK(cudaMemset(c->arena + c->parts[P_IMAGE].offset, 0xff, c->parts[P_IMAGE].bytes));
