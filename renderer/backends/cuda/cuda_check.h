@@ -11,7 +11,7 @@
 #include <cuda_runtime.h>
 
 /* Formats the message; returns -1 (see rt_fail). */
-static int rt_cuda_fail(RtError *err, cudaError_t e, const char *call, const char *file, int line)
+static inline int rt_cuda_fail(RtError *err, cudaError_t e, const char *call, const char *file, int line)
 {
     return rt_fail(err, "cuda: %s:%d: %s failed: %s (%s)", file, line, call, cudaGetErrorString(e),
                    cudaGetErrorName(e));
@@ -42,10 +42,10 @@ static int rt_cuda_fail(RtError *err, cudaError_t e, const char *call, const cha
 
 /* cudaMemcpy from host memory up to the device. A large range is
  * page-locked for the copy and released after it: 121 MB in 2 MiB pages
- * took 3.4-4.1 ms to lock, 2.3 ms to copy and 2.2-3.5 ms to release, against
- * 15-20 ms for the copy from pageable memory (one H200: docs/performance.md,
+ * took 7.5-12.6 ms so, lock and release included, against 15-21 ms from
+ * pageable memory (one H200: benchmarks/cuda_setup.c, docs/performance.md,
  * "The GPU build"). A range that cannot be locked is copied as it is. */
-static cudaError_t rt_cuda_copy_up(void *dst, const void *src, size_t bytes)
+static inline cudaError_t rt_cuda_copy_up(void *dst, const void *src, size_t bytes)
 {
     void *lock = bytes >= ((size_t)8 << 20) ? (void *)src : NULL;
     if (lock && cudaHostRegister(lock, bytes, cudaHostRegisterDefault) != cudaSuccess) {
