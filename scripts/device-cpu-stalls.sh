@@ -18,6 +18,9 @@
 #   one     serial, OpenMP at one thread and MPI at one rank, interleaved
 #           (`order: rounds`, 10 repeats), both resolutions: the baselines
 #           of tables 1 and 2 on the same core at the same time
+#   lean    MPI at N ranks, the older build and this one interleaved,
+#           512x384 and 2048x1536, ROUNDS rounds (default 20): every
+#           per-rank key, to see where one's frames differ from the other's
 #   hybrid  the hybrid table (configs/hybrid-dragon.conf): every P x T <= N
 #           of powers of two, both resolutions, 3 repeats, `order: rounds`,
 #           against the ceiling (run ceil first)
@@ -105,5 +108,15 @@ diag)
     echo "== mpi $N"; mpirun --bind-to core -np $N $RT -b mpi -q -r 512x384 --cache /tmp/cc $dragon -o /tmp/k.png | g
   done > "$O/diag.txt" 2>&1
   unset OMP_PLACES OMP_PROC_BIND; log diag ;;
+lean)
+  g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|backups|backups_won|strips_per_claim|tiles_per_claim|rank_claims|rank_claim_ms|rank_start_ms|rank_work_ms|rank_end_ms|rank_faults)=' | tr '\n' ' '; echo; }
+  mkdir -m 700 -p /tmp/cc-prev /tmp/cc-head
+  for i in $(seq ${ROUNDS:-20}); do
+    for res in 512x384 2048x1536; do for v in prev head; do
+      x=$RT; [ $v = prev ] && x=$PR
+      echo -n "round=$i version=$v res=$res "
+      mpirun --bind-to core -np $N $x -b mpi -q -r $res --cache /tmp/cc-$v $dragon -o /tmp/k.png | g
+    done; done
+  done > "$O/lean.txt" 2>&1; log lean ;;
 esac; done
 log done
