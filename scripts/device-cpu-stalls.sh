@@ -21,9 +21,15 @@
 #   lean    MPI at N ranks, the older build and this one interleaved,
 #           512x384 and 2048x1536, ROUNDS rounds (default 20): every
 #           per-rank key, to see where one's frames differ from the other's
+#   warm    in-process warm-up frames: MPI at N ranks and OpenMP at N
+#           threads with --warmup 0 --runs 1 (the tables' runs) and with
+#           --warmup 3 --runs 9, and one rank with --warmup 1 --runs 3,
+#           both resolutions, interleaved, ROUNDS rounds (default 8)
 #   hybrid  the hybrid table (configs/hybrid-dragon.conf): every P x T <= N
 #           of powers of two, both resolutions, 3 repeats, `order: rounds`,
 #           against the ceiling (run ceil first)
+# RES limits ceil and tables to one resolution; EXTRA gives their runs
+# raytrace arguments (extra_args), e.g. EXTRA="--warmup 3 --runs 9".
 # The code measured is .devcarry/head.tar.gz (git archive --prefix=head/ HEAD
 # | gzip), the older one .devcarry/prev.tar.gz (git archive --prefix=prev/
 # OLD | gzip). Carry [".devcarry", ".devwl"] (scripts/device-ceiling.sh says
@@ -47,6 +53,7 @@ fi
 log built
 H=/tmp/bh/harness/harness RT=/tmp/bh/renderer/raytrace PR=/tmp/bp/renderer/raytrace
 N=$(nproc)
+X=(); [ -n "${EXTRA:-}" ] && X=(--set "extra_args=$EXTRA")
 dragon=$(find $course -name dragon.txt | head -1)
 cd /tmp/head
 for step in ${STEPS:-ab ceil tables keys}; do case $step in
@@ -59,14 +66,14 @@ ab)
   done ;;
 ceil)
   W=${WORKERS:-1 $((N / 2)) $N}
-  for res in 512x384 2048x1536; do
-    timeout 100 $H ceiling configs/openmp-scaling-bvh.conf --set scene_dir=$course --set resolution=$res --set threads="$W" --set schedule=tiles --repeats 5 -o "$O/ceiling-$res.csv" > "$O/ceiling-$res.log" 2>&1 || log "ceiling $res rc $?"
+  for res in ${RES:-512x384 2048x1536}; do
+    timeout 100 $H ceiling configs/openmp-scaling-bvh.conf --set scene_dir=$course --set resolution=$res --set threads="$W" --set schedule=tiles --repeats 5 "${X[@]}" -o "$O/ceiling-$res.csv" > "$O/ceiling-$res.log" 2>&1 || log "ceiling $res rc $?"
     tail -5 "$O/ceiling-$res.log"
   done; log ceilings ;;
 tables)
   W=${WORKERS:-1 $((N / 2)) $N}
-  for res in 512x384 2048x1536; do
-    S=(--set scene_dir=$course --set resolution=$res --set repeats=5 --set accel=bvh)
+  for res in ${RES:-512x384 2048x1536}; do
+    S=(--set scene_dir=$course --set resolution=$res --set repeats=5 --set accel=bvh "${X[@]}")
     timeout 120 $H run configs/report-table1-openmp.conf "${S[@]}" --set order=rounds --set threads="$W" --set backend=openmp --set schedule=tiles -q -o "$O/t1-bvh-$res.csv" > /dev/null 2>&1 || log "t1 $res rc $?"
     $H table "$O/t1-bvh-$res.csv" --ceiling "$O/ceiling-$res.csv" > "$O/t1-bvh-$res-table.md" 2>&1
     timeout 120 $H run configs/report-table2-mpi.conf "${S[@]}" --set order=rounds --set ranks="$W" --set backend=mpi --set mpi_schedule=dynamic -q -o "$O/t2-bvh-$res.csv" > /dev/null 2>&1 || log "t2 $res rc $?"
@@ -118,5 +125,22 @@ lean)
       mpirun --bind-to core -np $N $x -b mpi -q -r $res --cache /tmp/cc-$v $dragon -o /tmp/k.png | g
     done; done
   done > "$O/lean.txt" 2>&1; log lean ;;
+warm)
+  g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|runs|warmups|join_ms|rank_start_ms)=' | tr '\n' ' '; echo; }
+  mkdir -m 700 -p /tmp/cc-head
+  for i in $(seq ${ROUNDS:-8}); do
+    for res in 512x384 2048x1536; do
+      for w in "0 1" "3 9"; do
+        set -- $w
+        echo -n "round=$i res=$res backend=mpi workers=$N warmup=$1 "
+        mpirun --bind-to core -np $N $RT -b mpi -q -r $res --warmup $1 --runs $2 --cache /tmp/cc-head $dragon -o /tmp/k.png | g
+        echo -n "round=$i res=$res backend=openmp workers=$N warmup=$1 "
+        OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -q -r $res --warmup $1 --runs $2 --cache /tmp/cc-head \
+          $dragon -o /tmp/k.png | g
+      done
+      echo -n "round=$i res=$res backend=mpi workers=1 warmup=1 "
+      mpirun --bind-to core -np 1 $RT -b mpi -q -r $res --warmup 1 --runs 3 --cache /tmp/cc-head $dragon -o /tmp/k.png | g
+    done
+  done > "$O/warm.txt" 2>&1; log warm ;;
 esac; done
 log done
