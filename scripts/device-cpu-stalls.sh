@@ -28,7 +28,7 @@
 #   hybrid  the hybrid table (configs/hybrid-dragon.conf): every P x T <= N
 #           of powers of two, both resolutions, 3 repeats, `order: rounds`,
 #           against the ceiling (run ceil first)
-# RES limits ceil and tables to one resolution; EXTRA gives their runs
+# RES limits ceil, tables and warm to one resolution; EXTRA gives their runs
 # raytrace arguments (extra_args), e.g. EXTRA="--warmup 3 --runs 9".
 # The code measured is .devcarry/head.tar.gz (git archive --prefix=head/ HEAD
 # | gzip), the older one .devcarry/prev.tar.gz (git archive --prefix=prev/
@@ -126,10 +126,10 @@ lean)
     done; done
   done > "$O/lean.txt" 2>&1; log lean ;;
 warm)
-  g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|runs|warmups|join_ms|rank_start_ms)=' | tr '\n' ' '; echo; }
+  g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|runs|warmups|fork_ms|join_ms|thread_start_ms|thread_work_ms|rank_start_ms|rank_work_ms)=' | tr '\n' ' '; echo; }
   mkdir -m 700 -p /tmp/cc-head
   for i in $(seq ${ROUNDS:-8}); do
-    for res in 512x384 2048x1536; do
+    for res in ${RES:-512x384 2048x1536}; do
       for w in "0 1" "3 9"; do
         set -- $w
         echo -n "round=$i res=$res backend=mpi workers=$N warmup=$1 "
