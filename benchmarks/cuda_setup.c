@@ -13,7 +13,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/mman.h>
 
 #include "rt.h"
 #include "backends/cuda/cuda_check.h"
@@ -73,7 +72,7 @@ static int copy(size_t mb, int rounds)
         for (int way = 0; way < 3; way++) { /* 4 KiB pageable, 2 MiB pageable, 2 MiB locked */
             char *p = fresh(n, way > 0);
             if (!p)
-                return 1;
+                return fprintf(stderr, "cuda-setup: out of memory for %zu MB\n", mb), cudaFree(d), 1;
             const double t0 = rt_now_ms();
             const cudaError_t e = way == 2 ? rt_cuda_copy_up(d, p, n) : cudaMemcpy(d, p, n, cudaMemcpyHostToDevice);
             const double t1 = rt_now_ms();
@@ -87,12 +86,20 @@ static int copy(size_t mb, int rounds)
     return 0;
 }
 
+/* A whole number in [lo, hi] from s, else -1. */
+static long number(const char *s, long lo, long hi)
+{
+    char *end;
+    const long v = strtol(s, &end, 10);
+    return end != s && !*end && v >= lo && v <= hi ? v : -1;
+}
+
 int main(int argc, char **argv)
 {
-    if (argc == 3 && !strcmp(argv[1], "context"))
-        return context(atoi(argv[2]));
-    if (argc == 4 && !strcmp(argv[1], "copy") && atoi(argv[2]) > 0 && atoi(argv[3]) > 0)
-        return copy((size_t)atoi(argv[2]), atoi(argv[3]));
-    fprintf(stderr, "usage: cuda-setup context SPINNERS | cuda-setup copy MB ROUNDS\n");
+    if (argc == 3 && !strcmp(argv[1], "context") && number(argv[2], 0, 256) >= 0)
+        return context((int)number(argv[2], 0, 256));
+    if (argc == 4 && !strcmp(argv[1], "copy") && number(argv[2], 1, 1 << 20) > 0 && number(argv[3], 1, 1000) > 0)
+        return copy((size_t)number(argv[2], 1, 1 << 20), (int)number(argv[3], 1, 1000));
+    fprintf(stderr, "usage: cuda-setup context SPINNERS (0-256) | cuda-setup copy MB ROUNDS (1-1048576, 1-1000)\n");
     return 2;
 }
