@@ -49,12 +49,10 @@ static int context(int spinners)
     return 0;
 }
 
-/* n fresh bytes, in 2 MiB pages when huge (rt_huge_hint) */
+/* n fresh bytes, in 2 MiB pages when huge (rt_huge_alloc) */
 static char *fresh(size_t n, int huge)
 {
-    char *p = malloc(n);
-    if (p && huge)
-        rt_huge_hint(p, n);
+    char *p = huge ? rt_huge_alloc(n) : malloc(n);
     if (p)
         memset(p, 1, n);
     return p;

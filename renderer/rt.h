@@ -486,6 +486,8 @@ int rt_warmup_due(int warmup_runs, double warmup_ms, int done, double elapsed_ms
  * filled) for transparent huge pages (accel/huge_pages.c): one fault per
  * 2 MiB instead of per 4 KiB; a hint the kernel may decline. Returns p. */
 void *rt_huge_hint(void *p, size_t n);
+/* malloc(n) in 2 MiB pages where the kernel grants them (rt_huge_hint). */
+void *rt_huge_alloc(size_t n);
 /* The threads a loading step runs on when `asked` for (0: as many as
  * OpenMP gives, one per allowed CPU; 1 in a build without OpenMP). */
 int rt_thread_count(int asked);

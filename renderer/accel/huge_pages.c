@@ -1,9 +1,10 @@
-/* huge_pages.c - the build's large arrays in 2 MiB pages where the kernel
- * grants them (transparent huge pages on request: madvise mode). A fresh
- * array then costs one page fault per 2 MiB instead of one per 4 KiB, and
- * the top nodes' reference arrays are fresh at every level; with many build
- * threads those faults contend (docs/performance.md, "Large scenes"). A
- * hint only: the tree is the same with or without it. */
+/* huge_pages.c - the build's large arrays and the parser's pools in 2 MiB
+ * pages where the kernel grants them (transparent huge pages on request:
+ * madvise mode). A fresh array then costs one page fault per 2 MiB instead
+ * of one per 4 KiB, and the top nodes' reference arrays are fresh at every
+ * level; with many build threads those faults contend (docs/performance.md,
+ * "Large scenes"). The GPU build locks the pools for its copy up in a few
+ * pages. A hint only: the tree is the same with or without it. */
 #include <stdlib.h>
 #include <sys/mman.h>
 
@@ -29,5 +30,7 @@ void *rt_huge_hint(void *p, size_t n)
 /* rt_huge_hint when `on` (the build's choice: bvh_huge_pages_on). */
 void *bvh_huge_hint(void *p, size_t n, int on) { return on ? rt_huge_hint(p, n) : p; }
 
+void *rt_huge_alloc(size_t n) { return rt_huge_hint(malloc(n), n); }
+
 /* malloc(n), in 2 MiB pages when `on`. */
-void *bvh_alloc(size_t n, int on) { return bvh_huge_hint(malloc(n), n, on); }
+void *bvh_alloc(size_t n, int on) { return on ? rt_huge_alloc(n) : malloc(n); }

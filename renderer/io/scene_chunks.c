@@ -343,10 +343,10 @@ static int reserve_all(Parser *p, const Chunk *c, int n)
         return rt_fail(p->err, "%s: more than %u vertices, normals, triangles or spheres", p->file, RT_MAX_POOL);
     /* (in 2 MiB pages: fewer faults while the chunks fill them, and the GPU
      * build locks 121 MB of them for its copy in 61 pages, not 31,000) */
-    sc->vertices = rt_huge_hint(malloc((size_t)(nv ? nv : 1) * sizeof *sc->vertices), nv * sizeof *sc->vertices);
-    sc->normals = rt_huge_hint(malloc((size_t)(nn ? nn : 1) * sizeof *sc->normals), nn * sizeof *sc->normals);
-    sc->triangles = rt_huge_hint(malloc((size_t)(nt ? nt : 1) * sizeof *sc->triangles), nt * sizeof *sc->triangles);
-    sc->spheres = rt_huge_hint(malloc((size_t)(ns ? ns : 1) * sizeof *sc->spheres), ns * sizeof *sc->spheres);
+    sc->vertices = rt_huge_alloc((size_t)(nv ? nv : 1) * sizeof *sc->vertices);
+    sc->normals = rt_huge_alloc((size_t)(nn ? nn : 1) * sizeof *sc->normals);
+    sc->triangles = rt_huge_alloc((size_t)(nt ? nt : 1) * sizeof *sc->triangles);
+    sc->spheres = rt_huge_alloc((size_t)(ns ? ns : 1) * sizeof *sc->spheres);
     if (!sc->vertices || !sc->normals || !sc->triangles || !sc->spheres)
         return rt_fail(p->err, "%s: out of memory for the scene's pools", p->file);
     sc->cap_vertices = (uint32_t)(nv ? nv : 1);
