@@ -94,10 +94,11 @@ static long number(const char *s, long lo, long hi)
 
 int main(int argc, char **argv)
 {
-    if (argc == 3 && !strcmp(argv[1], "context") && number(argv[2], 0, 256) >= 0)
-        return context((int)number(argv[2], 0, 256));
-    if (argc == 4 && !strcmp(argv[1], "copy") && number(argv[2], 1, 1 << 20) > 0 && number(argv[3], 1, 1000) > 0)
-        return copy((size_t)number(argv[2], 1, 1 << 20), (int)number(argv[3], 1, 1000));
+    const long a = argc >= 3 ? number(argv[2], 0, 1 << 20) : -1, b = argc == 4 ? number(argv[3], 1, 1000) : -1;
+    if (argc == 3 && !strcmp(argv[1], "context") && a >= 0 && a <= 256)
+        return context((int)a);
+    if (argc == 4 && !strcmp(argv[1], "copy") && a >= 1 && b >= 1)
+        return copy((size_t)a, (int)b);
     fprintf(stderr, "usage: cuda-setup context SPINNERS (0-256) | cuda-setup copy MB ROUNDS (1-1048576, 1-1000)\n");
     return 2;
 }

@@ -521,10 +521,8 @@ void rt_cuda_session_pin(RtCudaSession *s, void *host, size_t bytes)
 {
     if (s->npinned == RT_CUDA_PINS)
         return;
-    if (cudaHostRegister(host, bytes, cudaHostRegisterDefault) == cudaSuccess)
+    if (rt_cuda_lock(host, bytes)) /* (else the copies go on from pageable memory) */
         s->pinned[s->npinned++] = host;
-    else
-        cudaGetLastError(); /* (not sticky: the copies go on from pageable memory) */
 }
 
 void rt_cuda_session_unpin(RtCudaSession *s)

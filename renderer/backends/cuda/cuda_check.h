@@ -45,13 +45,19 @@ static inline int rt_cuda_fail(RtError *err, cudaError_t e, const char *call, co
  * took 7.5-12.6 ms so, lock and release included, against 15-21 ms from
  * pageable memory (one H200: benchmarks/cuda_setup.c, docs/performance.md,
  * "The GPU build"). A range that cannot be locked is copied as it is. */
+/* Page-locks host memory for the device's copies: 1, or 0 where it cannot
+ * be locked and stays pageable (the failure is not sticky: cleared). */
+static inline int rt_cuda_lock(void *host, size_t bytes)
+{
+    if (cudaHostRegister(host, bytes, cudaHostRegisterDefault) == cudaSuccess)
+        return 1;
+    cudaGetLastError();
+    return 0;
+}
+
 static inline cudaError_t rt_cuda_copy_up(void *dst, const void *src, size_t bytes)
 {
-    void *lock = bytes >= ((size_t)8 << 20) ? (void *)src : NULL;
-    if (lock && cudaHostRegister(lock, bytes, cudaHostRegisterDefault) != cudaSuccess) {
-        cudaGetLastError(); /* (not sticky) */
-        lock = NULL;
-    }
+    void *lock = bytes >= ((size_t)8 << 20) && rt_cuda_lock((void *)src, bytes) ? (void *)src : NULL;
     cudaError_t e = cudaMemcpy(dst, src, bytes, cudaMemcpyHostToDevice);
     if (lock) {
         const cudaError_t u = cudaHostUnregister(lock);
