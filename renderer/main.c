@@ -226,9 +226,21 @@ static int build_accel(Run *r, const RtBvhSettings *bvh, RtError *err)
     return rt_accel_build_with(&r->scene, o->accel, bvh, &r->accel, err);
 }
 
+/* The backend's sink for the geometry while the file is parsed, where its
+ * own build would run on the GPU (build_accel): the copy up then overlaps
+ * the parse. NULL for ranks that load through their collective. */
+static const RtGeomSink *geom_sink(const Run *r)
+{
+    const Options *o = r->o;
+    if (!r->be->geom_sink || !r->be->accel_build || o->accel != RT_ACCEL_BVH || o->builder == RT_BUILDER_CPU ||
+        (r->col && r->col->scene_load))
+        return NULL;
+    return r->be->geom_sink(o->device, o->builder == RT_BUILDER_GPU ? 0 : RT_GPU_BUILD_MIN);
+}
+
 /* The scene loaded with the overrides applied, the camera checked, the
  * output checked, the accelerator built and the image buffers allocated. */
-static int prepare(Run *r, RtError *err)
+static int prepare_with(Run *r, const RtGeomSink *sink, RtError *err)
 {
     const Options *o = r->o;
     double t0 = rt_now_ms();
@@ -240,8 +252,11 @@ static int prepare(Run *r, RtError *err)
     r->cache = loaded ? "loaded" : (o->cache ? "built" : "off");
     const int lrc = !loaded && (r->col && r->col->scene_load
                                     ? r->col->scene_load(o->scene, o->mpi_scene, &r->scene, warn, NULL, err) != 0
-                                    : rt_scene_load_threads(o->scene, o->build_threads, &r->scene, warn, NULL, err) != 0);
+                                    : rt_scene_load_sink(o->scene, o->build_threads, sink, &r->scene, warn, NULL,
+                                                         err) != 0);
     r->parse_ms = rt_now_ms() - t0;
+    if (sink) /* (the copies finish for the build, or stop after a failed load) */
+        sink->end(sink->ctx, !lrc);
     if (r->col && r->col->same) { /* every rank rendering the same bytes, parsed or loaded */
         uint8_t digest[16] = {0};
         if (!lrc)
@@ -296,6 +311,15 @@ static int prepare(Run *r, RtError *err)
         return rt_fail(err, "out of memory for a %dx%d image (%.1f MiB)", r->cam.width, r->cam.height,
                        (double)r->npix * 15.0 / (1024.0 * 1024.0));
     return 0;
+}
+
+static int prepare(Run *r, RtError *err)
+{
+    const RtGeomSink *sink = geom_sink(r);
+    const int rc = prepare_with(r, sink, err);
+    if (sink) /* what the build did not take (a CPU build, a failure) freed */
+        sink->end(sink->ctx, 0);
+    return rc;
 }
 
 /* NaN in every channel, so an unwritten pixel cannot pass as black. */
@@ -518,6 +542,8 @@ static void record_values(const Run *r, RecValue *v, char *tile)
         rec_gpu_split(v, r->gpu_build.split_pct);
         if (r->gpu_build.outsized >= 0.0)
             rec_gpu_outsized(v, r->gpu_build.outsized);
+        rec_geom_up(v, r->gpu_build.geom_streamed ? "parse" : "build");
+        rec_geom_up_ms(v, r->gpu_build.upload_ms);
     }
     if (r->accel.nsplit)
         rec_bvh_pieces(v, r->accel.nsplit);

@@ -105,6 +105,30 @@ int rt_scene_parse_buffer(const char *name, const char *buf, size_t len, RtScene
                           void *warn_ctx, RtError *err);
 int rt_scene_parse_buffer_threads(const char *name, const char *buf, size_t len, int threads, RtScene *scene,
                                   RtWarnFn warn, void *warn_ctx, RtError *err);
+/* Where a parse hands on the scene's geometry as it becomes final, so that
+ * a backend copies it to its device while the rest is parsed (the CUDA
+ * backends' GPU build: backends/cuda/geom_stream.cu). Only the parse on
+ * several threads calls it, from its threads at once: `sized` once, when the
+ * pools are allocated at their final sizes (the scene's caps), then `ready`
+ * for disjoint ranges of elements written for good. A parse that never
+ * calls `sized` (one thread, a small file, mesh: lines) leaves the copy to
+ * the build. */
+enum { RT_GEOM_VERTICES = 0, RT_GEOM_TRIANGLES = 1 };
+typedef struct RtGeomSink {
+    void *ctx;
+    void (*sized)(void *ctx, const RtScene *scene);
+    void (*ready)(void *ctx, int pool, uint32_t first, uint32_t count);
+    /* after the load: keep 1 lets the copies finish for the build to take,
+     * keep 0 stops them and frees what they hold (idempotent; also after
+     * the build took them) */
+    void (*end)(void *ctx, int keep);
+} RtGeomSink;
+/* rt_scene_load_threads and rt_scene_parse_buffer_threads with a sink
+ * (NULL: none). The caller calls sink->end. */
+int rt_scene_load_sink(const char *path, int threads, const RtGeomSink *sink, RtScene *scene, RtWarnFn warn,
+                       void *warn_ctx, RtError *err);
+int rt_scene_parse_buffer_sink(const char *name, const char *buf, size_t len, int threads, const RtGeomSink *sink,
+                               RtScene *scene, RtWarnFn warn, void *warn_ctx, RtError *err);
 void rt_scene_free(RtScene *scene);
 /* Frees the dependency list alone (and empties it). */
 void rt_scene_free_deps(RtScene *scene);
@@ -216,7 +240,9 @@ typedef enum RtBuilder { RT_BUILDER_AUTO = 0, RT_BUILDER_CPU = 1, RT_BUILDER_GPU
 /* What a backend's own build measured (RtBackend.accel_build). */
 typedef struct RtBuildInfo {
     double kernel_ms;   /* its kernels, first to last (CUDA events) */
-    double upload_ms;   /* the scene's vertices, triangles and spheres to the device */
+    double upload_ms;   /* the scene's vertices, triangles and spheres to the device (what the
+                         * build still waited for, where the parse copied them) */
+    int geom_streamed;  /* 1: the parse copied the vertices and triangles up (RtGeomSink) */
     double init_ms;     /* what it still waited for the device's context */
     int split_pct;      /* the pieces' budget it used (rt_bvh_gpu_split_pct) */
     double outsized;    /* the share that chose it, -1 when not chosen by one */
@@ -377,6 +403,10 @@ typedef struct RtBackend {
      * (too little device memory); -1 failed */
     int (*accel_build)(const RtScene *scene, const RtBvhSettings *settings, int device, RtAccel *accel,
                        RtBuildInfo *info, RtError *err);
+    /* optional, with accel_build: a sink (RtGeomSink) that copies the
+     * geometry of a scene of at least min_records (0: any) to device
+     * `device` while it is parsed, where accel_build finds it */
+    const RtGeomSink *(*geom_sink)(int device, uint64_t min_records);
 } RtBackend;
 
 /* What main.c needs from a backend that runs as several processes, so that

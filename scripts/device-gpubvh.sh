@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# device-gpubvh.sh [test|ab|quality|split|first|cache|oom]... - the GPU BVH build on the GPU
+# device-gpubvh.sh [test|ab|quality|split|first|context|stream|cache|oom]... - the GPU BVH build on the GPU
 # machine (docs/performance.md, "The GPU build"); run through the device tool
 # from the repository root with carry [".devcarry"] (the course scenes in
 # .devcarry/scenes/course, .devcarry/include/xxhash.h where the machine lacks
@@ -30,6 +30,12 @@
 #            init_ms is nearly all of the context), and large-4m and large-1m
 #            with 16, 15, 14, 12 and 8 parse threads (--build-threads),
 #            interleaved, ROUNDS rounds (default 5)
+#   stream   the geometry copied up while the file is parsed (geom_up=parse)
+#            against the commit in .devcarry/prev.tar.gz (the build copies
+#            it after the parse): the first image (--runs 1 --warmup 0,
+#            1920x1080, --builder gpu) of large-4m on 4, 8 and 16 parse
+#            threads and of a 9.7M-triangle sphere field (0.86 GB of text,
+#            made here) on 16, interleaved, ROUNDS rounds (default 7)
 #   cache    the first image (--runs 1 --warmup 0) from a warm cache of
 #            large-4m (an entry stored by the GPU build, then five loads,
 #            every key of the record), each load beside three by the
@@ -53,7 +59,7 @@ ninja -C $B renderer/raytrace renderer/scenegen renderer/imgdiff tests/test_gpu_
     { tail -20 "$OUT/build.log"; exit 1; }
 SCENEGEN=$B/renderer/scenegen scripts/gen-scenes.sh large-1m large-4m island-1m island-4m objects-1m > /dev/null 2>&1
 export RAYBENCH_COURSE_DIR=$course
-keys='^(scene|backend|builder|cache|bvh_pieces|parse_ms|build_ms|gpu_build_ms|build_init_ms|init_ms|upload_ms|render_ms|kernel_ms|write_ms|total_ms|sah_cost|node_visits|image_fnv1a|bvh_nodes|prims)='
+keys='^(scene|backend|builder|cache|bvh_pieces|parse_ms|build_ms|gpu_build_ms|build_init_ms|init_ms|upload_ms|geom_up|geom_up_ms|render_ms|kernel_ms|write_ms|total_ms|sah_cost|node_visits|image_fnv1a|bvh_nodes|prims)='
 rec() { "$@" | tr ' ' '\n' | grep -E "$keys" | tr '\n' ' '; echo; }
 C=course:InterestingScenes
 build_prev() {
@@ -138,6 +144,19 @@ context)
         echo -n "round=$round case=demo "
         rec $B/renderer/raytrace --backend cuda --runs 1 --warmup 0 -q -r 64x36 scenes/demo.txt -o /tmp/f.png
     done > "$OUT/context.txt" ;;
+stream)
+    build_prev || exit 1
+    [ -s /tmp/large-10m.txt ] || $B/renderer/scenegen --kind spheres --triangles 11000000 --seed 1 \
+        --resolution 1920x1080 -o /tmp/large-10m.txt > /dev/null 2>&1
+    for round in $(seq "${ROUNDS:-7}"); do
+        for c in large-4m:4 large-4m:8 large-4m:16 large-10m:16; do for v in prev head; do
+            x=$B/renderer/raytrace; [ $v = prev ] && x=/tmp/b-prev/renderer/raytrace
+            f=scenes/generated/${c%:*}.txt; [ ${c%:*} = large-10m ] && f=/tmp/large-10m.txt
+            echo -n "round=$round case=${c%:*} threads=${c#*:} version=$v "
+            rec $x --backend cuda --builder gpu --build-threads ${c#*:} --runs 1 --warmup 0 -q -r 1920x1080 \
+                "$f" -o /tmp/st-$v.png
+        done; done
+    done > "$OUT/stream.txt" ;;
 cache)
     rm -rf /tmp/rb-cache && mkdir -m 700 /tmp/rb-cache
     for i in 0 1 2 3 4 5; do
@@ -159,5 +178,5 @@ oom)
     ninja -C $B tests/gpu/gpu_hog >> "$OUT/build.log" 2>&1 || { echo "gpu_hog build failed"; exit 1; }
     sh tests/gpu/gpu_oom.sh $B/renderer/raytrace $B/tests/gpu/gpu_hog $B/renderer/scenegen > "$OUT/oom.txt" 2>&1
     echo "gpu_oom rc=$?" | tee -a "$OUT/oom.txt" ;;
-*) echo "device-gpubvh: unknown step '$step' (test, ab, quality, split, first, context, cache, oom)" >&2; exit 2 ;;
+*) echo "device-gpubvh: unknown step '$step' (test, ab, quality, split, first, context, stream, cache, oom)" >&2; exit 2 ;;
 esac; done

@@ -90,6 +90,13 @@ typedef enum { RT_REC_MAIN, RT_REC_MAIN_IF, RT_REC_BACKEND, RT_REC_LAST } RtRecW
     X(gpu_outsized, F3, "", EXTRA, "extra", MAIN_IF, \
       "`builder=gpu` with `--gpu-split auto` from 65,536 triangles: the share of the triangles' excess " \
       "box area held by boxes over 16 times the median box, in 16,384 of them evenly spaced") \
+    X(geom_up, STR, "", EXTRA, "extra", MAIN_IF, \
+      "`builder=gpu` only: where the scene's vertices and triangles were copied to the GPU: `parse`, " \
+      "range by range while the file was parsed on several threads, or `build`, by the build after " \
+      "the parse (docs/performance.md, \"The GPU build\")") \
+    X(geom_up_ms, F3, "ms", EXTRA, "extra", MAIN_IF, \
+      "`builder=gpu` only: what copying the geometry up cost the build, in `build_ms`: its own copy, " \
+      "or with `geom_up=parse` its wait for the parse's last copies") \
     X(bvh_pieces, UINT, "", EXTRA, "extra", MAIN_IF, \
       "where the tree holds records more than once: the copies, from the CPU build's spatial splits or " \
       "the GPU build's pieces of large triangles (`--gpu-split`); `prims` counts each record once") \

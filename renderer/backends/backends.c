@@ -24,20 +24,20 @@ extern const RtBackend rt_backend_mpi_cuda;
 
 #if !HAVE_OPENMP
 static const RtBackend openmp_missing = {"openmp", "this build has no OpenMP backend (configure with -Dopenmp=enabled)",
-                                         NULL, NULL, NULL, NULL, 0, NULL, 0, 0, NULL};
+                                         NULL, NULL, NULL, NULL, 0, NULL, 0, 0, NULL, NULL};
 #endif
 #if !HAVE_MPI
 static const RtBackend mpi_missing = {"mpi", "this build has no MPI backend (configure with -Dmpi=enabled)", NULL,
-                                      NULL, NULL, NULL, 0, NULL, 0, 0, NULL};
+                                      NULL, NULL, NULL, 0, NULL, 0, 0, NULL, NULL};
 #endif
 #if !HAVE_CUDA
 static const RtBackend cuda_missing = {"cuda", "this build has no CUDA backend (configure with -Dcuda=enabled; needs nvcc)",
-                                       NULL, NULL, NULL, NULL, 0, NULL, 0, 0, NULL};
+                                       NULL, NULL, NULL, NULL, 0, NULL, 0, 0, NULL, NULL};
 #endif
 
 #if !(HAVE_MPI && HAVE_CUDA)
 static const RtBackend mpi_cuda_missing = {"mpi-cuda", "this build has no mpi-cuda backend (it needs both MPI and CUDA)",
-                                           NULL, NULL, NULL, NULL, 0, NULL, 0, 0, NULL};
+                                           NULL, NULL, NULL, NULL, 0, NULL, 0, 0, NULL, NULL};
 #endif
 
 static const RtBackend *const backends[] = {

@@ -359,4 +359,4 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
 }
 
 const RtBackend rt_backend_mpi = {"mpi", NULL, rt_mpi_init, render_mpi, rt_mpi_finalize, &rt_mpi_collective, 0, NULL, 0,
-                                  RT_MPI_TILE, NULL};
+                                  RT_MPI_TILE, NULL, NULL};

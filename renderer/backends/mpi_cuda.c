@@ -329,4 +329,4 @@ static int mpi_cuda_accel_build(const RtScene *scene, const RtBvhSettings *setti
 /* times its own runs: the scene stays on each rank's device between frames */
 const RtBackend rt_backend_mpi_cuda = {"mpi-cuda",         NULL, rt_mpi_init, render_mpi_cuda, rt_mpi_finalize,
                                        &rt_mpi_collective, 1,    mpi_cuda_prewarm, 1, RT_OMP_TILE,
-                                       mpi_cuda_accel_build};
+                                       mpi_cuda_accel_build, NULL};

@@ -78,4 +78,4 @@ static int render_openmp(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     return 0;
 }
 
-const RtBackend rt_backend_openmp = {"openmp", NULL, NULL, render_openmp, NULL, NULL, 0, NULL, 0, RT_OMP_TILE, NULL};
+const RtBackend rt_backend_openmp = {"openmp", NULL, NULL, render_openmp, NULL, NULL, 0, NULL, 0, RT_OMP_TILE, NULL, NULL};

@@ -35,4 +35,4 @@ static int render_serial(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     return 0;
 }
 
-const RtBackend rt_backend_serial = {"serial", NULL, NULL, render_serial, NULL, NULL, 0, NULL, 0, RT_SERIAL_TILE, NULL};
+const RtBackend rt_backend_serial = {"serial", NULL, NULL, render_serial, NULL, NULL, 0, NULL, 0, RT_SERIAL_TILE, NULL, NULL};

@@ -14,7 +14,10 @@
  * chunk's first triangle with a bad index is found before it (in
  * parallel), the triangles before it are given slots and a material in
  * runs, and the runs are written after it (in parallel); from a bad
- * triangle on, parse_add_triangle reports it. */
+ * triangle on, parse_add_triangle reports it. A sink (rt.h's RtGeomSink)
+ * is handed each chunk's vertices once placed and each run of triangles
+ * once written: a backend copies them to its device while the rest is
+ * parsed. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -252,8 +255,9 @@ static int chunk_merge(Parser *p, const Chunk *c, const uint32_t at[2], const ch
     return 0;
 }
 
-/* The placed runs written, in parallel: the records parse_add_triangle writes. */
-static void pass2_fill(RtScene *sc, const Pass2 *q, int nt)
+/* The placed runs written, in parallel: the records parse_add_triangle
+ * writes, each run handed to the sink once written. */
+static void pass2_fill(RtScene *sc, const Pass2 *q, int nt, const RtGeomSink *sink)
 {
     (void)nt;
 #pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
@@ -264,6 +268,8 @@ static void pass2_fill(RtScene *sc, const Pass2 *q, int nt)
             const int64_t ix[6] = {t->v[0], t->v[1], t->v[2], t->n[0], t->n[1], t->n[2]};
             parse_set_triangle(&sc->triangles[run->out + k], ix, t->line < 0, run->material);
         }
+        if (sink)
+            sink->ready(sink->ctx, RT_GEOM_TRIANGLES, run->out, run->n);
     }
 }
 
@@ -385,15 +391,20 @@ int parse_chunks(Parser *p, const char *buf, size_t len, int nt)
             nv0[2 * i] = i ? nv0[2 * i - 2] + c[i - 1].nv : p->s->nvertices;
             nv0[2 * i + 1] = i ? nv0[2 * i - 1] + c[i - 1].nn : p->s->nnormals;
         }
+        if (p->sink)
+            p->sink->sized(p->sink->ctx, p->s);
 #pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
-        for (int i = 0; i < reached; i++)
+        for (int i = 0; i < reached; i++) {
             bad[i] = chunk_place(p->s, &c[i], nv0[2 * i], nv0[2 * i + 1]);
+            if (p->sink && c[i].nv)
+                p->sink->ready(p->sink->ctx, RT_GEOM_VERTICES, nv0[2 * i], c[i].nv);
+        }
     }
     for (int i = 0; i < reached && rc == 0; i++)
         rc = chunk_merge(p, &c[i], &nv0[2 * i], buf, line, bad[i], &q);
     /* (also after an error: the runs placed before it, as the serial parser
      * left them) */
-    pass2_fill(p->s, &q, nt);
+    pass2_fill(p->s, &q, nt, p->sink);
     free(q.runs);
     free(line);
     free(bad);

@@ -12,16 +12,23 @@
 
 #include "scene_parse.h"
 
-int rt_scene_parse_buffer_threads(const char *name, const char *buf, size_t len, int threads, RtScene *scene,
-                                  RtWarnFn warn, void *warn_ctx, RtError *err)
+int rt_scene_parse_buffer_sink(const char *name, const char *buf, size_t len, int threads, const RtGeomSink *sink,
+                               RtScene *scene, RtWarnFn warn, void *warn_ctx, RtError *err)
 {
     Parser p;
     if (parse_start(&p, name, scene, warn, warn_ctx, err) != 0)
         return -1;
+    p.sink = sink;
     const int nt = rt_thread_count(threads);
     if (nt > 1 && len >= 2 * (size_t)RT_PARSE_CHUNK)
         return parse_chunks(&p, buf, len, nt);
     return parse_serial(&p, buf, len);
+}
+
+int rt_scene_parse_buffer_threads(const char *name, const char *buf, size_t len, int threads, RtScene *scene,
+                                  RtWarnFn warn, void *warn_ctx, RtError *err)
+{
+    return rt_scene_parse_buffer_sink(name, buf, len, threads, NULL, scene, warn, warn_ctx, err);
 }
 
 int rt_scene_parse_buffer(const char *name, const char *buf, size_t len, RtScene *scene, RtWarnFn warn,
@@ -98,6 +105,12 @@ static int model_scene(const char *path, RtScene *scene, RtError *err)
 int rt_scene_load_threads(const char *path, int threads, RtScene *scene, RtWarnFn warn, void *warn_ctx,
                           RtError *err)
 {
+    return rt_scene_load_sink(path, threads, NULL, scene, warn, warn_ctx, err);
+}
+
+int rt_scene_load_sink(const char *path, int threads, const RtGeomSink *sink, RtScene *scene, RtWarnFn warn,
+                       void *warn_ctx, RtError *err)
+{
     memset(scene, 0, sizeof *scene);
     if (rt_model_supported(path)) /* raytrace MODEL: Assimp reads it (through model.c's own file access) */
         return model_scene(path, scene, err);
@@ -108,7 +121,7 @@ int rt_scene_load_threads(const char *path, int threads, RtScene *scene, RtWarnF
     size_t len = 0;
     if (rt_read_file(path, RT_MAX_FILE, &buf, &len, err) != 0)
         return -1;
-    const int rc = rt_scene_parse_buffer_threads(path, buf, len, threads, scene, warn, warn_ctx, err);
+    const int rc = rt_scene_parse_buffer_sink(path, buf, len, threads, sink, scene, warn, warn_ctx, err);
     if (rc == 0)
         rt_content_hash(buf, len, scene->source.file_hash);
     free(buf);

@@ -27,6 +27,7 @@ typedef struct Parser {
     RtWarnFn warn;
     void *warn_ctx;
     uint32_t material; /* index of the current material */
+    const RtGeomSink *sink; /* parse_chunks's final ranges (rt.h), or NULL */
 } Parser;
 
 static inline RtVec3 v3f(const float *f) { return rt_v3(f[0], f[1], f[2]); }

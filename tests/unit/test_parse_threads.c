@@ -5,7 +5,9 @@
  * and more) mixes vertices, normals, both kinds of triangle, spheres,
  * materials that change between them, lights, unknown commands and
  * comments. Each fault is planted at a few places: an error in a later
- * chunk must not hide an earlier one, of either pass. */
+ * chunk must not hide an earlier one, of either pass. The parse hands its
+ * vertices and triangles to a sink (rt.h's RtGeomSink) once each, final. */
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -95,6 +97,89 @@ static int compare(const char *what, const char *buf, size_t len)
     return rc1;
 }
 
+/* A sink as a device copy would use it: each range copied into shadow
+ * pools at once, each element counted. */
+typedef struct Shadow {
+    pthread_mutex_t mu; /* (ready comes from the parse's threads at once) */
+    const RtScene *sc;
+    int sized, overlap, outside;
+    RtVec3 *v;
+    RtTriangle *t;
+    unsigned char *seen[2];
+    uint32_t cap[2];
+} Shadow;
+
+static void sh_sized(void *ctx, const RtScene *sc)
+{
+    Shadow *s = ctx;
+    s->sized++;
+    s->sc = sc;
+    s->cap[0] = sc->cap_vertices;
+    s->cap[1] = sc->cap_triangles;
+    s->v = malloc((size_t)s->cap[0] * sizeof *s->v);
+    s->t = malloc((size_t)s->cap[1] * sizeof *s->t);
+    s->seen[0] = calloc(s->cap[0], 1);
+    s->seen[1] = calloc(s->cap[1], 1);
+}
+
+static void sh_ready(void *ctx, int pool, uint32_t first, uint32_t count)
+{
+    Shadow *s = ctx;
+    pthread_mutex_lock(&s->mu);
+    {
+        if ((uint64_t)first + count > s->cap[pool]) {
+            s->outside++;
+        } else {
+            if (pool == RT_GEOM_VERTICES)
+                memcpy(s->v + first, s->sc->vertices + first, (size_t)count * sizeof *s->v);
+            else
+                memcpy(s->t + first, s->sc->triangles + first, (size_t)count * sizeof *s->t);
+            for (uint32_t k = first; k < first + count; k++)
+                s->overlap += s->seen[pool][k]++ != 0;
+        }
+    }
+    pthread_mutex_unlock(&s->mu);
+}
+
+static void sh_end(void *ctx, int keep) { (void)ctx, (void)keep; }
+
+/* The sink's ranges on `threads` threads: sized once at the final sizes,
+ * every vertex and triangle handed on once, final when handed on. */
+static void check_sink(const char *buf, size_t len, int threads)
+{
+    Shadow sh;
+    memset(&sh, 0, sizeof sh);
+    pthread_mutex_init(&sh.mu, NULL);
+    const RtGeomSink sink = {&sh, sh_sized, sh_ready, sh_end};
+    RtScene sc;
+    RtError e;
+    const int rc = rt_scene_parse_buffer_sink("big.txt", buf, len, threads, &sink, &sc, NULL, NULL, &e);
+    CHECK(rc == 0, "sink, %d threads: %s", threads, e.msg);
+    if (threads == 1) {
+        CHECK(sh.sized == 0, "sink, 1 thread: sized %d times (the serial parse hands nothing on)", sh.sized);
+        rt_scene_free(&sc);
+        return;
+    }
+    CHECK(sh.sized == 1, "sink, %d threads: sized %d times", threads, sh.sized);
+    if (rc == 0 && sh.sized == 1) {
+        CHECK(sh.cap[0] == sc.nvertices && sh.cap[1] == sc.ntriangles, "sink: sized %u and %u, the scene has %u and %u",
+              sh.cap[0], sh.cap[1], sc.nvertices, sc.ntriangles);
+        CHECK(sh.overlap == 0 && sh.outside == 0, "sink: %d elements handed on twice, %d ranges outside", sh.overlap,
+              sh.outside);
+        uint32_t missed = 0;
+        for (int pl = 0; pl < 2; pl++)
+            for (uint32_t k = 0; k < sh.cap[pl]; k++)
+                missed += !sh.seen[pl][k];
+        CHECK(missed == 0, "sink, %d threads: %u elements never handed on", threads, missed);
+        CHECK(memcmp(sh.v, sc.vertices, (size_t)sc.nvertices * sizeof *sh.v) == 0 &&
+                  memcmp(sh.t, sc.triangles, (size_t)sc.ntriangles * sizeof *sh.t) == 0,
+              "sink, %d threads: a range changed after it was handed on", threads);
+    }
+    free(sh.v), free(sh.t), free(sh.seen[0]), free(sh.seen[1]);
+    pthread_mutex_destroy(&sh.mu);
+    rt_scene_free(&sc);
+}
+
 int main(void)
 {
     const int blocks = 60000; /* about 12 MB */
@@ -102,6 +187,9 @@ int main(void)
     char *buf = make_scene(blocks, 0, 0, 0, 0, &len);
     CHECK(len > 3 * (4u << 20), "the scene is %zu bytes, too small to be split", len);
     CHECK(compare("clean", buf, len) == 0, "the clean scene failed");
+    check_sink(buf, len, 1);
+    check_sink(buf, len, 2);
+    check_sink(buf, len, 5);
     free(buf);
     const int where[] = {1, 30000, 59990};
     for (int f = 1; f <= 5; f++)

@@ -76,13 +76,19 @@ typedef struct Blocks {
     float *psum; /* the split priorities' sum */
 } Blocks;
 
-/* n: the references at most. */
-static void carve_build(Blocks *k, Build *B, const RtScene *sc, uint32_t n)
+/* n: the references at most; geo: the geometry where the parse copied it
+ * (geom_stream.cu), else room for it. */
+static void carve_build(Blocks *k, Build *B, const RtScene *sc, uint32_t n, const RtCudaGeom *geo)
 {
     const size_t m = 2 * (size_t)n - 1;
     Carve *c = &k->keep;
-    B->verts = (const RtVec3 *)carve(c, (size_t)sc->nvertices * sizeof(RtVec3));
-    B->tris = (const RtTriangle *)carve(c, (size_t)sc->ntriangles * sizeof(RtTriangle));
+    if (geo->taken) {
+        B->verts = geo->vertices;
+        B->tris = geo->triangles;
+    } else {
+        B->verts = (const RtVec3 *)carve(c, (size_t)sc->nvertices * sizeof(RtVec3));
+        B->tris = (const RtTriangle *)carve(c, (size_t)sc->ntriangles * sizeof(RtTriangle));
+    }
     B->sph = (const RtSphere *)carve(c, (size_t)sc->nspheres * sizeof(RtSphere));
     B->prims = (RtPrim *)carve(c, (size_t)n * sizeof(RtPrim));
     B->bnodes = (RtBvhNode *)carve(c, m * sizeof(RtBvhNode));
@@ -198,11 +204,14 @@ fail:
     return -1;
 }
 
-/* The scene's records, vertices and spheres to the device. */
-static int upload(const Build *B, const RtScene *sc, RtError *err)
+/* The scene's records, vertices and spheres to the device (the spheres
+ * alone where the parse copied the rest). */
+static int upload(const Build *B, const RtScene *sc, const RtCudaGeom *geo, RtError *err)
 {
-    RT_CUDA_CHECK(rt_cuda_copy_up((void *)B->verts, sc->vertices, (size_t)sc->nvertices * sizeof(RtVec3)));
-    RT_CUDA_CHECK(rt_cuda_copy_up((void *)B->tris, sc->triangles, (size_t)sc->ntriangles * sizeof(RtTriangle)));
+    if (!geo->taken) {
+        RT_CUDA_CHECK(rt_cuda_copy_up((void *)B->verts, sc->vertices, (size_t)sc->nvertices * sizeof(RtVec3)));
+        RT_CUDA_CHECK(rt_cuda_copy_up((void *)B->tris, sc->triangles, (size_t)sc->ntriangles * sizeof(RtTriangle)));
+    }
     RT_CUDA_CHECK(rt_cuda_copy_up((void *)B->sph, sc->spheres, (size_t)sc->nspheres * sizeof(RtSphere)));
     return 0;
 fail:
@@ -210,8 +219,8 @@ fail:
 }
 
 /* The device's two blocks for n records, or 1 with why they do not fit. */
-static int reserve(Build *B, Blocks *k, const RtScene *sc, int device, unsigned char **keep, unsigned char **scratch,
-                   RtError *err)
+static int reserve(Build *B, Blocks *k, const RtScene *sc, const RtCudaGeom *geo, int device, unsigned char **keep,
+                   unsigned char **scratch, RtError *err)
 {
     size_t free_b = 0, total_b = 0;
     cub::DoubleBuffer<uint32_t> dk(NULL, NULL), dv(NULL, NULL);
@@ -224,7 +233,7 @@ static int reserve(Build *B, Blocks *k, const RtScene *sc, int device, unsigned 
     k->sort_bytes = std::max(k->sort_bytes, std::max(reduce_b, scan_b));
     k->keep.base = k->scratch.base = NULL;
     k->keep.off = k->scratch.off = 0;
-    carve_build(k, B, sc, B->n);
+    carve_build(k, B, sc, B->n, geo);
     need = (double)(k->keep.off + k->scratch.off) / 1048576.0;
     RT_CUDA_CHECK(cudaMemGetInfo(&free_b, &total_b));
     if (k->keep.off + k->scratch.off > free_b)
@@ -242,7 +251,7 @@ static int reserve(Build *B, Blocks *k, const RtScene *sc, int device, unsigned 
     k->keep.base = *keep;
     k->scratch.base = *scratch;
     k->keep.off = k->scratch.off = 0;
-    carve_build(k, B, sc, B->n);
+    carve_build(k, B, sc, B->n, geo);
     return 0;
 fail:
     return -1;
@@ -259,6 +268,7 @@ static void tree_free(void *p)
     if (cudaGetDevice(&cur) == cudaSuccess && cur != t->device)
         cudaSetDevice(t->device);
     cudaFree(t->mem);
+    cudaFree(t->geom);
     if (cur >= 0 && cur != t->device)
         cudaSetDevice(cur);
     free(t);
@@ -295,14 +305,15 @@ fail:
 }
 
 /* The build's results into accel: the tree stays on the device. */
-static int adopt(const Build *B, const uint32_t *h, double sah, int device, unsigned char *keep, RtAccel *a,
-                 RtError *err)
+static int adopt(const Build *B, const uint32_t *h, double sah, int device, unsigned char *keep, unsigned char *geom,
+                 RtAccel *a, RtError *err)
 {
     RtCudaTree *t = (RtCudaTree *)calloc(1, sizeof *t);
     if (!t)
         return rt_fail(err, "out of memory");
     t->device = device;
     t->mem = keep;
+    t->geom = geom;
     t->prims = B->prims;
     t->nodes = B->bnodes;
     t->wide = B->wide;
@@ -369,25 +380,27 @@ extern "C" int rt_cuda_accel_build(const RtScene *sc, const RtBvhSettings *set, 
     int nsm = 0, rc = -1;
     float ms = 0.0f;
     double sah = 0.0, t0 = 0.0;
+    RtCudaGeom geo;
     if (rt_cuda_device_open(device, &info->init_ms, err))
         return -1;
+    info->geom_streamed = rt_cuda_geom_take(sc, device, &geo);
     RT_CUDA_CHECK(cudaDeviceGetAttribute(&nsm, cudaDevAttrMultiProcessorCount, device));
-    rc = reserve(&B, &k, sc, device, &keep, &scratch, err);
+    rc = reserve(&B, &k, sc, &geo, device, &keep, &scratch, err);
     if (rc == 1 && chosen && B.budget) { /* without the pieces' room it may fit */
         cudaFree(keep);
         cudaFree(scratch);
         keep = scratch = NULL;
         memset(&k, 0, sizeof k);
         pieces_give_way(&B, info);
-        rc = reserve(&B, &k, sc, device, &keep, &scratch, err);
+        rc = reserve(&B, &k, sc, &geo, device, &keep, &scratch, err);
     }
     if (rc != 0)
         goto done;
     rc = -1;
     t0 = rt_now_ms();
-    if (upload(&B, sc, err))
+    if (upload(&B, sc, &geo, err))
         goto done;
-    info->upload_ms = rt_now_ms() - t0;
+    info->upload_ms = rt_now_ms() - t0 + geo.wait_ms;
     RT_CUDA_CHECK(cudaEventCreate(&ev[0]));
     RT_CUDA_CHECK(cudaEventCreate(&ev[1]));
     RT_CUDA_CHECK(cudaEventRecord(ev[0]));
@@ -407,9 +420,10 @@ extern "C" int rt_cuda_accel_build(const RtScene *sc, const RtBvhSettings *set, 
                 h[C_NODES]);
         goto done;
     }
-    if (adopt(&B, h, sah, device, keep, a, err))
+    if (adopt(&B, h, sah, device, keep, geo.mem, a, err))
         goto done;
     keep = NULL;
+    geo.mem = NULL;
     rc = 0;
     goto done;
 fail:
@@ -420,6 +434,7 @@ done:
             cudaEventDestroy(ev[j]);
     cudaFree(scratch);
     cudaFree(keep);
+    cudaFree(geo.mem);
     if (rc != 0)
         rt_accel_free(a);
     return rc;

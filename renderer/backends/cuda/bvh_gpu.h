@@ -18,6 +18,7 @@ extern "C" {
 typedef struct RtCudaTree {
     int device;
     unsigned char *mem;
+    unsigned char *geom; /* the vertices and triangles the parse copied up (geom_stream.cu), or NULL */
     const RtPrim *prims;
     const RtBvhNode *nodes;
     RtBvh4Node *wide;
@@ -25,6 +26,25 @@ typedef struct RtCudaTree {
     const RtTriangle *triangles;
     const RtSphere *spheres;
 } RtCudaTree;
+
+/* The scene's vertices and triangles on the device, copied while the scene
+ * was parsed (geom_stream.cu). */
+typedef struct RtCudaGeom {
+    unsigned char *mem;      /* one allocation (cudaFree) */
+    const RtVec3 *vertices;
+    const RtTriangle *triangles;
+    int taken;               /* 1: every vertex and triangle is there */
+    double copy_ms;          /* the copies' span, the first's start to the last's end */
+    double wait_ms;          /* what the build still waited for them */
+} RtCudaGeom;
+
+/* The CUDA backend's RtGeomSink for device `device`: it copies a scene of
+ * at least min_records triangles and spheres (0: any) while it is parsed. */
+const RtGeomSink *rt_cuda_geom_sink(int device, uint64_t min_records);
+/* Waits for the sink's copies; 1 with the geometry in out (the caller owns
+ * out->mem) when every vertex and triangle of sc was copied to `device`;
+ * 0 otherwise (out->wait_ms still set), the copying left to the caller. */
+int rt_cuda_geom_take(const RtScene *sc, int device, RtCudaGeom *out);
 
 /* Sorts the tree's nwide 4-wide nodes' slots in place along way
  * (schedule.h's rt_cuda_slot_sort), on the current device's stream 0. */

@@ -789,5 +789,5 @@ extern "C" {
 extern const RtBackend rt_backend_cuda;
 /* times its own runs: the scene stays on the device between frames */
 const RtBackend rt_backend_cuda = {"cuda", NULL, NULL, render_cuda, NULL, NULL, 1, cuda_prewarm, 1, RT_OMP_TILE,
-                                   rt_cuda_accel_build};
+                                   rt_cuda_accel_build, rt_cuda_geom_sink};
 }
