@@ -16,7 +16,8 @@
  *   4. top-down, a level of 4-wide nodes per launch: each opens its largest
  *      inner child until it has four (as accel/wide.c does), writes the
  *      binary nodes it passes in depth-first order and gathers its leaves'
- *      records in leaf order (a split triangle's in each leaf of a piece).
+ *      references in leaf order (a split triangle's in each leaf of a
+ *      piece); then one thread per reference writes its record there.
  * The result is the RtAccel the CPU builder makes, kept on the device for
  * the render to read in place (rt_accel_host copies it down for --verify
  * and the scene cache). The device code is bvh_gpu_kernels.cuh. */
@@ -102,6 +103,7 @@ static void carve_build(Blocks *k, Build *B, const RtScene *sc, uint32_t n, cons
     B->meta = (uint32_t *)carve(c, m * sizeof(uint32_t));
     B->nsub = (uint32_t *)carve(c, m * sizeof(uint32_t));
     B->cluster = (uint32_t *)carve(c, (size_t)n * sizeof(uint32_t));
+    B->order = B->cluster; /* (dead after H-PLOC) */
     B->parent = (uint32_t *)carve(c, (size_t)n * sizeof(uint32_t));
     k->sortbuf = (uint32_t *)carve(c, 4 * (size_t)n * sizeof(uint32_t)); /* keys, keys, values, values */
     B->queue = (Task *)k->sortbuf;
@@ -195,6 +197,7 @@ static int build_wide(const Build *B, const Blocks *k, int nsm, cudaEvent_t end,
         if (level >= MAX_LEVELS)
             return 1;
     }
+    k_prims<<<blocks_for(B->n), BLOCK>>>(*B);
     k_sah<<<SAH_BLOCKS, BLOCK>>>(*B, k->sah);
     RT_CUDA_CHECK_LAUNCH("k_sah");
     RT_CUDA_CHECK(cudaEventRecord(end));

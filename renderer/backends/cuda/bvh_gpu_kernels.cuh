@@ -41,6 +41,7 @@ struct Build {
     uint32_t *meta;    /* records below | COLLAPSED */
     uint32_t *nsub;    /* nodes below in the collapsed tree, itself included */
     uint32_t *cluster; /* H-PLOC: a range's clusters at its start, INVALID after them */
+    uint32_t *order;   /* then (the same memory) each leaf slot's reference, in leaf order */
     uint32_t *parent;  /* H-PLOC: per split, the first child range to arrive */
     const uint32_t *skeys; /* sorted Morton codes */
     const uint32_t *svals; /* the records in their order */
@@ -442,7 +443,8 @@ __device__ static void put_binary(const Build &B, uint32_t dfi, const GBox &b, u
     B.bnodes[dfi] = o;
 }
 
-/* A collapsed subtree's records (at most leaf_max, so four levels) from first on. */
+/* A collapsed subtree's references (at most leaf_max, so four levels) from
+ * first on; k_prims writes their records. */
 __device__ static void gather(const Build &B, uint32_t c, uint32_t first)
 {
     uint32_t st[8], sp = 0, k = 0;
@@ -451,7 +453,7 @@ __device__ static void gather(const Build &B, uint32_t c, uint32_t first)
         const uint32_t x = st[--sp];
         const uint2 kk = B.kids[x];
         if (x < B.n) {
-            B.prims[first + k++] = record_prim(B, B.rrec[kk.x]);
+            B.order[first + k++] = kk.x;
         } else if (sp + 2 <= 8) {
             st[sp++] = kk.y;
             st[sp++] = kk.x;
@@ -598,6 +600,16 @@ __global__ void k_widen(Build B, int level)
         B.ctr[C_MARK + level + 2] = atomicAdd(&B.ctr[C_QTAIL], 0u);
         B.ctr[C_WDONE] = 0;
     }
+}
+
+/* The records in leaf order, one thread each: their triangles' and
+ * vertices' scattered reads in one wide launch, not in series within each
+ * level's tasks (which made the levels half of the build). */
+__global__ void k_prims(Build B)
+{
+    const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i < B.n)
+        B.prims[i] = record_prim(B, B.rrec[B.order[i]]);
 }
 
 /* The collapsed tree's size, and the first task; for a tree that is one
