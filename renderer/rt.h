@@ -107,7 +107,7 @@ int rt_scene_parse_buffer_threads(const char *name, const char *buf, size_t len,
                                   RtWarnFn warn, void *warn_ctx, RtError *err);
 /* Where a parse hands on the scene's geometry as it becomes final, so that
  * a backend copies it to its device while the rest is parsed (the CUDA
- * backends' GPU build: backends/cuda/geom_stream.cu). Only the parse on
+ * backend's GPU build: backends/cuda/geom_stream.cu). Only the parse on
  * several threads calls it, from its threads at once: `sized` once, when the
  * pools are allocated at their final sizes (the scene's caps), then `ready`
  * for disjoint ranges of elements written for good. A parse that never

@@ -34,7 +34,6 @@ typedef struct RtCudaGeom {
     const RtVec3 *vertices;
     const RtTriangle *triangles;
     int taken;               /* 1: every vertex and triangle is there */
-    double copy_ms;          /* the copies' span, the first's start to the last's end */
     double wait_ms;          /* what the build still waited for them */
 } RtCudaGeom;
 

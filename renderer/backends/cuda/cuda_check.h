@@ -40,11 +40,6 @@ static inline int rt_cuda_fail(RtError *err, cudaError_t e, const char *call, co
         }                                                                    \
     } while (0)
 
-/* cudaMemcpy from host memory up to the device. A large range is
- * page-locked for the copy and released after it: 121 MB in 2 MiB pages
- * took 7.5-12.6 ms so, lock and release included, against 15-21 ms from
- * pageable memory (one H200: benchmarks/cuda_setup.c, docs/performance.md,
- * "The GPU build"). A range that cannot be locked is copied as it is. */
 /* Page-locks host memory for the device's copies: 1, or 0 where it cannot
  * be locked and stays pageable (the failure is not sticky: cleared). */
 static inline int rt_cuda_lock(void *host, size_t bytes)
@@ -55,6 +50,11 @@ static inline int rt_cuda_lock(void *host, size_t bytes)
     return 0;
 }
 
+/* cudaMemcpy from host memory up to the device. A large range is
+ * page-locked for the copy and released after it: 121 MB in 2 MiB pages
+ * took 7.5-12.6 ms so, lock and release included, against 15-21 ms from
+ * pageable memory (one H200: benchmarks/cuda_setup.c, docs/performance.md,
+ * "The GPU build"). A range that cannot be locked is copied as it is. */
 static inline cudaError_t rt_cuda_copy_up(void *dst, const void *src, size_t bytes)
 {
     void *lock = bytes >= ((size_t)8 << 20) && rt_cuda_lock((void *)src, bytes) ? (void *)src : NULL;

@@ -47,7 +47,6 @@ static struct {
     size_t nq, capq;
     unsigned char *mem;    /* vertices, then triangles at tri_off */
     size_t tri_off;
-    double first_ms, last_ms; /* the first copy's start, the last one's end */
 } g;
 
 static size_t align256(size_t b) { return (b + 255u) & ~(size_t)255u; }
@@ -69,12 +68,8 @@ static int copy_ranges(Range *r, size_t n)
         const int pl = (int)r[i].pool;
         const size_t off = (size_t)r[i].first * g.elem[pl], bytes = (size_t)count * g.elem[pl];
         unsigned char *dst = g.mem + (pl == RT_GEOM_TRIANGLES ? g.tri_off : 0) + off;
-        const double t0 = rt_now_ms();
         if (cudaMemcpy(dst, (const unsigned char *)g.host[pl] + off, bytes, cudaMemcpyHostToDevice) != cudaSuccess)
             return -1;
-        if (g.first_ms == 0.0)
-            g.first_ms = t0;
-        g.last_ms = rt_now_ms();
         g.copied[pl] += count;
         i = j;
     }
@@ -215,7 +210,6 @@ extern "C" int rt_cuda_geom_take(const RtScene *sc, int device, RtCudaGeom *out)
     out->mem = g.mem;
     out->vertices = (const RtVec3 *)g.mem;
     out->triangles = (const RtTriangle *)(g.mem + g.tri_off);
-    out->copy_ms = g.last_ms - g.first_ms;
     out->taken = 1;
     g.mem = NULL;
     return 1;
