@@ -25,6 +25,12 @@
 #           threads with --warmup 0 --runs 1 (the tables' runs) and with
 #           --warmup 3 --runs 9, and one rank with --warmup 1 --runs 3,
 #           both resolutions, interleaved, ROUNDS rounds (default 8)
+#   build   the BVH build, the older build and this one interleaved, ROUNDS
+#           rounds (default 7): build_ms and build_threads of the demo scene
+#           (7 primitives), the dragon and a 1M-triangle sphere field on the
+#           default threads, idle and beside one busy core; then every rank
+#           parsing and building at N ranks (--mpi-scene every), the same
+#           two scenes, beside one busy core
 #   hybrid  the hybrid table (configs/hybrid-dragon.conf): every P x T <= N
 #           of powers of two, both resolutions, 3 repeats, `order: rounds`,
 #           against the ceiling (run ceil first)
@@ -142,5 +148,27 @@ warm)
       mpirun --bind-to core -np 1 $RT -b mpi -q -r $res --warmup 1 --runs 3 --cache /tmp/cc-head $dragon -o /tmp/k.png | g
     done
   done > "$O/warm.txt" 2>&1; log warm ;;
+build)
+  g() { tr ' ' '\n' | grep -E '^(parse_ms|build_ms|build_threads|sah_cost)=' | tr '\n' ' '; echo; }
+  ninja -C /tmp/bh renderer/scenegen > /dev/null 2>&1
+  big=/tmp/large-1m.txt
+  [ -s $big ] || /tmp/bh/renderer/scenegen --kind spheres --triangles 1000000 --seed 3 --resolution 800x600 -o $big
+  spin() { taskset -c 0 sh -c 'while :; do :; done' > /dev/null 2>&1 & echo $!; }
+  for i in $(seq ${ROUNDS:-7}); do for busy in 0 1; do
+    bp=; [ $busy = 1 ] && bp=$(spin)
+    for sc in scenes/demo.txt $dragon $big; do for v in prev head; do
+      x=$RT; [ $v = prev ] && x=$PR
+      echo -n "round=$i busy=$busy version=$v scene=$(basename $sc .txt) "
+      $x -q -b serial -r 8x8 $sc -o /tmp/k.png | g
+    done; done
+    [ -n "$bp" ] && kill $bp
+  done; done > "$O/build.txt" 2>&1; log build
+  bp=$(spin)
+  for i in $(seq 3); do for sc in scenes/demo.txt $dragon; do for v in prev head; do
+    x=$RT; [ $v = prev ] && x=$PR
+    echo -n "round=$i ranks=$N version=$v scene=$(basename $sc .txt) "
+    timeout 60 mpirun --bind-to core -np $N $x -b mpi -q -r 64x48 --mpi-scene every $sc -o /tmp/k.png | g
+  done; done; done > "$O/build-mpi.txt" 2>&1
+  kill $bp; log build-mpi ;;
 esac; done
 log done

@@ -9,9 +9,10 @@
  *
  * The build runs on all the threads it is given and makes the same tree on
  * any number of them, so every backend's images and counters stay
- * bit-identical: large subtrees are OpenMP tasks writing arrays of their own
+ * bit-identical: large subtrees are tasks writing arrays of their own
  * (tasks.c), and large nodes bin and partition fixed chunks of references in
- * parallel, merged exactly (sah.c, partition.c). Its large arrays may ask
+ * parallel, merged exactly (sah.c, partition.c). Its threads are a pool of
+ * its own (pool.c) that sleep rather than spin while they wait. Its large arrays may ask
  * for 2 MiB pages (huge_pages.c). The invariants are checked by check.c. */
 #include <stdlib.h>
 #include <string.h>
@@ -27,9 +28,35 @@ int rt_accel_parse(const char *s, RtAccelKind *k)
     return -1;
 }
 
+/* make_prims's loop: one chunk of triangles' records. */
+typedef struct PrimsJob {
+    const RtScene *s;
+    RtPrim *p;
+    uint32_t chunk;
+} PrimsJob;
+
+static void prims_chunk(void *ctx, int c)
+{
+    const PrimsJob *j = ctx;
+    const RtScene *s = j->s;
+    uint32_t i0, i1;
+    chunk_range(s->ntriangles, j->chunk, c, &i0, &i1);
+    for (uint32_t i = i0; i < i1; i++) {
+        RtPrim *q = &j->p[s->nspheres + i];
+        const RtTriangle *t = &s->triangles[i];
+        RtVec3 a = s->vertices[t->v[0]], b = s->vertices[t->v[1]], c3 = s->vertices[t->v[2]];
+        RtVec3 e1 = rt_sub(b, a), e2 = rt_sub(c3, a);
+        q->p0[0] = a.x; q->p0[1] = a.y; q->p0[2] = a.z;
+        q->e1[0] = e1.x; q->e1[1] = e1.y; q->e1[2] = e1.z;
+        q->e2[0] = e2.x; q->e2[1] = e2.y; q->e2[2] = e2.z;
+        q->id = s->nspheres + i;
+    }
+}
+
 /* The primitive records in the scene's order: its spheres, then its
  * triangles (a vertex and two edges each). */
-static RtPrim *make_prims(const RtScene *s, int nt, int on, uint32_t *n_out, RtError *err)
+static RtPrim *make_prims(const RtScene *s, const RtBvhSettings *set, RtPool *pool, int on, uint32_t *n_out,
+                          RtError *err)
 {
     uint64_t n = (uint64_t)s->nspheres + s->ntriangles;
     if (n >= RT_PRIM_SPHERE_BIT) {
@@ -47,20 +74,31 @@ static RtPrim *make_prims(const RtScene *s, int nt, int on, uint32_t *n_out, RtE
         p[i].e1[0] = s->spheres[i].r;
         p[i].id = i | RT_PRIM_SPHERE_BIT;
     }
-    (void)nt;
-#pragma omp parallel for num_threads(nt) schedule(static)
-    for (uint32_t i = 0; i < s->ntriangles; i++) {
-        RtPrim *q = &p[s->nspheres + i];
-        const RtTriangle *t = &s->triangles[i];
-        RtVec3 a = s->vertices[t->v[0]], b = s->vertices[t->v[1]], c = s->vertices[t->v[2]];
-        RtVec3 e1 = rt_sub(b, a), e2 = rt_sub(c, a);
-        q->p0[0] = a.x; q->p0[1] = a.y; q->p0[2] = a.z;
-        q->e1[0] = e1.x; q->e1[1] = e1.y; q->e1[2] = e1.z;
-        q->e2[0] = e2.x; q->e2[1] = e2.y; q->e2[2] = e2.z;
-        q->id = s->nspheres + i;
-    }
+    const uint32_t chunk = (uint32_t)set->chunk;
+    PrimsJob job = {s, p, chunk};
+    pool_for(pool, (int)((s->ntriangles + (uint64_t)chunk - 1) / chunk), prims_chunk, &job);
     *n_out = (uint32_t)n;
     return p;
+}
+
+/* The records and, for a BVH, the tree and its 4-wide copy, on the pool. */
+static int build_on(const RtScene *s, RtAccelKind kind, const RtBvhSettings *set, RtPool *pool, RtAccel *a,
+                    RtError *err)
+{
+    uint32_t n = 0;
+    RtPrim *prims = make_prims(s, set, pool, a->huge_pages, &n, err);
+    if (!prims)
+        return -1;
+    a->nprims = n;
+    if (kind == RT_ACCEL_NONE || n == 0) {
+        a->prims = prims;
+        return 0;
+    }
+    if (bvh_build_binary(s, set, prims, n, pool, a, err) != 0)
+        return -1;
+    a->sah_cost = bvh_sah_cost(a->nodes, a->nnodes, pool);
+    bvh_widen(a, set, pool); /* optional: without it the GPU traverses the binary tree */
+    return 0;
 }
 
 int rt_accel_build_with(const RtScene *s, RtAccelKind kind, const RtBvhSettings *set, RtAccel *a, RtError *err)
@@ -75,20 +113,11 @@ int rt_accel_build_with(const RtScene *s, RtAccelKind kind, const RtBvhSettings 
         return -1;
     const int nt = bvh_build_threads(set, (uint64_t)s->nspheres + s->ntriangles);
     a->huge_pages = bvh_huge_pages_on(set, nt);
-    uint32_t n = 0;
-    RtPrim *prims = make_prims(s, nt, a->huge_pages, &n, err);
-    if (!prims)
-        return -1;
-    a->nprims = n;
-    if (kind == RT_ACCEL_NONE || n == 0) {
-        a->prims = prims;
-        return 0;
-    }
-    if (bvh_build_binary(s, set, prims, n, nt, a, err) != 0)
-        return -1;
-    a->sah_cost = bvh_sah_cost(a->nodes, a->nnodes, nt);
-    bvh_widen(a, set, nt); /* optional: without it the GPU traverses the binary tree */
-    return 0;
+    RtPool *pool = pool_start(nt);
+    a->build_threads = pool_threads(pool);
+    const int rc = build_on(s, kind, set, pool, a, err);
+    pool_stop(pool);
+    return rc;
 }
 
 int rt_accel_build_threads(const RtScene *s, RtAccelKind kind, int threads, RtAccel *a, RtError *err)

@@ -7,9 +7,6 @@
  * node i + 1 (pbrt-v4 LinearBVHNode). */
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 #include "build_internal.h"
 #define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf) /* rt_traverse.h asks for it; no ray is traced here */
@@ -151,59 +148,62 @@ static void prim_box(const RtPrim *p, const float v[3][3], Box *b)
     box_pad(b);
 }
 
+/* The build's loops over all its primitives or records, in chunks of
+ * RtBvhSettings.chunk on the pool. */
+typedef struct AllJob {
+    const RtScene *s;
+    const RtPrim *prims;
+    uint32_t n, chunk;
+    Ref *refs;
+    float (*verts)[3][3];
+    const uint32_t *order;
+    RtPrim *ordered;
+} AllJob;
+
 /* A reference per primitive (its whole box) and each triangle's vertices,
  * from the scene's vertex pool (the spatial splits cut the triangles). */
-static void make_refs(const RtScene *s, const RtPrim *prims, uint32_t n, int nt, Ref *refs, float (*verts)[3][3])
+static void refs_chunk(void *ctx, int c)
 {
-    (void)nt;
-#pragma omp parallel for num_threads(nt) schedule(static)
-    for (uint32_t i = 0; i < n; i++) {
-        if (!(prims[i].id & RT_PRIM_SPHERE_BIT)) {
-            const RtTriangle *t = &s->triangles[prims[i].id - s->nspheres];
+    const AllJob *j = ctx;
+    const RtScene *s = j->s;
+    uint32_t i0, i1;
+    chunk_range(j->n, j->chunk, c, &i0, &i1);
+    for (uint32_t i = i0; i < i1; i++) {
+        if (!(j->prims[i].id & RT_PRIM_SPHERE_BIT)) {
+            const RtTriangle *t = &s->triangles[j->prims[i].id - s->nspheres];
             for (int k = 0; k < 3; k++) {
                 const RtVec3 *q = &s->vertices[t->v[k]];
-                verts[i][k][0] = q->x; verts[i][k][1] = q->y; verts[i][k][2] = q->z;
+                j->verts[i][k][0] = q->x; j->verts[i][k][1] = q->y; j->verts[i][k][2] = q->z;
             }
         }
-        prim_box(&prims[i], (const float(*)[3])verts[i], &refs[i].box);
-        refs[i].prim = i;
+        prim_box(&j->prims[i], (const float(*)[3])j->verts[i], &j->refs[i].box);
+        j->refs[i].prim = i;
     }
 }
 
-/* Builds the tree from b's root on nt threads and places every subtree. */
-static void run(Builder *b, Ref *refs, uint32_t n, int nt, RtAccel *a)
+/* The records in leaf order. */
+static void order_chunk(void *ctx, int c)
 {
-#ifdef _OPENMP
-#pragma omp parallel num_threads(nt)
-#pragma omp single
-    {
-        a->build_threads = omp_get_num_threads();
-        bvh_build_node(b, refs, n, 0);
-        bvh_place_all(b, b->nodes, b->order, 0, 0, 0);
-    }
-#else
-    (void)nt;
-    (void)a;
-    bvh_build_node(b, refs, n, 0);
-    bvh_place_all(b, b->nodes, b->order, 0, 0, 0);
-#endif
+    const AllJob *j = ctx;
+    uint32_t i0, i1;
+    chunk_range(j->n, j->chunk, c, &i0, &i1);
+    for (uint32_t i = i0; i < i1; i++)
+        j->ordered[i] = j->prims[j->order[i]];
 }
 
 /* Copies the primitive records into leaf order and hands b's tree to a;
  * frees prims and, on failure, b's arrays. */
-static int finish(Builder *b, RtPrim *prims, uint32_t n, int nt, RtAccel *a, RtError *err)
+static int finish(Builder *b, RtPrim *prims, uint32_t n, RtAccel *a, RtError *err)
 {
     const size_t obytes = (size_t)b->norder * sizeof(RtPrim);
     RtPrim *ordered = b->oom ? NULL : bvh_alloc(obytes, b->huge);
-    const uint32_t *order = b->order;
     if (!ordered) {
         free(b->nodes); free(b->order); free(prims);
         return rt_fail(err, "out of memory building a BVH over %u primitives", n);
     }
-    (void)nt;
-#pragma omp parallel for num_threads(nt) schedule(static)
-    for (uint32_t i = 0; i < b->norder; i++)
-        ordered[i] = prims[order[i]];
+    const uint32_t chunk = (uint32_t)b->set->chunk;
+    AllJob job = {.prims = prims, .n = b->norder, .chunk = chunk, .order = b->order, .ordered = ordered};
+    pool_for(b->pool, (int)((b->norder + (uint64_t)chunk - 1) / chunk), order_chunk, &job);
     free(b->order); free(prims);
     if (b->max_depth >= RT_BVH_MAX_DEPTH) {
         free(b->nodes); free(ordered);
@@ -221,8 +221,8 @@ static int finish(Builder *b, RtPrim *prims, uint32_t n, int nt, RtAccel *a, RtE
 }
 
 /* The binary tree over the n primitive records prims (which it takes) on
- * nt threads, into a; 0, or -1 with err. */
-int bvh_build_binary(const RtScene *s, const RtBvhSettings *set, RtPrim *prims, uint32_t n, int nt, RtAccel *a,
+ * the pool's threads, into a; 0, or -1 with err. */
+int bvh_build_binary(const RtScene *s, const RtBvhSettings *set, RtPrim *prims, uint32_t n, RtPool *pool, RtAccel *a,
                      RtError *err)
 {
     const int on = a->huge_pages;
@@ -239,7 +239,9 @@ int bvh_build_binary(const RtScene *s, const RtBvhSettings *set, RtPrim *prims, 
         free(refs); free(verts); free(nodes); free(order); free(prims);
         return rt_fail(err, "out of memory building a BVH over %u primitives", n);
     }
-    make_refs(s, prims, n, nt, refs, verts);
+    const uint32_t chunk = (uint32_t)set->chunk;
+    AllJob job = {.s = s, .prims = prims, .n = n, .chunk = chunk, .refs = refs, .verts = verts};
+    pool_for(pool, (int)((n + (uint64_t)chunk - 1) / chunk), refs_chunk, &job);
     Builder b;
     memset(&b, 0, sizeof b);
     b.set = set;
@@ -249,9 +251,11 @@ int bvh_build_binary(const RtScene *s, const RtBvhSettings *set, RtPrim *prims, 
     b.order = order;
     b.refs_left = budget;
     b.huge = on;
+    b.pool = pool;
     const uint32_t share = n / (uint32_t)set->spatial_share, smin = (uint32_t)set->spatial_min;
     b.spatial_min = share > smin ? share : smin;
-    run(&b, refs, n, nt, a);
+    bvh_build_node(&b, refs, n, 0);
+    bvh_place_all(&b, b.nodes, b.order, 0, 0, 0);
     free(verts);
-    return finish(&b, prims, n, nt, a, err);
+    return finish(&b, prims, n, a, err);
 }

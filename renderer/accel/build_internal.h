@@ -12,6 +12,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "pool.h"
 #include "rt.h"
 
 /* The bins' array size: RtBvhSettings.bins is at most this. */
@@ -148,6 +149,7 @@ typedef struct Builder {
     uint32_t max_depth, leaves;
     int oom;
     int huge;             /* large arrays in 2 MiB pages (bvh_alloc) */
+    RtPool *pool;         /* the build's threads; NULL: serial */
     /* Subtrees built by tasks, not yet copied: each holds a hole of its size
      * in this builder's arrays at (at_node, at_order), filled once at the
      * end (bvh_place_all), so every node is copied once, not once per level. */
@@ -190,7 +192,7 @@ void bvh_bin_scales(const Box *b, int nb, float *scale);
 void bvh_sweep(const Box *bins, const uint32_t *lcnt, const uint32_t *rcnt, int nb, int axis, Split *best,
                int spatial);
 void bvh_object_split(const Builder *b, const Ref *refs, uint32_t count, const Box *cb, int nb, Split *best);
-double bvh_sah_cost(const RtBvhNode *nodes, uint32_t nnodes, int nt);
+double bvh_sah_cost(const RtBvhNode *nodes, uint32_t nnodes, RtPool *pool);
 
 /* spatial.c */
 void bvh_spatial_split(const Builder *b, const Ref *refs, uint32_t count, const Box *bb, int nb, Split *best);
@@ -207,7 +209,7 @@ void bvh_median_partition(Ref *refs, uint32_t count, int axis, float extent, Ref
 
 /* build.c */
 uint32_t bvh_build_node(Builder *b, Ref *refs, uint32_t count, uint32_t depth);
-int bvh_build_binary(const RtScene *s, const RtBvhSettings *set, RtPrim *prims, uint32_t n, int nt, RtAccel *a,
+int bvh_build_binary(const RtScene *s, const RtBvhSettings *set, RtPrim *prims, uint32_t n, RtPool *pool, RtAccel *a,
                      RtError *err);
 
 /* tasks.c */
@@ -215,6 +217,6 @@ uint32_t bvh_build_pair(Builder *b, Ref *left, uint32_t nl, Ref *right, uint32_t
 void bvh_place_all(Builder *s, RtBvhNode *nodes, uint32_t *order, uint32_t node_off, uint32_t order_off, int own);
 
 /* wide.c */
-int bvh_widen(RtAccel *a, const RtBvhSettings *set, int nt);
+int bvh_widen(RtAccel *a, const RtBvhSettings *set, RtPool *pool);
 
 #endif

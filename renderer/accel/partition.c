@@ -21,6 +21,21 @@ static void bounds_range(const Ref *refs, uint32_t i0, uint32_t i1, Box *bc)
     }
 }
 
+/* One chunk's bounds (bvh_bounds's loop). */
+typedef struct BoundsJob {
+    const Ref *refs;
+    uint32_t count, chunk;
+    Box (*part)[2];
+} BoundsJob;
+
+static void bounds_chunk(void *ctx, int c)
+{
+    const BoundsJob *j = ctx;
+    uint32_t i0, i1;
+    chunk_range(j->count, j->chunk, c, &i0, &i1);
+    bounds_range(j->refs, i0, i1, j->part[c]);
+}
+
 /* The bounds of refs[0..count): their boxes (bb) and their centroids (cb). */
 void bvh_bounds(const Builder *b, const Ref *refs, uint32_t count, Box *bb, Box *cb)
 {
@@ -31,12 +46,8 @@ void bvh_bounds(const Builder *b, const Ref *refs, uint32_t count, Box *bb, Box 
     if (!part) {
         bounds_range(refs, 0, count, bc);
     } else {
-#pragma omp taskloop grainsize(1)
-        for (int c = 0; c < nc; c++) {
-            uint32_t i0, i1;
-            chunk_range(count, chunk, c, &i0, &i1);
-            bounds_range(refs, i0, i1, part[c]);
-        }
+        BoundsJob job = {refs, count, chunk, part};
+        pool_for(b->pool, nc, bounds_chunk, &job);
         box_empty(&bc[0]);
         box_empty(&bc[1]);
         for (int c = 0; c < nc; c++) {
@@ -86,6 +97,42 @@ static void object_partition_serial(const Ref *refs, uint32_t count, const Box *
     *nr_out = nr;
 }
 
+/* The object partition's two loops over chunks: each chunk's count on the
+ * left, then (from their prefix sums) its references moved. */
+typedef struct PartJob {
+    const Ref *refs;
+    uint32_t count, chunk;
+    const Box *cb;
+    const Split *obj;
+    float scale;
+    uint32_t *nleft;
+    Ref *left, *right;
+} PartJob;
+
+static void part_count(void *ctx, int c)
+{
+    const PartJob *j = ctx;
+    uint32_t i0, i1, k = 0;
+    chunk_range(j->count, j->chunk, c, &i0, &i1);
+    for (uint32_t i = i0; i < i1; i++)
+        k += (uint32_t)obj_left(&j->refs[i], j->cb, j->obj, j->scale);
+    j->nleft[c] = k;
+}
+
+static void part_move(void *ctx, int c)
+{
+    const PartJob *j = ctx;
+    uint32_t i0, i1;
+    chunk_range(j->count, j->chunk, c, &i0, &i1);
+    uint32_t l = j->nleft[c], r = i0 - j->nleft[c];
+    for (uint32_t i = i0; i < i1; i++) {
+        if (obj_left(&j->refs[i], j->cb, j->obj, j->scale))
+            j->left[l++] = j->refs[i];
+        else
+            j->right[r++] = j->refs[i];
+    }
+}
+
 /* The object split's partition, in the references' order: over chunks in
  * parallel in a large node (each chunk's share of either side first
  * counted, so every chunk knows where its references go). */
@@ -101,31 +148,14 @@ void bvh_object_partition(const Builder *b, const Ref *refs, uint32_t count, con
         object_partition_serial(refs, count, cb, obj, scale, left, nl_out, right, nr_out);
         return;
     }
-#pragma omp taskloop grainsize(1)
-    for (int c = 0; c < nc; c++) {
-        uint32_t i0, i1, k = 0;
-        chunk_range(count, chunk, c, &i0, &i1);
-        for (uint32_t i = i0; i < i1; i++)
-            k += (uint32_t)obj_left(&refs[i], cb, obj, scale);
-        nleft[c] = k;
-    }
+    PartJob job = {refs, count, chunk, cb, obj, scale, nleft, left, right};
+    pool_for(b->pool, nc, part_count, &job);
     for (int c = 0; c < nc; c++) { /* exclusive prefix sums: each chunk's first slot on the left */
         const uint32_t k = nleft[c];
         nleft[c] = nl;
         nl += k;
     }
-#pragma omp taskloop grainsize(1)
-    for (int c = 0; c < nc; c++) {
-        uint32_t i0, i1;
-        chunk_range(count, chunk, c, &i0, &i1);
-        uint32_t l = nleft[c], r = i0 - nleft[c];
-        for (uint32_t i = i0; i < i1; i++) {
-            if (obj_left(&refs[i], cb, obj, scale))
-                left[l++] = refs[i];
-            else
-                right[r++] = refs[i];
-        }
-    }
+    pool_for(b->pool, nc, part_move, &job);
     free(nleft);
     *nl_out = nl;
     *nr_out = count - nl;

@@ -129,23 +129,38 @@ static void object_bins(const Builder *b, const Ref *refs, uint32_t i0, uint32_t
 }
 #endif
 
+/* One chunk's bins (bvh_bins_all's loop). */
+typedef struct BinsJob {
+    BinFn fn;
+    const Builder *b;
+    const Ref *refs;
+    uint32_t count;
+    const Box *box;
+    const float *scale;
+    int nb;
+    Bins *part;
+} BinsJob;
+
+static void bins_chunk(void *ctx, int c)
+{
+    const BinsJob *j = ctx;
+    uint32_t i0, i1;
+    chunk_range(j->count, (uint32_t)j->b->set->chunk, c, &i0, &i1);
+    j->fn(j->b, j->refs, i0, i1, j->box, j->scale, j->nb, &j->part[c]);
+}
+
 /* The bins of refs[0..count) by fn, over chunks in parallel in a large node. */
 void bvh_bins_all(BinFn fn, const Builder *b, const Ref *refs, uint32_t count, const Box *box, const float *scale,
                   int nb, Bins *o)
 {
-    const uint32_t chunk = (uint32_t)b->set->chunk;
-    const int nc = nchunks(count, chunk);
+    const int nc = nchunks(count, (uint32_t)b->set->chunk);
     Bins *part = nc > 1 ? malloc((size_t)nc * sizeof *part) : NULL;
     if (!part) {
         fn(b, refs, 0, count, box, scale, nb, o);
         return;
     }
-#pragma omp taskloop grainsize(1)
-    for (int c = 0; c < nc; c++) {
-        uint32_t i0, i1;
-        chunk_range(count, chunk, c, &i0, &i1);
-        fn(b, refs, i0, i1, box, scale, nb, &part[c]);
-    }
+    BinsJob job = {fn, b, refs, count, box, scale, nb, part};
+    pool_for(b->pool, nc, bins_chunk, &job);
     bvh_bins_empty(o, nb);
     for (int c = 0; c < nc; c++)
         bins_merge(o, &part[c], nb);
@@ -173,9 +188,29 @@ void bvh_object_split(const Builder *b, const Ref *refs, uint32_t count, const B
             bvh_sweep(bins.box[a], bins.in[a], bins.in[a], nb, a, best, 0);
 }
 
+/* One chunk's share of the SAH cost (bvh_sah_cost's loop). */
+typedef struct CostJob {
+    const RtBvhNode *nodes;
+    uint32_t nnodes;
+    double *part;
+} CostJob;
+
+static void cost_chunk(void *ctx, int k)
+{
+    const CostJob *j = ctx;
+    uint32_t i0, i1;
+    chunk_range(j->nnodes, SAH_COST_CHUNK, k, &i0, &i1);
+    double sum = 0.0;
+    for (uint32_t i = i0; i < i1; i++) {
+        const uint32_t count = j->nodes[i].meta & 0xffu;
+        sum += node_area(&j->nodes[i]) * (count ? (double)count : 1.0);
+    }
+    j->part[k] = sum;
+}
+
 /* The tree's SAH cost (traversal and intersection cost 1, as the build
  * weighs them): the expected work of a ray that meets the root's box. */
-double bvh_sah_cost(const RtBvhNode *nodes, uint32_t nnodes, int nt)
+double bvh_sah_cost(const RtBvhNode *nodes, uint32_t nnodes, RtPool *pool)
 {
     const double root = node_area(&nodes[0]);
     if (!(root > 0.0))
@@ -185,18 +220,8 @@ double bvh_sah_cost(const RtBvhNode *nodes, uint32_t nnodes, int nt)
     double *part = malloc((size_t)nc * sizeof *part), c = 0.0;
     if (!part)
         return 0.0;
-    (void)nt;
-#pragma omp parallel for num_threads(nt) schedule(static)
-    for (int k = 0; k < nc; k++) {
-        uint32_t i0, i1;
-        chunk_range(nnodes, SAH_COST_CHUNK, k, &i0, &i1);
-        double sum = 0.0;
-        for (uint32_t i = i0; i < i1; i++) {
-            const uint32_t count = nodes[i].meta & 0xffu;
-            sum += node_area(&nodes[i]) * (count ? (double)count : 1.0);
-        }
-        part[k] = sum;
-    }
+    CostJob job = {nodes, nnodes, part};
+    pool_for(pool, nc, cost_chunk, &job);
     for (int k = 0; k < nc; k++)
         c += part[k];
     free(part);

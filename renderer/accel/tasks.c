@@ -1,6 +1,6 @@
 /* tasks.c - the build's subtree tasks. A node of at least
- * RtBvhSettings.task_min references builds its left child as an OpenMP
- * task, each child writing its nodes and leaf order into arrays of its own
+ * RtBvhSettings.task_min references builds its left child as a task of the
+ * build's pool (pool.h), each child writing its nodes and leaf order into arrays of its own
  * (a sub-builder); its parent leaves a hole of the child's size, and once
  * the tree is done every subtree is copied into its hole, in parallel
  * (bvh_place_all), so the nodes land in depth-first order, each moved once.
@@ -23,6 +23,7 @@ static int sub_init(Builder *s, const Builder *p, uint32_t count, uint32_t budge
     s->refs_left = budget;
     s->spatial_min = p->spatial_min;
     s->huge = p->huge;
+    s->pool = p->pool;
     const size_t recs = (size_t)count + budget;
     s->nodes = bvh_alloc(2 * recs * sizeof *s->nodes, p->huge);
     s->order = bvh_alloc(recs * sizeof *s->order, p->huge);
@@ -83,29 +84,62 @@ static void place_range(const Builder *s, RtBvhNode *nodes, uint32_t *order, uin
     memcpy(order + order_off + o0, s->order + o0, (size_t)(o1 - o0) * sizeof *order);
 }
 
-/* Places subtree s (and those in its holes, as tasks) into the final arrays
- * at node_off and order_off, and frees it. The root builder's own nodes are
- * in place already (own = 0). */
-void bvh_place_all(Builder *s, RtBvhNode *nodes, uint32_t *order, uint32_t node_off, uint32_t order_off, int own)
+/* What bvh_place_all's loop places: segment k < nsegs, and at nsegs the
+ * builder's own ranges between them (when own). */
+typedef struct PlaceJob {
+    Builder *s;
+    RtBvhNode *nodes;
+    uint32_t *order;
+    uint32_t node_off, order_off;
+    int own;
+} PlaceJob;
+
+static void place_one(void *ctx, int k)
 {
-    uint32_t n0 = 0, o0 = 0;
-    for (uint32_t k = 0; k < s->nsegs; k++) {
+    const PlaceJob *j = ctx;
+    const Builder *s = j->s;
+    if ((uint32_t)k < s->nsegs) {
         Builder *c = &s->segs[k];
-        if (own)
-            place_range(s, nodes, order, node_off, order_off, n0, c->at_node, o0, c->at_order);
-#pragma omp task firstprivate(c)
-        bvh_place_all(c, nodes, order, node_off + c->at_node, order_off + c->at_order, 1);
+        bvh_place_all(c, j->nodes, j->order, j->node_off + c->at_node, j->order_off + c->at_order, 1);
+        return;
+    }
+    if (!j->own)
+        return;
+    uint32_t n0 = 0, o0 = 0;
+    for (uint32_t i = 0; i < s->nsegs; i++) {
+        const Builder *c = &s->segs[i];
+        place_range(s, j->nodes, j->order, j->node_off, j->order_off, n0, c->at_node, o0, c->at_order);
         n0 = c->at_node + c->nnodes;
         o0 = c->at_order + c->norder;
     }
-    if (own)
-        place_range(s, nodes, order, node_off, order_off, n0, s->nnodes, o0, s->norder);
-#pragma omp taskwait
+    place_range(s, j->nodes, j->order, j->node_off, j->order_off, n0, s->nnodes, o0, s->norder);
+}
+
+/* Places subtree s (and those in its holes, in parallel) into the final
+ * arrays at node_off and order_off, and frees it. The root builder's own
+ * nodes are in place already (own = 0). */
+void bvh_place_all(Builder *s, RtBvhNode *nodes, uint32_t *order, uint32_t node_off, uint32_t order_off, int own)
+{
+    PlaceJob job = {s, nodes, order, node_off, order_off, own};
+    pool_for(s->pool, (int)s->nsegs + 1, place_one, &job);
     free(s->segs); /* (the subtrees in it freed themselves) */
     if (own) {
         free(s->nodes);
         free(s->order);
     }
+}
+
+/* The left child of bvh_build_pair, the task. */
+typedef struct PairLeft {
+    Builder *sb;
+    Ref *refs;
+    uint32_t count, depth;
+} PairLeft;
+
+static void build_left(void *arg)
+{
+    const PairLeft *j = arg;
+    bvh_build_node(j->sb, j->refs, j->count, j->depth);
 }
 
 /* The two children of a large node, the left one as a task; returns the
@@ -125,10 +159,12 @@ uint32_t bvh_build_pair(Builder *b, Ref *left, uint32_t nl, Ref *right, uint32_t
         return bvh_build_node(b, right, nr, depth);
     }
     b->refs_left = 0;
-#pragma omp task default(shared)
-    bvh_build_node(&sb[0], left, nl, depth);
+    PairLeft job = {&sb[0], left, nl, depth};
+    PoolTask task;
+    PoolGroup g = {0, NULL};
+    pool_spawn(b->pool, &g, &task, build_left, &job);
     bvh_build_node(&sb[1], right, nr, depth);
-#pragma omp taskwait
+    pool_wait(b->pool, &g);
     sub_append(b, &sb[0]);
     const uint32_t r = b->nnodes;
     sub_append(b, &sb[1]);

@@ -14,6 +14,7 @@
 
 typedef struct Widen {
     const RtBvhSettings *set;
+    RtPool *pool;
     const RtBvhNode *bin;
     RtBvh4Node *wide;
     uint32_t n;
@@ -32,25 +33,48 @@ static uint32_t records_under(const RtBvhNode *bin, uint32_t bi)
     return bin[hi].index + (bin[hi].meta & 0xffu) - bin[lo].index;
 }
 
+/* append_copy's loop: one chunk of the sub-copy. */
+typedef struct AppendJob {
+    Widen *w;
+    const Widen *s;
+    uint32_t off, chunk;
+    int nch;
+} AppendJob;
+
+static void append_chunk(void *ctx, int ch)
+{
+    const AppendJob *j = ctx;
+    uint32_t i0 = 0, i1 = j->s->n;
+    if (j->nch > 1)
+        chunk_range(j->s->n, j->chunk, ch, &i0, &i1);
+    for (uint32_t i = i0; i < i1; i++) {
+        RtBvh4Node o = j->s->wide[i];
+        for (int c = 0; c < 4; c++)
+            o.child[c] += (o.child[c] & RT_WIDE_LEAF) ? 0u : j->off;
+        j->w->wide[j->off + i] = o;
+    }
+}
+
 /* Appends sub-copy s (its own array) to w's, its inner references shifted
  * by where it lands: over chunks in parallel when large. */
 static void append_copy(Widen *w, const Widen *s)
 {
-    const uint32_t off = w->n, nn = s->n, chunk = (uint32_t)w->set->chunk;
-    const int nch = nchunks(nn, chunk);
-#pragma omp taskloop grainsize(1) if (nch > 1)
-    for (int ch = 0; ch < nch; ch++) {
-        uint32_t i0 = 0, i1 = nn;
-        if (nch > 1)
-            chunk_range(nn, chunk, ch, &i0, &i1);
-        for (uint32_t i = i0; i < i1; i++) {
-            RtBvh4Node o = s->wide[i];
-            for (int c = 0; c < 4; c++)
-                o.child[c] += (o.child[c] & RT_WIDE_LEAF) ? 0u : off;
-            w->wide[off + i] = o;
-        }
-    }
-    w->n += nn;
+    const uint32_t chunk = (uint32_t)w->set->chunk;
+    AppendJob job = {w, s, w->n, chunk, nchunks(s->n, chunk)};
+    pool_for(w->pool, job.nch, append_chunk, &job);
+    w->n += s->n;
+}
+
+/* widen_children_tasks's task: one child's subtree into its own copy. */
+typedef struct ChildJob {
+    Widen *sw;
+    uint32_t bi, ref;
+} ChildJob;
+
+static void widen_child(void *arg)
+{
+    ChildJob *j = arg;
+    j->ref = widen_ref(j->sw, j->bi);
 }
 
 /* The children of a large wide node, each subtree a task writing its own
@@ -59,10 +83,13 @@ static void append_copy(Widen *w, const Widen *s)
 static int widen_children_tasks(Widen *w, const uint32_t *cand, int nc, uint32_t *refs)
 {
     Widen sw[4];
-    uint32_t r[4];
+    ChildJob job[4];
+    PoolTask task[4];
+    PoolGroup g = {0, NULL};
     int k;
     for (k = 0; k < nc; k++) {
         sw[k].set = w->set;
+        sw[k].pool = w->pool;
         sw[k].bin = w->bin;
         sw[k].n = 0;
         sw[k].wide = malloc(((size_t)2 * records_under(w->bin, cand[k]) + 1) * sizeof *sw[k].wide);
@@ -75,14 +102,16 @@ static int widen_children_tasks(Widen *w, const uint32_t *cand, int nc, uint32_t
         return -1;
     }
     for (k = 0; k < nc; k++) {
-#pragma omp task default(shared) firstprivate(k)
-        r[k] = widen_ref(&sw[k], cand[k]);
+        job[k] = (ChildJob){&sw[k], cand[k], 0};
+        if (k + 1 < nc)
+            pool_spawn(w->pool, &g, &task[k], widen_child, &job[k]);
     }
-#pragma omp taskwait
+    widen_child(&job[nc - 1]);
+    pool_wait(w->pool, &g);
     for (k = 0; k < nc; k++) {
-        const uint32_t off = w->n;
+        const uint32_t off = w->n, r = job[k].ref;
         append_copy(w, &sw[k]);
-        refs[k] = (r[k] & RT_WIDE_LEAF) ? r[k] : r[k] + off;
+        refs[k] = (r & RT_WIDE_LEAF) ? r : r + off;
         free(sw[k].wide);
     }
     return 0;
@@ -183,12 +212,13 @@ static uint32_t widen_ref(Widen *w, uint32_t bi)
 /* Builds a->wide from a->nodes. A tree that is one leaf gets a root with one
  * child. Fails only for lack of memory or more than 2^28 primitives (the
  * reference encoding); then the view simply has no wide tree. */
-int bvh_widen(RtAccel *a, const RtBvhSettings *set, int nt)
+int bvh_widen(RtAccel *a, const RtBvhSettings *set, RtPool *pool)
 {
     if (a->nnodes == 0 || a->nprims >= RT_WIDE_MAX_FIRST)
         return -1;
     Widen w;
     w.set = set;
+    w.pool = pool;
     w.bin = a->nodes;
     w.n = 0;
     /* At most one wide node per binary inner node, plus the root. */
@@ -202,9 +232,6 @@ int bvh_widen(RtAccel *a, const RtBvhSettings *set, int nt)
         w.n = 1;
         widen_fill(&w, 0, &root, 1);
     } else {
-        (void)nt;
-#pragma omp parallel num_threads(nt)
-#pragma omp single
         widen_ref(&w, 0);
     }
     RtBvh4Node *shrunk = realloc(w.wide, (size_t)w.n * sizeof *w.wide);

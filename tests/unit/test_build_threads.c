@@ -10,7 +10,9 @@
  * small build starts no thread. And the other choice the settings make for
  * one scene, the GPU build's pieces (rt_bvh_gpu_split_pct): 100 for a scene
  * whose long triangles hold the excess box area, 0 for triangles all alike
- * and for small scenes, a set percentage as set. */
+ * and for small scenes, a set percentage as set. And no build leaves a
+ * thread behind. */
+#include <dirent.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -55,6 +57,19 @@ static int same(const RtAccel *a, const RtAccel *b)
            memcmp(a->wide, b->wide, (size_t)a->nwide * sizeof *a->wide) == 0 && a->sah_cost == b->sah_cost;
 }
 
+/* The threads of this process (/proc/self/task): a build's threads end
+ * with it, so none waits, sleeping or spinning, once it returned. */
+static int process_threads(void)
+{
+    DIR *d = opendir("/proc/self/task");
+    int n = 0;
+    for (struct dirent *e; d && (e = readdir(d));)
+        n += e->d_name[0] != '.';
+    if (d)
+        closedir(d);
+    return n;
+}
+
 static void compare_threads(const char *name, const RtScene *sc, int want_splits)
 {
     static const int threads[] = {1, 2, 3, 7};
@@ -68,7 +83,11 @@ static void compare_threads(const char *name, const RtScene *sc, int want_splits
     if (want_splits)
         CHECK(ref.nsplit > 0, "%s: no spatial split: the test does not reach that path", name);
     for (size_t i = 1; i < sizeof threads / sizeof threads[0]; i++) {
-        if (rt_accel_build_threads(sc, RT_ACCEL_BVH, threads[i], &a, &err) != 0) {
+        const int before = process_threads();
+        const int rc = rt_accel_build_threads(sc, RT_ACCEL_BVH, threads[i], &a, &err);
+        CHECK(process_threads() == before, "%s: %d threads before a build on %d, %d after it", name, before,
+              threads[i], process_threads());
+        if (rc != 0) {
             CHECK(0, "%s: build on %d threads: %s", name, threads[i], err.msg);
             continue;
         }
