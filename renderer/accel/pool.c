@@ -1,9 +1,17 @@
 /* pool.c - the BVH build's fork-join pool (pool.h). One mutex guards a LIFO
  * of queued tasks and a list of parked threads, each parked on a condition
- * variable of its own: a spawn wakes one parked thread, a group's last task
- * wakes only its waiter, so no wake-up reaches a thread with nothing to do
- * and nothing waits by spinning. (Blocking POSIX mutexes and condition
- * variables: glibc's default mutex does not spin either.) */
+ * variable of its own: a spawn wakes as many parked threads as it queued
+ * tasks, a group's last task wakes only its waiter, so no wake-up reaches a
+ * thread with nothing to do and nothing waits by spinning. (Blocking POSIX
+ * mutexes and condition variables: glibc's default mutex does not spin
+ * either.)
+ *
+ * A wake-up is a system call and the woken thread takes tens of
+ * microseconds to run, so the pool keeps them off the critical path: the
+ * signals go out after the mutex is released (each of the pool's threads
+ * parks on a sleeper that lives as long as the pool, so a late signal never
+ * reaches a freed one), and a parallel loop asks only for the threads that
+ * are parked: busy ones take no part in it and cost it nothing. */
 #include "pool.h"
 
 #include <pthread.h>
@@ -14,6 +22,7 @@
 typedef struct PoolSleeper {
     pthread_cond_t cv;
     struct PoolSleeper *prev, *next;
+    const RtPool *pool; /* the pool whose thread this is; NULL: a caller's, on its stack */
     int woken;
 } PoolSleeper;
 
@@ -21,10 +30,15 @@ struct RtPool {
     pthread_mutex_t mu;
     PoolTask *head;          /* queued tasks, newest first */
     PoolSleeper *parked;     /* parked threads, the latest first */
+    int nparked;
     int stop;
     int nthreads;            /* the caller and the workers */
     pthread_t *workers;
+    PoolSleeper *sl;         /* sl[0] the thread that started the pool, sl[k + 1] worker k */
 };
+
+/* The calling thread's sleeper, where it is one of a pool's threads. */
+static _Thread_local PoolSleeper *tls_me;
 
 /* ---- parking (p->mu held) -------------------------------------------------- */
 
@@ -36,10 +50,14 @@ static void park(RtPool *p, PoolSleeper *s)
     if (p->parked)
         p->parked->prev = s;
     p->parked = s;
+    p->nparked++;
     while (!s->woken)
         pthread_cond_wait(&s->cv, &p->mu);
 }
 
+/* Takes s off the parked list and marks it woken; the caller signals it:
+ * after releasing the mutex where it lives as long as the pool, else at
+ * once. */
 static void unpark(RtPool *p, PoolSleeper *s)
 {
     if (s->prev)
@@ -48,15 +66,34 @@ static void unpark(RtPool *p, PoolSleeper *s)
         p->parked = s->next;
     if (s->next)
         s->next->prev = s->prev;
+    p->nparked--;
     s->woken = 1;
-    pthread_cond_signal(&s->cv);
+    if (!s->pool)
+        pthread_cond_signal(&s->cv);
 }
 
-/* Wakes up to n parked threads for queued work. */
-static void wake(RtPool *p, int n)
+#define WAKE_BATCH 64
+
+/* Unparks up to n parked threads, then releases the mutex and signals
+ * them (in batches of WAKE_BATCH, the mutex taken again between). */
+static void wake_release(RtPool *p, int n)
 {
-    while (n-- > 0 && p->parked)
-        unpark(p, p->parked);
+    PoolSleeper *w[WAKE_BATCH];
+    for (;;) {
+        int k = 0;
+        while (k < n && k < WAKE_BATCH && p->parked) {
+            w[k] = p->parked;
+            unpark(p, w[k++]);
+        }
+        pthread_mutex_unlock(&p->mu);
+        for (int i = 0; i < k; i++)
+            if (w[i]->pool)
+                pthread_cond_signal(&w[i]->cv);
+        n -= k;
+        if (k < WAKE_BATCH || n <= 0)
+            return;
+        pthread_mutex_lock(&p->mu);
+    }
 }
 
 /* ---- running tasks ----------------------------------------------------------- */
@@ -71,15 +108,27 @@ static void run_one(RtPool *p)
     t->fn(t->arg);
     pthread_mutex_lock(&p->mu);
     /* (t and g belong to g's waiter, who may return once pending is 0) */
-    if (--g->pending == 0 && g->waiter && !g->waiter->woken)
-        unpark(p, g->waiter);
+    if (--g->pending == 0 && g->waiter && !g->waiter->woken) {
+        PoolSleeper *w = g->waiter;
+        unpark(p, w);
+        pthread_mutex_unlock(&p->mu);
+        if (w->pool)
+            pthread_cond_signal(&w->cv);
+        pthread_mutex_lock(&p->mu);
+    }
 }
+
+typedef struct WorkerArg {
+    RtPool *p;
+    PoolSleeper *s;
+} WorkerArg;
 
 static void *worker_main(void *arg)
 {
-    RtPool *p = arg;
-    PoolSleeper s;
-    pthread_cond_init(&s.cv, NULL);
+    RtPool *p = ((WorkerArg *)arg)->p;
+    PoolSleeper *s = ((WorkerArg *)arg)->s;
+    free(arg);
+    tls_me = s;
     pthread_mutex_lock(&p->mu);
     for (;;) {
         if (p->head)
@@ -87,14 +136,28 @@ static void *worker_main(void *arg)
         else if (p->stop)
             break;
         else
-            park(p, &s);
+            park(p, s);
     }
     pthread_mutex_unlock(&p->mu);
-    pthread_cond_destroy(&s.cv);
+    tls_me = NULL;
     return NULL;
 }
 
 /* ---- the API ----------------------------------------------------------------- */
+
+/* Starts worker k; 0 or -1. */
+static int start_worker(RtPool *p, const pthread_attr_t *attr, int k)
+{
+    WorkerArg *a = malloc(sizeof *a);
+    if (!a)
+        return -1;
+    a->p = p;
+    a->s = &p->sl[k + 1];
+    if (pthread_create(&p->workers[k], attr, worker_main, a) == 0)
+        return 0;
+    free(a);
+    return -1;
+}
 
 RtPool *pool_start(int threads)
 {
@@ -102,25 +165,30 @@ RtPool *pool_start(int threads)
         return NULL;
     RtPool *p = calloc(1, sizeof *p);
     pthread_t *w = malloc((size_t)(threads - 1) * sizeof *w);
-    if (!p || !w) {
+    PoolSleeper *sl = calloc((size_t)threads, sizeof *sl);
+    if (!p || !w || !sl) {
         free(p);
         free(w);
+        free(sl);
         return NULL;
     }
     pthread_mutex_init(&p->mu, NULL);
+    for (int k = 0; k < threads; k++) {
+        pthread_cond_init(&sl[k].cv, NULL);
+        sl[k].pool = p;
+    }
     p->workers = w;
+    p->sl = sl;
     p->nthreads = 1;
+    tls_me = &sl[0];
     pthread_attr_t attr;
     const int have_attr = pthread_attr_init(&attr) == 0;
     /* The recursion nests tasks a waiting thread picks up: 16 MiB of stack
      * (address space; pages only as used), as deep as the main thread's. */
     if (have_attr)
         pthread_attr_setstacksize(&attr, (size_t)16 << 20);
-    for (int k = 0; k < threads - 1; k++) {
-        if (pthread_create(&w[k], have_attr ? &attr : NULL, worker_main, p) != 0)
-            break;
+    for (int k = 0; k < threads - 1 && start_worker(p, have_attr ? &attr : NULL, k) == 0; k++)
         p->nthreads++;
-    }
     if (have_attr)
         pthread_attr_destroy(&attr);
     if (p->nthreads == 1) {
@@ -136,12 +204,16 @@ void pool_stop(RtPool *p)
         return;
     pthread_mutex_lock(&p->mu);
     p->stop = 1;
-    wake(p, p->nthreads);
-    pthread_mutex_unlock(&p->mu);
+    wake_release(p, p->nthreads);
     for (int k = 0; k < p->nthreads - 1; k++)
         pthread_join(p->workers[k], NULL);
+    if (tls_me == &p->sl[0])
+        tls_me = NULL;
+    for (int k = 0; k < p->nthreads; k++)
+        pthread_cond_destroy(&p->sl[k].cv);
     pthread_mutex_destroy(&p->mu);
     free(p->workers);
+    free(p->sl);
     free(p);
 }
 
@@ -150,20 +222,23 @@ int pool_threads(const RtPool *p)
     return p ? p->nthreads : 1;
 }
 
-/* Queues n tasks ts[0..n) of group g running fn on args[k] (p->mu not held). */
-static void spawn_n(RtPool *p, PoolGroup *g, PoolTask *ts, int n, void (*fn)(void *), void *const *args)
+/* Queues ts[0..n) (fn and arg set) in group g, n at most `idle` where that
+ * is not negative: no more than the threads parked (a busy thread would
+ * take its task only after its own work, which the caller by then has
+ * done). Wakes as many parked threads; returns n. */
+static int spawn_n(RtPool *p, PoolGroup *g, PoolTask *ts, int n, int idle)
 {
     pthread_mutex_lock(&p->mu);
+    if (idle && n > p->nparked)
+        n = p->nparked;
     for (int k = 0; k < n; k++) {
-        ts[k].fn = fn;
-        ts[k].arg = args ? args[k] : ts[k].arg;
         ts[k].group = g;
         ts[k].next = p->head;
         p->head = &ts[k];
     }
     g->pending += (unsigned)n;
-    wake(p, n);
-    pthread_mutex_unlock(&p->mu);
+    wake_release(p, n);
+    return n;
 }
 
 void pool_spawn(RtPool *p, PoolGroup *g, PoolTask *t, void (*fn)(void *arg), void *arg)
@@ -172,30 +247,34 @@ void pool_spawn(RtPool *p, PoolGroup *g, PoolTask *t, void (*fn)(void *arg), voi
         fn(arg);
         return;
     }
-    spawn_n(p, g, t, 1, fn, &arg);
+    t->fn = fn;
+    t->arg = arg;
+    spawn_n(p, g, t, 1, 0);
 }
 
 void pool_wait(RtPool *p, PoolGroup *g)
 {
     if (!p)
         return;
-    PoolSleeper s;
-    pthread_cond_init(&s.cv, NULL);
+    PoolSleeper own, *s = tls_me && tls_me->pool == p ? tls_me : &own;
+    if (s == &own) {
+        pthread_cond_init(&own.cv, NULL);
+        own.pool = NULL;
+    }
     pthread_mutex_lock(&p->mu);
     while (g->pending) {
         if (p->head) {
             run_one(p);
             continue;
         }
-        g->waiter = &s;
-        park(p, &s);
+        g->waiter = s;
+        park(p, s);
         g->waiter = NULL;
     }
     /* A spawn may have woken this thread for work it no longer takes. */
-    if (p->head)
-        wake(p, 1);
-    pthread_mutex_unlock(&p->mu);
-    pthread_cond_destroy(&s.cv);
+    wake_release(p, p->head ? 1 : 0);
+    if (s == &own)
+        pthread_cond_destroy(&own.cv);
 }
 
 /* pool_for's shared loop: each runner claims the next index until none is
@@ -218,16 +297,19 @@ void pool_for(RtPool *p, int n, void (*fn)(void *ctx, int i), void *ctx)
 {
     ForRun r = {.fn = fn, .ctx = ctx, .n = n};
     atomic_init(&r.next, 0);
-    const int helpers = p && n > 1 ? (n < p->nthreads ? n : p->nthreads) - 1 : 0;
-    PoolTask few[8], *ts = helpers <= 8 ? few : malloc((size_t)helpers * sizeof *ts);
+    const int most = p && n > 1 ? (n < p->nthreads ? n : p->nthreads) - 1 : 0;
+    PoolTask few[8], *ts = most <= 8 ? few : malloc((size_t)most * sizeof *ts);
     PoolGroup g = {0, NULL};
-    if (helpers > 0 && ts) {
-        for (int k = 0; k < helpers; k++)
+    int helpers = 0;
+    if (most > 0 && ts) {
+        for (int k = 0; k < most; k++) {
+            ts[k].fn = for_runner;
             ts[k].arg = &r;
-        spawn_n(p, &g, ts, helpers, for_runner, NULL);
+        }
+        helpers = spawn_n(p, &g, ts, most, 1);
     }
     for_runner(&r);
-    if (helpers > 0 && ts)
+    if (helpers > 0)
         pool_wait(p, &g);
     if (ts != few)
         free(ts);
