@@ -10,8 +10,8 @@
  * microseconds to run, so the pool keeps them off the critical path: the
  * signals go out after the mutex is released (each of the pool's threads
  * parks on a sleeper that lives as long as the pool, so a late signal never
- * reaches a freed one), and a parallel loop asks only for the threads that
- * are parked: busy ones take no part in it and cost it nothing. */
+ * reaches a freed one), and a parallel loop asks only for the threads free
+ * to take part: busy ones take no part in it and cost it nothing. */
 #include "pool.h"
 
 #include <pthread.h>
@@ -31,6 +31,10 @@ struct RtPool {
     PoolTask *head;          /* queued tasks, newest first */
     PoolSleeper *parked;     /* parked threads, the latest first */
     int nparked;
+    /* Threads free to take a task: workers between tasks (parked or not
+     * yet) and threads parked in pool_wait. A worker that just finished a
+     * task counts before it parks, so a loop that follows asks for it. */
+    int navail;
     int stop;
     int nthreads;            /* the caller and the workers */
     pthread_t *workers;
@@ -131,9 +135,11 @@ static void *worker_main(void *arg)
     tls_me = s;
     pthread_mutex_lock(&p->mu);
     for (;;) {
-        if (p->head)
+        if (p->head) {
+            p->navail--;
             run_one(p);
-        else if (p->stop)
+            p->navail++;
+        } else if (p->stop)
             break;
         else
             park(p, s);
@@ -195,6 +201,9 @@ RtPool *pool_start(int threads)
         pool_stop(p);
         return NULL;
     }
+    pthread_mutex_lock(&p->mu);
+    p->navail = p->nthreads - 1; /* (the workers take queued tasks before they park) */
+    pthread_mutex_unlock(&p->mu);
     return p;
 }
 
@@ -222,22 +231,24 @@ int pool_threads(const RtPool *p)
     return p ? p->nthreads : 1;
 }
 
-/* Queues ts[0..n) (fn and arg set) in group g, n at most `idle` where that
- * is not negative: no more than the threads parked (a busy thread would
- * take its task only after its own work, which the caller by then has
- * done). Wakes as many parked threads; returns n. */
+/* Queues ts[0..n) (fn and arg set) in group g; with `idle`, no more than
+ * the threads free to take them (a busy thread would take its task only
+ * after its own work, which the caller by then has done). Wakes as many
+ * parked threads; returns n. */
 static int spawn_n(RtPool *p, PoolGroup *g, PoolTask *ts, int n, int idle)
 {
     pthread_mutex_lock(&p->mu);
-    if (idle && n > p->nparked)
-        n = p->nparked;
+    if (idle && n > p->navail)
+        n = p->navail > 0 ? p->navail : 0;
     for (int k = 0; k < n; k++) {
         ts[k].group = g;
         ts[k].next = p->head;
         p->head = &ts[k];
     }
     g->pending += (unsigned)n;
-    wake_release(p, n);
+    /* (workers still starting take tasks before they first park) */
+    const int starting = p->navail - p->nparked;
+    wake_release(p, n - (starting > 0 ? starting : 0));
     return n;
 }
 
@@ -268,7 +279,9 @@ void pool_wait(RtPool *p, PoolGroup *g)
             continue;
         }
         g->waiter = s;
+        p->navail++;
         park(p, s);
+        p->navail--;
         g->waiter = NULL;
     }
     /* A spawn may have woken this thread for work it no longer takes. */
