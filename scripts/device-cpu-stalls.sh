@@ -31,6 +31,9 @@
 #           default threads, idle and beside one busy core; then every rank
 #           parsing and building at N ranks (--mpi-scene every), the same
 #           two scenes, beside one busy core
+#   bigbuild the BVH build of a 3.6M-triangle sphere field (large-4m) on
+#           16, N/2 and N threads (BUILD_THREADS), the older build and this
+#           one interleaved, ROUNDS rounds (default 3)
 #   hybrid  the hybrid table (configs/hybrid-dragon.conf): every P x T <= N
 #           of powers of two, both resolutions, 3 repeats, `order: rounds`,
 #           against the ceiling (run ceil first)
@@ -170,5 +173,15 @@ build)
     timeout 60 mpirun --bind-to core -np $N $x -b mpi -q -r 64x48 --mpi-scene every $sc -o /tmp/k.png | g
   done; done; done > "$O/build-mpi.txt" 2>&1
   kill $bp; log build-mpi ;;
+bigbuild)
+  g() { tr ' ' '\n' | grep -E '^(parse_ms|build_ms|build_threads|sah_cost|huge_pages)=' | tr '\n' ' '; echo; }
+  ninja -C /tmp/bh renderer/scenegen > /dev/null 2>&1
+  big=/tmp/large-4m.txt
+  [ -s $big ] || /tmp/bh/renderer/scenegen --kind spheres --triangles 4000000 --seed 1 --resolution 1920x1080 -o $big
+  for i in $(seq ${ROUNDS:-3}); do for t in ${BUILD_THREADS:-16 $((N / 2)) $N}; do for v in prev head; do
+    x=$RT; [ $v = prev ] && x=$PR
+    echo -n "round=$i threads=$t version=$v "
+    $x -q -b serial -r 8x8 --build-threads $t $big -o /tmp/k.png | g
+  done; done; done > "$O/bigbuild.txt" 2>&1; log bigbuild ;;
 esac; done
 log done

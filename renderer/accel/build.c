@@ -12,11 +12,17 @@
 #define RT_WIDE_LEAF_VOTE(has_leaf, any) (has_leaf) /* rt_traverse.h asks for it; no ray is traced here */
 #include "core/rt_traverse.h" /* RT_BVH_MAX_DEPTH: the traversal stack bounds the build */
 
-/* A node's children: their reference arrays and counts. */
+/* A node's children: their reference arrays and counts, and where the
+ * partition found them (bounded), each one's box and centroid bounds. */
 typedef struct Kids {
     Ref *left, *right;
     uint32_t nl, nr;
+    int bounded;
+    Box lb[2], rb[2];
 } Kids;
+
+static int split_children(Builder *b, const Ref *refs, uint32_t count, const Box *bb, const Box *cb, float parea,
+                          int nb, const Split *objp, const Bins *parts, Kids *k);
 
 /* The SAH split of a node (bb: its box, of area parea; cb: its centroids'
  * bounds), partitioned into k: its axis; -1 when a leaf is cheaper or the
@@ -28,7 +34,20 @@ static int sah_split(Builder *b, const Ref *refs, uint32_t count, const Box *bb,
      * bins for a few references costs more than it can gain. */
     const int nb = count < (uint32_t)set->bins ? (count < 4 ? 4 : (int)count) : set->bins;
     Split obj = {.cost = RT_INF, .axis = -1};
-    bvh_object_split(b, refs, count, cb, nb, &obj);
+    Bins *parts = NULL; /* (each chunk's bins: the partition's counts) */
+    bvh_object_split(b, refs, count, cb, nb, &obj, &parts);
+    const int axis = split_children(b, refs, count, bb, cb, parea, nb, &obj, parts, k);
+    free(parts);
+    return axis;
+}
+
+/* sah_split's choice between obj and a spatial split (of nb bins), and its
+ * partition. */
+static int split_children(Builder *b, const Ref *refs, uint32_t count, const Box *bb, const Box *cb, float parea,
+                          int nb, const Split *objp, const Bins *parts, Kids *k)
+{
+    const RtBvhSettings *set = b->set;
+    const Split obj = *objp;
     /* Spatial splits only where the object split's children overlap by
      * more than spatial_overlap of the node's area, and not in small nodes:
      * there binning the cut triangles costs the most build time for the
@@ -50,7 +69,8 @@ static int sah_split(Builder *b, const Ref *refs, uint32_t count, const Box *bb,
     if (obj.axis >= 0) {
         /* the object split, also when the spatial one separated nothing or
          * ran out of its reference budget */
-        bvh_object_partition(b, refs, count, cb, &obj, k->left, &k->nl, k->right, &k->nr);
+        bvh_object_partition(b, refs, count, cb, &obj, parts, k->left, &k->nl, k->right, &k->nr, k->lb, k->rb);
+        k->bounded = 1;
         if (k->nl > 0 && k->nr > 0)
             return obj.axis;
     }
@@ -71,6 +91,7 @@ static int median_split(Builder *b, Ref *refs, uint32_t count, const Box *cb, Ki
         }
     if (!bvh_halves(b, count, &k->left, &k->right))
         return -2;
+    k->bounded = 0;
     bvh_median_partition(refs, count, axis, ext, k->left, &k->nl, k->right, &k->nr);
     return axis;
 }
@@ -87,19 +108,25 @@ static void make_leaf(Builder *b, uint32_t ni, const Ref *refs, uint32_t count)
 }
 
 /* Builds the subtree over refs[0..count) (which it frees) and returns its
- * node; the nodes are written depth-first. */
-uint32_t bvh_build_node(Builder *b, Ref *refs, uint32_t count, uint32_t depth)
+ * node; the nodes are written depth-first. known: its box and centroid
+ * bounds where its parent's partition found them, else NULL. */
+uint32_t bvh_build_node(Builder *b, Ref *refs, uint32_t count, const Box *known, uint32_t depth)
 {
     const uint32_t ni = b->nnodes++;
     Box bb, cb;
-    bvh_bounds(b, refs, count, &bb, &cb);
+    if (known) {
+        bb = known[0];
+        cb = known[1];
+    } else {
+        bvh_bounds(b, refs, count, &bb, &cb);
+    }
     RtBvhNode *n = &b->nodes[ni];
     memcpy(n->lo, bb.lo, sizeof n->lo);
     memcpy(n->hi, bb.hi, sizeof n->hi);
     if (depth > b->max_depth)
         b->max_depth = depth;
 
-    Kids k = {NULL, NULL, 0, 0};
+    Kids k = {.left = NULL};
     int axis = -1;
     const float parea = box_area(&bb);
     if (count > 1 && depth < (uint32_t)b->set->sah_depth && parea > 0.0f)
@@ -119,11 +146,12 @@ uint32_t bvh_build_node(Builder *b, Ref *refs, uint32_t count, uint32_t depth)
     }
     free(refs);
     uint32_t r;
+    const Box *lk = k.bounded ? k.lb : NULL, *rk = k.bounded ? k.rb : NULL;
     if (count >= (uint32_t)b->set->task_min) {
-        r = bvh_build_pair(b, k.left, k.nl, k.right, k.nr, depth + 1);
+        r = bvh_build_pair(b, k.left, k.nl, lk, k.right, k.nr, rk, depth + 1);
     } else {
-        bvh_build_node(b, k.left, k.nl, depth + 1);
-        r = bvh_build_node(b, k.right, k.nr, depth + 1);
+        bvh_build_node(b, k.left, k.nl, lk, depth + 1);
+        r = bvh_build_node(b, k.right, k.nr, rk, depth + 1);
     }
     n = &b->nodes[ni]; /* (nodes never move: capacity reserved up front) */
     n->index = r;
@@ -254,7 +282,7 @@ int bvh_build_binary(const RtScene *s, const RtBvhSettings *set, RtPrim *prims, 
     b.pool = pool;
     const uint32_t share = n / (uint32_t)set->spatial_share, smin = (uint32_t)set->spatial_min;
     b.spatial_min = share > smin ? share : smin;
-    bvh_build_node(&b, refs, n, 0);
+    bvh_build_node(&b, refs, n, NULL, 0);
     bvh_place_all(&b, b.nodes, b.order, 0, 0, 0);
     free(verts);
     return finish(&b, prims, n, a, err);

@@ -187,11 +187,12 @@ typedef void (*BinFn)(const Builder *b, const Ref *refs, uint32_t i0, uint32_t i
                       const float *scale, int nb, Bins *o);
 void bvh_bins_empty(Bins *b, int nb);
 void bvh_bins_all(BinFn fn, const Builder *b, const Ref *refs, uint32_t count, const Box *box, const float *scale,
-                  int nb, Bins *o);
+                  int nb, Bins *o, Bins **keep);
 void bvh_bin_scales(const Box *b, int nb, float *scale);
 void bvh_sweep(const Box *bins, const uint32_t *lcnt, const uint32_t *rcnt, int nb, int axis, Split *best,
                int spatial);
-void bvh_object_split(const Builder *b, const Ref *refs, uint32_t count, const Box *cb, int nb, Split *best);
+void bvh_object_split(const Builder *b, const Ref *refs, uint32_t count, const Box *cb, int nb, Split *best,
+                      Bins **parts);
 double bvh_sah_cost(const RtBvhNode *nodes, uint32_t nnodes, RtPool *pool);
 
 /* spatial.c */
@@ -203,17 +204,19 @@ int bvh_spatial_partition(Builder *b, const Ref *refs, uint32_t count, const Spl
 void bvh_bounds(const Builder *b, const Ref *refs, uint32_t count, Box *bb, Box *cb);
 int bvh_halves(Builder *b, uint32_t count, Ref **left, Ref **right);
 void bvh_object_partition(const Builder *b, const Ref *refs, uint32_t count, const Box *cb, const Split *obj,
-                          Ref *left, uint32_t *nl_out, Ref *right, uint32_t *nr_out);
+                          const Bins *parts, Ref *left, uint32_t *nl_out, Ref *right, uint32_t *nr_out, Box *lb,
+                          Box *rb);
 void bvh_median_partition(Ref *refs, uint32_t count, int axis, float extent, Ref *left, uint32_t *nl_out, Ref *right,
                           uint32_t *nr_out);
 
 /* build.c */
-uint32_t bvh_build_node(Builder *b, Ref *refs, uint32_t count, uint32_t depth);
+uint32_t bvh_build_node(Builder *b, Ref *refs, uint32_t count, const Box *known, uint32_t depth);
 int bvh_build_binary(const RtScene *s, const RtBvhSettings *set, RtPrim *prims, uint32_t n, RtPool *pool, RtAccel *a,
                      RtError *err);
 
 /* tasks.c */
-uint32_t bvh_build_pair(Builder *b, Ref *left, uint32_t nl, Ref *right, uint32_t nr, uint32_t depth);
+uint32_t bvh_build_pair(Builder *b, Ref *left, uint32_t nl, const Box *lknown, Ref *right, uint32_t nr,
+                        const Box *rknown, uint32_t depth);
 void bvh_place_all(Builder *s, RtBvhNode *nodes, uint32_t *order, uint32_t node_off, uint32_t order_off, int own);
 
 /* wide.c */

@@ -1,6 +1,6 @@
 /* partition.c - a node's references and its children's: their bounds, the
- * children's arrays, the object split's partition and the object-median
- * fallback. In a large node the bounds and the object partition run over
+ * children's arrays, the object split's partition (which bounds each side
+ * on the way) and the object-median fallback. In a large node the bounds and the object partition run over
  * fixed chunks of references in parallel (RtBvhSettings.chunk): bounds
  * merge by min and max, exact in any order, and the partition keeps the
  * serial order, so the tree is the same on any number of threads. */
@@ -82,23 +82,33 @@ static int obj_left(const Ref *r, const Box *cb, const Split *obj, float scale)
     return bin_of(ref_cent(r, obj->axis), cb->lo[obj->axis], scale, 0, obj->nbins - 1) <= obj->bin;
 }
 
-/* The object split's partition, serial: the references in their order. */
-static void object_partition_serial(const Ref *refs, uint32_t count, const Box *cb, const Split *obj, float scale,
-                                    Ref *left, uint32_t *nl_out, Ref *right, uint32_t *nr_out)
+/* A reference into a child's array, its box and centroid into the child's
+ * bounds bc (bvh_bounds's values: min and max, exact in any order). */
+static inline void put_ref(Ref *to, const Ref *r, Box *bc)
 {
-    uint32_t nl = 0, nr = 0;
-    for (uint32_t i = 0; i < count; i++) {
-        if (obj_left(&refs[i], cb, obj, scale))
-            left[nl++] = refs[i];
-        else
-            right[nr++] = refs[i];
-    }
-    *nl_out = nl;
-    *nr_out = nr;
+    const float c[3] = {ref_cent(r, 0), ref_cent(r, 1), ref_cent(r, 2)};
+    *to = *r;
+    box_grow(&bc[0], &r->box);
+    box_grow_pt(&bc[1], c);
 }
 
-/* The object partition's two loops over chunks: each chunk's count on the
- * left, then (from their prefix sums) its references moved. */
+/* The object split's partition of refs[i0..i1) from slots l and r on,
+ * each side's bounds grown into lb and rb; the left side's end. */
+static uint32_t object_partition_range(const Ref *refs, uint32_t i0, uint32_t i1, const Box *cb, const Split *obj,
+                                       float scale, Ref *left, uint32_t l, Ref *right, uint32_t r, Box *lb, Box *rb)
+{
+    for (uint32_t i = i0; i < i1; i++) {
+        if (obj_left(&refs[i], cb, obj, scale))
+            put_ref(&left[l++], &refs[i], lb);
+        else
+            put_ref(&right[r++], &refs[i], rb);
+    }
+    return l;
+}
+
+/* The object partition's loops over chunks: each chunk's count on the left
+ * (unless the split's bins counted them), then (from their prefix sums) its
+ * references moved and each side's bounds. */
 typedef struct PartJob {
     const Ref *refs;
     uint32_t count, chunk;
@@ -107,6 +117,7 @@ typedef struct PartJob {
     float scale;
     uint32_t *nleft;
     Ref *left, *right;
+    Box (*bounds)[4]; /* per chunk: the left side's box and centroids, the right side's */
 } PartJob;
 
 static void part_count(void *ctx, int c)
@@ -124,38 +135,61 @@ static void part_move(void *ctx, int c)
     const PartJob *j = ctx;
     uint32_t i0, i1;
     chunk_range(j->count, j->chunk, c, &i0, &i1);
-    uint32_t l = j->nleft[c], r = i0 - j->nleft[c];
-    for (uint32_t i = i0; i < i1; i++) {
-        if (obj_left(&j->refs[i], j->cb, j->obj, j->scale))
-            j->left[l++] = j->refs[i];
-        else
-            j->right[r++] = j->refs[i];
-    }
+    Box *bc = j->bounds[c];
+    for (int k = 0; k < 4; k++)
+        box_empty(&bc[k]);
+    object_partition_range(j->refs, i0, i1, j->cb, j->obj, j->scale, j->left, j->nleft[c], j->right,
+                           i0 - j->nleft[c], &bc[0], &bc[2]);
 }
 
-/* The object split's partition, in the references' order: over chunks in
- * parallel in a large node (each chunk's share of either side first
- * counted, so every chunk knows where its references go). */
+/* The object split's partition, in the references' order, with each
+ * side's bounds (lb, rb: box and centroids, as bvh_bounds gives them, so
+ * the children need no pass of their own). In a large node over chunks in
+ * parallel: every chunk's share of the left side is known first, from the
+ * split's own bins of each chunk (parts, their counts on the split's axis
+ * up to its bin: the same test as obj_left) or else counted, so every chunk
+ * knows where its references go. */
 void bvh_object_partition(const Builder *b, const Ref *refs, uint32_t count, const Box *cb, const Split *obj,
-                          Ref *left, uint32_t *nl_out, Ref *right, uint32_t *nr_out)
+                          const Bins *parts, Ref *left, uint32_t *nl_out, Ref *right, uint32_t *nr_out, Box *lb,
+                          Box *rb)
 {
     const float scale = (float)obj->nbins / (cb->hi[obj->axis] - cb->lo[obj->axis]);
     const uint32_t chunk = (uint32_t)b->set->chunk;
     const int nc = nchunks(count, chunk);
-    uint32_t *nleft = nc > 1 ? malloc((size_t)nc * sizeof *nleft) : NULL;
+    uint32_t *nleft = nc > 1 ? malloc((size_t)nc * (sizeof *nleft + 4 * sizeof(Box))) : NULL;
     uint32_t nl = 0;
+    for (int k = 0; k < 2; k++) {
+        box_empty(&lb[k]);
+        box_empty(&rb[k]);
+    }
     if (!nleft) {
-        object_partition_serial(refs, count, cb, obj, scale, left, nl_out, right, nr_out);
+        nl = object_partition_range(refs, 0, count, cb, obj, scale, left, 0, right, 0, lb, rb);
+        *nl_out = nl;
+        *nr_out = count - nl;
         return;
     }
-    PartJob job = {refs, count, chunk, cb, obj, scale, nleft, left, right};
-    pool_for(b->pool, nc, part_count, &job);
+    PartJob job = {refs, count, chunk, cb, obj, scale, nleft, left, right, (Box(*)[4])(nleft + nc)};
+    if (parts)
+        for (int c = 0; c < nc; c++) {
+            uint32_t k = 0;
+            for (int i = 0; i <= obj->bin; i++)
+                k += parts[c].in[obj->axis][i];
+            nleft[c] = k;
+        }
+    else
+        pool_for(b->pool, nc, part_count, &job);
     for (int c = 0; c < nc; c++) { /* exclusive prefix sums: each chunk's first slot on the left */
         const uint32_t k = nleft[c];
         nleft[c] = nl;
         nl += k;
     }
     pool_for(b->pool, nc, part_move, &job);
+    for (int c = 0; c < nc; c++) {
+        box_grow(&lb[0], &job.bounds[c][0]);
+        box_grow(&lb[1], &job.bounds[c][1]);
+        box_grow(&rb[0], &job.bounds[c][2]);
+        box_grow(&rb[1], &job.bounds[c][3]);
+    }
     free(nleft);
     *nl_out = nl;
     *nr_out = count - nl;

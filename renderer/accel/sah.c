@@ -149,10 +149,14 @@ static void bins_chunk(void *ctx, int c)
     j->fn(j->b, j->refs, i0, i1, j->box, j->scale, j->nb, &j->part[c]);
 }
 
-/* The bins of refs[0..count) by fn, over chunks in parallel in a large node. */
+/* The bins of refs[0..count) by fn, over chunks in parallel in a large node;
+ * with keep, each chunk's own bins go there (the caller frees them; NULL
+ * when there was one chunk). */
 void bvh_bins_all(BinFn fn, const Builder *b, const Ref *refs, uint32_t count, const Box *box, const float *scale,
-                  int nb, Bins *o)
+                  int nb, Bins *o, Bins **keep)
 {
+    if (keep)
+        *keep = NULL;
     const int nc = nchunks(count, (uint32_t)b->set->chunk);
     Bins *part = nc > 1 ? malloc((size_t)nc * sizeof *part) : NULL;
     if (!part) {
@@ -164,7 +168,10 @@ void bvh_bins_all(BinFn fn, const Builder *b, const Ref *refs, uint32_t count, c
     bvh_bins_empty(o, nb);
     for (int c = 0; c < nc; c++)
         bins_merge(o, &part[c], nb);
-    free(part);
+    if (keep)
+        *keep = part;
+    else
+        free(part);
 }
 
 /* nb bins per unit of each axis of box b; 0 on an axis of no extent. */
@@ -176,13 +183,15 @@ void bvh_bin_scales(const Box *b, int nb, float *scale)
     }
 }
 
-/* Binned SAH over the references' centroids (cb: their bounds). */
-void bvh_object_split(const Builder *b, const Ref *refs, uint32_t count, const Box *cb, int nb, Split *best)
+/* Binned SAH over the references' centroids (cb: their bounds); each
+ * chunk's bins into *parts (bvh_bins_all's keep). */
+void bvh_object_split(const Builder *b, const Ref *refs, uint32_t count, const Box *cb, int nb, Split *best,
+                      Bins **parts)
 {
     float scale[3];
     bvh_bin_scales(cb, nb, scale);
     Bins bins;
-    bvh_bins_all(object_bins, b, refs, count, cb, scale, nb, &bins);
+    bvh_bins_all(object_bins, b, refs, count, cb, scale, nb, &bins, parts);
     for (int a = 0; a < 3; a++)
         if (scale[a] > 0.0f)
             bvh_sweep(bins.box[a], bins.in[a], bins.in[a], nb, a, best, 0);

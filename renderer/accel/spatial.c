@@ -127,7 +127,7 @@ void bvh_spatial_split(const Builder *b, const Ref *refs, uint32_t count, const 
     float scale[3];
     bvh_bin_scales(bb, nb, scale);
     Bins bins;
-    bvh_bins_all(spatial_bins, b, refs, count, bb, scale, nb, &bins);
+    bvh_bins_all(spatial_bins, b, refs, count, bb, scale, nb, &bins, NULL);
     for (int a = 0; a < 3; a++) {
         if (!(scale[a] > 0.0f))
             continue;

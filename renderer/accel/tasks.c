@@ -134,36 +134,39 @@ typedef struct PairLeft {
     Builder *sb;
     Ref *refs;
     uint32_t count, depth;
+    const Box *known;
 } PairLeft;
 
 static void build_left(void *arg)
 {
     const PairLeft *j = arg;
-    bvh_build_node(j->sb, j->refs, j->count, j->depth);
+    bvh_build_node(j->sb, j->refs, j->count, j->known, j->depth);
 }
 
-/* The two children of a large node, the left one as a task; returns the
- * right child's node. Out of memory for the children's arrays, they are
- * built here one after the other. */
-uint32_t bvh_build_pair(Builder *b, Ref *left, uint32_t nl, Ref *right, uint32_t nr, uint32_t depth)
+/* The two children of a large node (each one's bounds where known, else
+ * NULL), the left one as a task; returns the right child's node. Out of
+ * memory for the children's arrays, they are built here one after the
+ * other. */
+uint32_t bvh_build_pair(Builder *b, Ref *left, uint32_t nl, const Box *lknown, Ref *right, uint32_t nr,
+                        const Box *rknown, uint32_t depth)
 {
     Builder sb[2];
     const uint32_t bl = (uint32_t)((uint64_t)b->refs_left * nl / ((uint64_t)nl + nr));
     if (sub_init(&sb[0], b, nl, bl) != 0) {
-        bvh_build_node(b, left, nl, depth);
-        return bvh_build_node(b, right, nr, depth);
+        bvh_build_node(b, left, nl, lknown, depth);
+        return bvh_build_node(b, right, nr, rknown, depth);
     }
     if (sub_init(&sb[1], b, nr, b->refs_left - bl) != 0) {
         sub_free(&sb[0]);
-        bvh_build_node(b, left, nl, depth);
-        return bvh_build_node(b, right, nr, depth);
+        bvh_build_node(b, left, nl, lknown, depth);
+        return bvh_build_node(b, right, nr, rknown, depth);
     }
     b->refs_left = 0;
-    PairLeft job = {&sb[0], left, nl, depth};
+    PairLeft job = {&sb[0], left, nl, depth, lknown};
     PoolTask task;
     PoolGroup g = {0, NULL};
     pool_spawn(b->pool, &g, &task, build_left, &job);
-    bvh_build_node(&sb[1], right, nr, depth);
+    bvh_build_node(&sb[1], right, nr, rknown, depth);
     pool_wait(b->pool, &g);
     sub_append(b, &sb[0]);
     const uint32_t r = b->nnodes;
