@@ -35,6 +35,7 @@ struct RtPool {
      * yet) and threads parked in pool_wait. A worker that just finished a
      * task counts before it parks, so a loop that follows asks for it. */
     int navail;
+    int nstarting;           /* workers not yet in their loop */
     int stop;
     int nthreads;            /* the caller and the workers */
     pthread_t *workers;
@@ -134,6 +135,7 @@ static void *worker_main(void *arg)
     free(arg);
     tls_me = s;
     pthread_mutex_lock(&p->mu);
+    p->nstarting--;
     for (;;) {
         if (p->head) {
             p->navail--;
@@ -202,7 +204,9 @@ RtPool *pool_start(int threads)
         return NULL;
     }
     pthread_mutex_lock(&p->mu);
-    p->navail = p->nthreads - 1; /* (the workers take queued tasks before they park) */
+    /* (workers take queued tasks before they first park) */
+    p->navail = p->nthreads - 1;
+    p->nstarting += p->nthreads - 1;
     pthread_mutex_unlock(&p->mu);
     return p;
 }
@@ -247,8 +251,7 @@ static int spawn_n(RtPool *p, PoolGroup *g, PoolTask *ts, int n, int idle)
     }
     g->pending += (unsigned)n;
     /* (workers still starting take tasks before they first park) */
-    const int starting = p->navail - p->nparked;
-    wake_release(p, n - (starting > 0 ? starting : 0));
+    wake_release(p, n - (p->nstarting > 0 ? p->nstarting : 0));
     return n;
 }
 
