@@ -21,6 +21,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "pool.h"
 #include "scene_parse.h"
 
 typedef struct TriRec {
@@ -255,22 +256,44 @@ static int chunk_merge(Parser *p, const Chunk *c, const uint32_t at[2], const ch
     return 0;
 }
 
-/* The placed runs written, in parallel: the records parse_add_triangle
- * writes, each run handed to the sink once written. */
-static void pass2_fill(RtScene *sc, const Pass2 *q, int nt, const RtGeomSink *sink)
+/* The parse's loops over chunks and runs, on the pool (each index one
+ * claim, as OpenMP's schedule(dynamic, 1)). */
+typedef struct ChunkJob {
+    Parser *p;
+    Chunk *c;
+    const char *buf;
+    uint32_t *bad, *nv0;
+    const Pass2 *q;
+} ChunkJob;
+
+/* A placed run written: the records parse_add_triangle writes, the run
+ * handed to the sink once written. */
+static void fill_run(void *ctx, int r)
 {
-    (void)nt;
-#pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
-    for (uint32_t r = 0; r < q->nruns; r++) {
-        const TriRun *run = &q->runs[r];
-        for (uint32_t k = 0; k < run->n; k++) {
-            const TriRec *t = &run->t[k];
-            const int64_t ix[6] = {t->v[0], t->v[1], t->v[2], t->n[0], t->n[1], t->n[2]};
-            parse_set_triangle(&sc->triangles[run->out + k], ix, t->line < 0, run->material);
-        }
-        if (sink)
-            sink->ready(sink->ctx, RT_GEOM_TRIANGLES, run->out, run->n);
+    const ChunkJob *j = ctx;
+    RtScene *sc = j->p->s;
+    const TriRun *run = &j->q->runs[r];
+    for (uint32_t k = 0; k < run->n; k++) {
+        const TriRec *t = &run->t[k];
+        const int64_t ix[6] = {t->v[0], t->v[1], t->v[2], t->n[0], t->n[1], t->n[2]};
+        parse_set_triangle(&sc->triangles[run->out + k], ix, t->line < 0, run->material);
     }
+    if (j->p->sink)
+        j->p->sink->ready(j->p->sink->ctx, RT_GEOM_TRIANGLES, run->out, run->n);
+}
+
+static void parse_one(void *ctx, int i)
+{
+    const ChunkJob *j = ctx;
+    chunk_parse(j->p, &j->c[i], j->buf);
+}
+
+static void place_one(void *ctx, int i)
+{
+    const ChunkJob *j = ctx;
+    j->bad[i] = chunk_place(j->p->s, &j->c[i], j->nv0[2 * i], j->nv0[2 * i + 1]);
+    if (j->p->sink && j->c[i].nv)
+        j->p->sink->ready(j->p->sink->ctx, RT_GEOM_VERTICES, j->nv0[2 * i], j->c[i].nv);
 }
 
 /* Chunks at line starts, about RT_PARSE_CHUNK bytes each. (Their lines are
@@ -368,11 +391,12 @@ int parse_chunks(Parser *p, const char *buf, size_t len, int nt)
     const int n = chunk_split(buf, len, &c);
     if (n < 0)
         return rt_fail(p->err, "%s: out of memory", p->file);
-#pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
-    for (int i = 0; i < n; i++)
-        chunk_parse(p, &c[i], buf);
+    RtPool *pool = pool_start(nt < n ? nt : n);
+    ChunkJob job = {p, c, buf, NULL, NULL, NULL};
+    pool_for(pool, n, parse_one, &job);
     for (int i = 0; i < n; i++)
         if (c[i].has_mesh) { /* a model's vertices go between the file's: one pass in order */
+            pool_stop(pool);
             chunks_free(c, n);
             return parse_serial(p, buf, len);
         }
@@ -393,18 +417,17 @@ int parse_chunks(Parser *p, const char *buf, size_t len, int nt)
         }
         if (p->sink)
             p->sink->sized(p->sink->ctx, p->s);
-#pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
-        for (int i = 0; i < reached; i++) {
-            bad[i] = chunk_place(p->s, &c[i], nv0[2 * i], nv0[2 * i + 1]);
-            if (p->sink && c[i].nv)
-                p->sink->ready(p->sink->ctx, RT_GEOM_VERTICES, nv0[2 * i], c[i].nv);
-        }
+        job.bad = bad;
+        job.nv0 = nv0;
+        pool_for(pool, reached, place_one, &job);
     }
     for (int i = 0; i < reached && rc == 0; i++)
         rc = chunk_merge(p, &c[i], &nv0[2 * i], buf, line, bad[i], &q);
     /* (also after an error: the runs placed before it, as the serial parser
      * left them) */
-    pass2_fill(p->s, &q, nt, p->sink);
+    job.q = &q;
+    pool_for(pool, (int)q.nruns, fill_run, &job);
+    pool_stop(pool);
     free(q.runs);
     free(line);
     free(bad);

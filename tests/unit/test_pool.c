@@ -1,4 +1,4 @@
-/* test_pool.c - the BVH build's thread pool (renderer/accel/pool.c):
+/* test_pool.c - the parse's and the BVH build's thread pool (renderer/pool.c):
  * pool_for runs every index once on any number of threads; spawned tasks
  * nest and are all waited for; and no thread spins: while a task sleeps,
  * the thread waiting for it and the idle worker use next to no CPU time (an
@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <time.h>
 
-#include "accel/pool.h"
+#include "pool.h"
 #include "check.h"
 
 /* The share of a wait's wall time a waiting thread may use: wake-ups, and
