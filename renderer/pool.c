@@ -1,8 +1,9 @@
-/* pool.c - the BVH build's fork-join pool (pool.h). One mutex guards a LIFO
- * of queued tasks and a list of parked threads, each parked on a condition
- * variable of its own: a spawn wakes as many parked threads as it queued
- * tasks, a group's last task wakes only its waiter, so no wake-up reaches a
- * thread with nothing to do and nothing waits by spinning. (Blocking POSIX
+/* pool.c - the parse's and the BVH build's fork-join pool (pool.h). One
+ * mutex guards a LIFO of queued tasks and a list of parked threads, each
+ * parked on a condition variable of its own: a spawn wakes as many parked
+ * threads as it queued tasks, a group's last task wakes only its waiter, so
+ * no wake-up reaches a thread with nothing to do and nothing waits by
+ * spinning. (Blocking POSIX
  * mutexes and condition variables: glibc's default mutex does not spin
  * either.)
  *

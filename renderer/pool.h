@@ -1,16 +1,17 @@
-/* pool.h - the BVH build's threads: a fork-join pool of POSIX threads whose
- * idle and waiting threads sleep on a condition variable at once, where
- * OpenMP runtimes spin first (libgomp up to GOMP_SPINCOUNT, 300,000 rounds,
- * and no API sets its wait policy). A build that waits for a slow thread
- * thus leaves the core to whatever else runs there. A waiting thread runs
- * queued tasks meanwhile (help-first, as OpenMP's taskwait may), so a task
- * never waits for a thread that is itself waiting.
+/* pool.h - the threads of a large file's parse (io/scene_chunks.c) and of
+ * the BVH build (accel/): a fork-join pool of POSIX threads whose idle and
+ * waiting threads sleep on a condition variable at once, where OpenMP
+ * runtimes spin first (libgomp up to GOMP_SPINCOUNT, 300,000 rounds, and no
+ * API sets its wait policy). A build that waits for a slow thread thus
+ * leaves the core to whatever else runs there. A waiting thread runs queued
+ * tasks meanwhile (help-first, as OpenMP's taskwait may), so a task never
+ * waits for a thread that is itself waiting.
  *
- * The pool lives for one build: the threads start with it and end with it,
- * so nothing of the build runs, spins or sleeps after it. A NULL pool is the
- * serial build: every call runs its work at once on the caller. */
-#ifndef RT_ACCEL_POOL_H
-#define RT_ACCEL_POOL_H
+ * A pool lives for one parse or one build: the threads start with it and
+ * end with it, so nothing of it runs, spins or sleeps after. A NULL pool is
+ * the serial case: every call runs its work at once on the caller. */
+#ifndef RT_POOL_H
+#define RT_POOL_H
 
 typedef struct RtPool RtPool;
 struct PoolSleeper;
