@@ -1,16 +1,17 @@
 /* pool.c - the parse's and the BVH build's fork-join pool (pool.h). One
  * mutex guards a LIFO of queued tasks and a list of parked threads, each
  * parked on a condition variable of its own: a spawn wakes as many parked
- * threads as it queued tasks, a group's last task wakes only its waiter, so
- * no wake-up reaches a thread with nothing to do and nothing waits by
- * spinning. (Blocking POSIX
+ * threads as it queued tasks, idle workers before threads waiting for a
+ * group (whose own work goes on only once the task they take is done), and
+ * a group's last task wakes only its waiter, so no wake-up reaches a thread
+ * with nothing to do and nothing waits by spinning. (Blocking POSIX
  * mutexes and condition variables: glibc's default mutex does not spin
  * either.)
  *
  * A wake-up is a system call and the woken thread takes tens of
  * microseconds to run, so the pool keeps them off the critical path: the
- * signals go out after the mutex is released (each of the pool's threads
- * parks on a sleeper that lives as long as the pool, so a late signal never
+ * signals to its own threads go out after the mutex is released (each parks
+ * on a sleeper that lives as long as the pool, so a late signal never
  * reaches a freed one), and a parallel loop asks only for the threads free
  * to take part: busy ones take no part in it and cost it nothing. */
 #include "pool.h"
@@ -30,41 +31,55 @@ typedef struct PoolSleeper {
 struct RtPool {
     pthread_mutex_t mu;
     PoolTask *head;          /* queued tasks, newest first */
-    PoolSleeper *parked;     /* parked threads, the latest first */
+    PoolSleeper *parked, *parked_last; /* idle workers first, then waiters */
     int nparked;
     /* Threads free to take a task: workers between tasks (parked or not
      * yet) and threads parked in pool_wait. A worker that just finished a
      * task counts before it parks, so a loop that follows asks for it. */
     int navail;
     int nstarting;           /* workers not yet in their loop */
+    int nclaimed;            /* tasks left to those (no thread woken for them) */
+    pthread_t starter;       /* the thread that started the pool: it parks on sl[0] */
     int stop;
     int nthreads;            /* the caller and the workers */
     pthread_t *workers;
     PoolSleeper *sl;         /* sl[0] the thread that started the pool, sl[k + 1] worker k */
 };
 
-/* The calling thread's sleeper, where it is one of a pool's threads. */
+/* The calling thread's sleeper, where it is one of a pool's workers. */
 static _Thread_local PoolSleeper *tls_me;
 
 /* ---- parking (p->mu held) -------------------------------------------------- */
 
-static void park(RtPool *p, PoolSleeper *s)
+/* Parks s until woken: an idle worker (idle) at the front of the list,
+ * a thread waiting for a group at its end. */
+static void park(RtPool *p, PoolSleeper *s, int idle)
 {
     s->woken = 0;
-    s->prev = NULL;
-    s->next = p->parked;
-    if (p->parked)
-        p->parked->prev = s;
-    p->parked = s;
+    if (idle || !p->parked) {
+        s->prev = NULL;
+        s->next = p->parked;
+        if (p->parked)
+            p->parked->prev = s;
+        else
+            p->parked_last = s;
+        p->parked = s;
+    } else {
+        s->next = NULL;
+        s->prev = p->parked_last;
+        p->parked_last->next = s;
+        p->parked_last = s;
+    }
     p->nparked++;
     while (!s->woken)
         pthread_cond_wait(&s->cv, &p->mu);
 }
 
-/* Takes s off the parked list and marks it woken; the caller signals it:
- * after releasing the mutex where it lives as long as the pool, else at
- * once. */
-static void unpark(RtPool *p, PoolSleeper *s)
+/* Takes s off the parked list and marks it woken. A sleeper of a caller's
+ * own (on its stack, gone once it sees itself woken) is signalled here;
+ * 1 for one of the pool's, which the caller signals after releasing the
+ * mutex (its choice made now: s may not be read then). */
+static int unpark(RtPool *p, PoolSleeper *s)
 {
     if (s->prev)
         s->prev->next = s->next;
@@ -72,10 +87,14 @@ static void unpark(RtPool *p, PoolSleeper *s)
         p->parked = s->next;
     if (s->next)
         s->next->prev = s->prev;
+    else
+        p->parked_last = s->prev;
     p->nparked--;
     s->woken = 1;
-    if (!s->pool)
-        pthread_cond_signal(&s->cv);
+    if (s->pool)
+        return 1;
+    pthread_cond_signal(&s->cv);
+    return 0;
 }
 
 #define WAKE_BATCH 64
@@ -86,15 +105,16 @@ static void wake_release(RtPool *p, int n)
 {
     PoolSleeper *w[WAKE_BATCH];
     for (;;) {
-        int k = 0;
+        int k = 0, late = 0;
         while (k < n && k < WAKE_BATCH && p->parked) {
-            w[k] = p->parked;
-            unpark(p, w[k++]);
+            PoolSleeper *s = p->parked;
+            k++;
+            if (unpark(p, s))
+                w[late++] = s;
         }
         pthread_mutex_unlock(&p->mu);
-        for (int i = 0; i < k; i++)
-            if (w[i]->pool)
-                pthread_cond_signal(&w[i]->cv);
+        for (int i = 0; i < late; i++)
+            pthread_cond_signal(&w[i]->cv);
         n -= k;
         if (k < WAKE_BATCH || n <= 0)
             return;
@@ -116,11 +136,11 @@ static void run_one(RtPool *p)
     /* (t and g belong to g's waiter, who may return once pending is 0) */
     if (--g->pending == 0 && g->waiter && !g->waiter->woken) {
         PoolSleeper *w = g->waiter;
-        unpark(p, w);
-        pthread_mutex_unlock(&p->mu);
-        if (w->pool)
+        if (unpark(p, w)) {
+            pthread_mutex_unlock(&p->mu);
             pthread_cond_signal(&w->cv);
-        pthread_mutex_lock(&p->mu);
+            pthread_mutex_lock(&p->mu);
+        }
     }
 }
 
@@ -137,6 +157,8 @@ static void *worker_main(void *arg)
     tls_me = s;
     pthread_mutex_lock(&p->mu);
     p->nstarting--;
+    if (p->nclaimed > p->nstarting) /* (this worker takes one of the tasks left to it) */
+        p->nclaimed = p->nstarting > 0 ? p->nstarting : 0;
     for (;;) {
         if (p->head) {
             p->navail--;
@@ -145,7 +167,7 @@ static void *worker_main(void *arg)
         } else if (p->stop)
             break;
         else
-            park(p, s);
+            park(p, s, 1);
     }
     pthread_mutex_unlock(&p->mu);
     tls_me = NULL;
@@ -189,7 +211,7 @@ RtPool *pool_start(int threads)
     p->workers = w;
     p->sl = sl;
     p->nthreads = 1;
-    tls_me = &sl[0];
+    p->starter = pthread_self();
     pthread_attr_t attr;
     const int have_attr = pthread_attr_init(&attr) == 0;
     /* The recursion nests tasks a waiting thread picks up: 16 MiB of stack
@@ -221,8 +243,6 @@ void pool_stop(RtPool *p)
     wake_release(p, p->nthreads);
     for (int k = 0; k < p->nthreads - 1; k++)
         pthread_join(p->workers[k], NULL);
-    if (tls_me == &p->sl[0])
-        tls_me = NULL;
     for (int k = 0; k < p->nthreads; k++)
         pthread_cond_destroy(&p->sl[k].cv);
     pthread_mutex_destroy(&p->mu);
@@ -251,8 +271,12 @@ static int spawn_n(RtPool *p, PoolGroup *g, PoolTask *ts, int n, int idle)
         p->head = &ts[k];
     }
     g->pending += (unsigned)n;
-    /* (workers still starting take tasks before they first park) */
-    wake_release(p, n - (p->nstarting > 0 ? p->nstarting : 0));
+    /* Workers still starting take tasks before they first park: as many
+     * tasks as they have not been left already wake no one. */
+    int left = p->nstarting - p->nclaimed;
+    left = left < 0 ? 0 : (left < n ? left : n);
+    p->nclaimed += left;
+    wake_release(p, n - left);
     return n;
 }
 
@@ -271,7 +295,11 @@ void pool_wait(RtPool *p, PoolGroup *g)
 {
     if (!p)
         return;
-    PoolSleeper own, *s = tls_me && tls_me->pool == p ? tls_me : &own;
+    /* A worker of p, or p's starter, parks on its sleeper in p; any other
+     * thread on one of its own. */
+    PoolSleeper own, *s = tls_me && tls_me->pool == p                  ? tls_me
+                          : pthread_equal(pthread_self(), p->starter) ? &p->sl[0]
+                                                                      : &own;
     if (s == &own) {
         pthread_cond_init(&own.cv, NULL);
         own.pool = NULL;
@@ -284,7 +312,7 @@ void pool_wait(RtPool *p, PoolGroup *g)
         }
         g->waiter = s;
         p->navail++;
-        park(p, s);
+        park(p, s, 0);
         p->navail--;
         g->waiter = NULL;
     }

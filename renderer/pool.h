@@ -40,7 +40,9 @@ int pool_threads(const RtPool *p);
 /* Queues fn(arg) in group g, in t (which the caller keeps until pool_wait);
  * without a pool it runs now. */
 void pool_spawn(RtPool *p, PoolGroup *g, PoolTask *t, void (*fn)(void *arg), void *arg);
-/* Returns once every task of g has run, running queued tasks meanwhile. */
+/* Returns once every task of g has run, running queued tasks meanwhile.
+ * Any thread may wait (and spawn, and stop the pool once every group it
+ * started is waited for). */
 void pool_wait(RtPool *p, PoolGroup *g);
 /* fn(ctx, i) for every i in 0..n, on as many of the pool's threads as are
  * free, the caller one of them; returns when all have run. */

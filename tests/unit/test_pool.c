@@ -1,9 +1,13 @@
-/* test_pool.c - the parse's and the BVH build's thread pool (renderer/pool.c):
- * pool_for runs every index once on any number of threads; spawned tasks
- * nest and are all waited for; and no thread spins: while a task sleeps,
- * the thread waiting for it and the idle worker use next to no CPU time (an
- * OpenMP runtime's spinning waits use most of it), nor does an idle pool. Also compiled under ThreadSanitizer
+/* test_pool.c - the parse's and the BVH build's thread pool
+ * (renderer/pool.c): pool_for runs every index once on any number of
+ * threads; spawned tasks and loops nest and are all waited for, also when
+ * threads that are not the pool's spawn and wait in it, when pools start
+ * inside pools and when another thread stops one; and no thread spins:
+ * while a task sleeps, the thread waiting for it and the idle worker use
+ * next to no CPU time (an OpenMP runtime's spinning waits use most of it),
+ * nor does an idle pool. Also compiled under ThreadSanitizer
  * (tests/meson.build). */
+#include <pthread.h>
 #include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -83,6 +87,133 @@ static void check_tree(int threads, int depth)
     CHECK(atomic_load(&sum) == 1L << depth, "task tree of depth %d on %d threads: %ld leaves, expected %ld", depth,
           threads, (long)atomic_load(&sum), 1L << depth);
     pool_stop(p);
+}
+
+/* A tree whose every third level is a parallel loop of 5, its odd indices
+ * subtrees: tasks and loops nested in each other. */
+static long mixed_leaves(int depth)
+{
+    if (depth <= 0)
+        return 1;
+    if (depth % 3 == 0)
+        return 2 * mixed_leaves(depth - 1) + 3;
+    return 2 * mixed_leaves(depth - 1);
+}
+
+static void mixed(void *arg);
+
+static void mixed_item(void *ctx, int i)
+{
+    const Tree *t = ctx;
+    Tree sub = {t->p, t->depth - 1, t->sum};
+    if (i % 2)
+        mixed(&sub);
+    else
+        atomic_fetch_add(t->sum, 1);
+}
+
+static void mixed(void *arg)
+{
+    Tree *t = arg;
+    if (t->depth <= 0) {
+        atomic_fetch_add(t->sum, 1);
+        return;
+    }
+    if (t->depth % 3 == 0) {
+        pool_for(t->p, 5, mixed_item, t);
+        return;
+    }
+    Tree left = {t->p, t->depth - 1, t->sum}, right = left;
+    PoolTask task;
+    PoolGroup g = {0, NULL};
+    pool_spawn(t->p, &g, &task, mixed, &left);
+    mixed(&right);
+    pool_wait(t->p, &g);
+}
+
+/* One mixed tree of the given depth on p; whether its leaves all ran. */
+static int mixed_ok(RtPool *p, int depth)
+{
+    atomic_long sum;
+    atomic_init(&sum, 0);
+    Tree t = {p, depth, &sum};
+    mixed(&t);
+    return atomic_load(&sum) == mixed_leaves(depth);
+}
+
+typedef struct Outside {
+    RtPool *p;
+    int bad;
+} Outside;
+
+static void *outside_main(void *arg)
+{
+    Outside *o = arg;
+    for (int r = 0; r < 20; r++)
+        o->bad += !mixed_ok(o->p, 9);
+    return NULL;
+}
+
+/* Threads that are not the pool's spawn into it and wait in it, beside the
+ * thread that started it: each waits on a sleeper of its own. */
+static void check_outside(void)
+{
+    for (int round = 0; round < 5; round++) {
+        RtPool *p = pool_start(4);
+        pthread_t th[4];
+        Outside o[4];
+        int started = 0, bad = 0;
+        for (int k = 0; k < 4; k++) {
+            o[k] = (Outside){p, 0};
+            started += pthread_create(&th[k], NULL, outside_main, &o[k]) == 0;
+        }
+        for (int r = 0; r < 20; r++)
+            bad += !mixed_ok(p, 9);
+        for (int k = 0; k < started; k++) {
+            pthread_join(th[k], NULL);
+            bad += o[k].bad;
+        }
+        CHECK(started == 4 && bad == 0, "a pool shared by 5 threads: %d of 100 trees lost tasks", bad);
+        pool_stop(p);
+    }
+}
+
+/* A task of one pool that starts, uses and stops another. */
+static void nested_task(void *arg)
+{
+    RtPool *q = pool_start(3);
+    if (mixed_ok(q, 8))
+        atomic_fetch_add((atomic_long *)arg, 1);
+    pool_stop(q);
+}
+
+static void *stop_main(void *arg)
+{
+    pool_stop(arg);
+    return NULL;
+}
+
+/* Pools inside pools: the starter starts and stops a second pool, then
+ * uses its first; tasks of the first start pools of their own; and the
+ * first is stopped by another thread than the one that started it. */
+static void check_nested(void)
+{
+    RtPool *a = pool_start(3), *b = pool_start(2);
+    CHECK(mixed_ok(b, 8), "a second pool of the same thread lost tasks");
+    pool_stop(b);
+    CHECK(mixed_ok(a, 8), "a pool lost tasks after its thread started and stopped another");
+    atomic_long ok;
+    atomic_init(&ok, 0);
+    PoolTask ts[4];
+    PoolGroup g = {0, NULL};
+    for (int k = 0; k < 4; k++)
+        pool_spawn(a, &g, &ts[k], nested_task, &ok);
+    pool_wait(a, &g);
+    CHECK(atomic_load(&ok) == 4, "%ld of 4 pools started by tasks ran every task", (long)atomic_load(&ok));
+    CHECK(mixed_ok(a, 8), "a pool lost tasks after its tasks' own pools");
+    pthread_t th;
+    CHECK(pthread_create(&th, NULL, stop_main, a) == 0 && pthread_join(th, NULL) == 0,
+          "a pool stopped by another thread");
 }
 
 static long long thread_cpu_ns(void)
@@ -172,7 +303,12 @@ int main(void)
         for (int s = 0; s < 5; s++)
             check_for(threads[t], sizes[s]);
         check_tree(threads[t], 12);
+        RtPool *p = pool_start(threads[t]);
+        CHECK(mixed_ok(p, 10), "tasks and loops nested on %d threads: leaves lost", threads[t]);
+        pool_stop(p);
     }
+    check_outside();
+    check_nested();
     check_no_spin();
     return check_report("test_pool");
 }
