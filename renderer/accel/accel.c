@@ -12,8 +12,9 @@
  * bit-identical: large subtrees are tasks writing arrays of their own
  * (tasks.c), and large nodes bin and partition fixed chunks of references in
  * parallel, merged exactly (sah.c, partition.c). Its threads are a pool of
- * its own (pool.c) that sleep rather than spin while they wait. Its large arrays may ask
- * for 2 MiB pages (huge_pages.c). The invariants are checked by check.c. */
+ * its own (pool.c) that sleep rather than spin while they wait. Its large
+ * arrays may ask for 2 MiB pages (huge_pages.c). The invariants are checked
+ * by check.c. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -76,7 +77,7 @@ static RtPrim *make_prims(const RtScene *s, const RtBvhSettings *set, RtPool *po
     }
     const uint32_t chunk = (uint32_t)set->chunk;
     PrimsJob job = {s, p, chunk};
-    pool_for(pool, (int)((s->ntriangles + (uint64_t)chunk - 1) / chunk), prims_chunk, &job);
+    pool_for(pool, chunks_covering(s->ntriangles, chunk), prims_chunk, &job);
     *n_out = (uint32_t)n;
     return p;
 }

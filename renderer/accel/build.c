@@ -231,7 +231,7 @@ static int finish(Builder *b, RtPrim *prims, uint32_t n, RtAccel *a, RtError *er
     }
     const uint32_t chunk = (uint32_t)b->set->chunk;
     AllJob job = {.prims = prims, .n = b->norder, .chunk = chunk, .order = b->order, .ordered = ordered};
-    pool_for(b->pool, (int)((b->norder + (uint64_t)chunk - 1) / chunk), order_chunk, &job);
+    pool_for(b->pool, chunks_covering(b->norder, chunk), order_chunk, &job);
     free(b->order); free(prims);
     if (b->max_depth >= RT_BVH_MAX_DEPTH) {
         free(b->nodes); free(ordered);
@@ -269,7 +269,7 @@ int bvh_build_binary(const RtScene *s, const RtBvhSettings *set, RtPrim *prims, 
     }
     const uint32_t chunk = (uint32_t)set->chunk;
     AllJob job = {.s = s, .prims = prims, .n = n, .chunk = chunk, .refs = refs, .verts = verts};
-    pool_for(pool, (int)((n + (uint64_t)chunk - 1) / chunk), refs_chunk, &job);
+    pool_for(pool, chunks_covering(n, chunk), refs_chunk, &job);
     Builder b;
     memset(&b, 0, sizeof b);
     b.set = set;

@@ -158,11 +158,18 @@ typedef struct Builder {
     uint32_t at_node, at_order;
 } Builder;
 
+/* Chunks of `chunk` covering all of count, however few (a loop over every
+ * primitive or record: no serial case to keep). */
+static inline int chunks_covering(uint32_t count, uint32_t chunk)
+{
+    return (int)(((uint64_t)count + chunk - 1) / chunk);
+}
+
 /* Fixed chunks of `chunk` references, so parallel sums and partitions come
  * out the same on any number of threads: 1 below two chunks (then serial). */
 static inline int nchunks(uint32_t count, uint32_t chunk)
 {
-    return (uint64_t)count >= 2u * (uint64_t)chunk ? (int)(((uint64_t)count + chunk - 1) / chunk) : 1;
+    return (uint64_t)count >= 2u * (uint64_t)chunk ? chunks_covering(count, chunk) : 1;
 }
 
 static inline void chunk_range(uint32_t count, uint32_t chunk, int c, uint32_t *i0, uint32_t *i1)

@@ -1,7 +1,8 @@
 /* partition.c - a node's references and its children's: their bounds, the
  * children's arrays, the object split's partition (which bounds each side
- * on the way) and the object-median fallback. In a large node the bounds and the object partition run over
- * fixed chunks of references in parallel (RtBvhSettings.chunk): bounds
+ * on the way) and the object-median fallback. In a large node the bounds
+ * and the object partition run over fixed chunks of references in
+ * parallel (RtBvhSettings.chunk): bounds
  * merge by min and max, exact in any order, and the partition keeps the
  * serial order, so the tree is the same on any number of threads. */
 #include <stdlib.h>

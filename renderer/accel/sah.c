@@ -225,7 +225,7 @@ double bvh_sah_cost(const RtBvhNode *nodes, uint32_t nnodes, RtPool *pool)
     if (!(root > 0.0))
         return 0.0;
     /* (fixed chunks summed in order: the same value on any thread count) */
-    const int nc = (int)((nnodes + SAH_COST_CHUNK - 1) / SAH_COST_CHUNK);
+    const int nc = chunks_covering(nnodes, SAH_COST_CHUNK);
     double *part = malloc((size_t)nc * sizeof *part), c = 0.0;
     if (!part)
         return 0.0;

@@ -1,7 +1,7 @@
 /* tasks.c - the build's subtree tasks. A node of at least
  * RtBvhSettings.task_min references builds its left child as a task of the
- * build's pool (pool.h), each child writing its nodes and leaf order into arrays of its own
- * (a sub-builder); its parent leaves a hole of the child's size, and once
+ * build's pool (pool.h), each child writing its nodes and leaf order into
+ * arrays of its own (a sub-builder); its parent leaves a hole of the child's size, and once
  * the tree is done every subtree is copied into its hole, in parallel
  * (bvh_place_all), so the nodes land in depth-first order, each moved once.
  * The spatial-split budget is shared between the children in proportion to
