@@ -24,7 +24,7 @@
 typedef struct PoolSleeper {
     pthread_cond_t cv;
     struct PoolSleeper *prev, *next;
-    const RtPool *pool; /* the pool whose thread this is; NULL: a caller's, on its stack */
+    RtPool *pool;       /* the pool whose thread this is; NULL: a caller's, on its stack */
     int woken;
 } PoolSleeper;
 
@@ -144,16 +144,11 @@ static void run_one(RtPool *p)
     }
 }
 
-typedef struct WorkerArg {
-    RtPool *p;
-    PoolSleeper *s;
-} WorkerArg;
-
+/* arg: the worker's sleeper, which names its pool. */
 static void *worker_main(void *arg)
 {
-    RtPool *p = ((WorkerArg *)arg)->p;
-    PoolSleeper *s = ((WorkerArg *)arg)->s;
-    free(arg);
+    PoolSleeper *s = arg;
+    RtPool *p = s->pool;
     tls_me = s;
     pthread_mutex_lock(&p->mu);
     p->nstarting--;
@@ -175,20 +170,6 @@ static void *worker_main(void *arg)
 }
 
 /* ---- the API ----------------------------------------------------------------- */
-
-/* Starts worker k; 0 or -1. */
-static int start_worker(RtPool *p, const pthread_attr_t *attr, int k)
-{
-    WorkerArg *a = malloc(sizeof *a);
-    if (!a)
-        return -1;
-    a->p = p;
-    a->s = &p->sl[k + 1];
-    if (pthread_create(&p->workers[k], attr, worker_main, a) == 0)
-        return 0;
-    free(a);
-    return -1;
-}
 
 RtPool *pool_start(int threads)
 {
@@ -218,7 +199,8 @@ RtPool *pool_start(int threads)
      * (address space; pages only as used), as deep as the main thread's. */
     if (have_attr)
         pthread_attr_setstacksize(&attr, (size_t)16 << 20);
-    for (int k = 0; k < threads - 1 && start_worker(p, have_attr ? &attr : NULL, k) == 0; k++)
+    const pthread_attr_t *ap = have_attr ? &attr : NULL;
+    for (int k = 0; k < threads - 1 && pthread_create(&w[k], ap, worker_main, &sl[k + 1]) == 0; k++)
         p->nthreads++;
     if (have_attr)
         pthread_attr_destroy(&attr);
