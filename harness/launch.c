@@ -368,11 +368,16 @@ char *hx_find_raytrace(const HxConfig *cfg, const char *opt)
     return hx_strdup("raytrace");
 }
 
-int hx_srun_lost_node(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, const char *status, char **why)
+int hx_srun_job_gone(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, const char *status, char **why)
 {
     *why = NULL;
     int nodes = hx_slurm_nodes();
-    if (cfg->launcher != HX_LAUNCHER_SRUN || !hx_run_is_mpi(r->v) || nodes < 2 || !status ||
+    /* Any run of a job, one node too: a job cancelled while a run is in
+     * progress has its steps' tasks killed, and the run can end before the
+     * harness's own SIGTERM arrives. The probe then cannot start a step, and
+     * the run is not taken for a failure of its own. */
+    const char *job = getenv("SLURM_JOB_ID");
+    if (cfg->launcher != HX_LAUNCHER_SRUN || !job || !*job || !status ||
         (strcmp(status, "error") != 0 && strcmp(status, "crash") != 0 && strcmp(status, "timeout") != 0))
         return 0;
     /* One task on each node; --overlap: the CPUs of a step still being

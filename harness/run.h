@@ -120,13 +120,14 @@ void hx_resolve_scene_cache(HxConfig *cfg, const char *out_path);
  * command study). */
 void hx_build_command(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, const char *raytrace,
                       const char *image, const char *rundir, const char *workdir, HxCommand *c);
-/* After run r, launched by srun in a job of several nodes, ended with
- * status error, crash or timeout: whether that was a node of the job
- * failing rather than the run. Starts `srun true` on every node under the
- * run's timeout. 1 when it fails or times out (srun's first error line in
- * *why, malloc'd), or when a stop signal came meanwhile (*why NULL); 0 when
- * every node answered, or for any other run. */
-int hx_srun_lost_node(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, const char *status, char **why);
+/* After run r of a Slurm job (launcher srun, inside an allocation) ended
+ * with status error, crash or timeout: whether the job can no longer run on
+ * its nodes (a node failed, or the job is being cancelled or ended) rather
+ * than the run failing. Starts `srun true` on every node under the run's
+ * timeout. 1 when it fails or times out (srun's first error line in *why,
+ * malloc'd), or when a stop signal came meanwhile (*why NULL); 0 when every
+ * node answered, or for any other run. */
+int hx_srun_job_gone(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, const char *status, char **why);
 /* Ends argv and env with the NULL execvp and hx_run_child want. */
 void hx_command_terminate(HxCommand *c);
 void hx_command_free(HxCommand *c);

@@ -376,9 +376,9 @@ static const char *run_one(Study *st, const HxRun *r, char **vals, char **detail
         }
         note_noise(st, r, &before, &after, &res, vals);
         status = outcome(st, r, rundir, &res, vals, detail);
-        /* a node of the job lost, not the run failing: no row, the study
-         * stops, and a resumption runs it again */
-        if (hx_srun_lost_node(&st->cfg, &st->topo, r, status, &st->lost))
+        /* a node of the job lost or the job ending, not the run failing: no
+         * row, the study stops, and a resumption runs it again */
+        if (hx_srun_job_gone(&st->cfg, &st->topo, r, status, &st->lost))
             status = NULL;
     }
     hx_child_result_free(&res);
@@ -523,8 +523,9 @@ static int summary(const Study *st, int rc)
                         "with --resume\n", hx_stop_signal() == SIGINT ? "SIGINT" : "SIGTERM");
         rc = 128 + hx_stop_signal();
     } else if (st->lost) {
-        fprintf(stderr, "harness run: a node of the Slurm job is lost (%s): the run in progress was not recorded "
-                        "and the study stops; continue with --resume once the node is back\n", st->lost);
+        fprintf(stderr, "harness run: the Slurm job cannot run on its nodes any more, a node lost or the job "
+                        "ending (%s): the run in progress was not recorded and the study stops; continue with "
+                        "--resume\n", st->lost);
     }
     const size_t *n = st->nstat;
     double total = hx_now_ms() - st->t0;

@@ -204,7 +204,7 @@ grep -q "^job $job: 2 node(s): node\[1-2\]" "$T/repo/slurm-$job.out" || { cat "$
 submit bad.conf > /dev/null 2> "$T/sub2.err" && fail "--submit of a failing study exited 0"
 grep -q '^harness slurm: job [0-9]* ended FAILED' "$T/sub2.err" || { cat "$T/sub2.err"; fail "no FAILED line"; }
 job=$(submitted_job "$T/sub2.err")
-grep -q 'node of the Slurm job is lost' "$T/repo/slurm-$job.out" && fail "a failing run was taken for a lost node"
+grep -q 'Slurm job cannot run on its nodes' "$T/repo/slurm-$job.out" && fail "a failing run was taken for a lost node"
 python3 - "$T/repo/results/bad-slurm.csv" <<'PY' || fail "failing study's CSV"
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))

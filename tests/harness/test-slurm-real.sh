@@ -140,13 +140,24 @@ sed 's/^study: real$/study: cut/' "$T/repo/real.conf" > "$T/repo/cut.conf"
 csv=$T/repo/results/cut-slurm.csv
 submit cut.conf > /dev/null 2> "$T/sub2.err" &
 sub=$!
-i=0
-while [ "$(($(cat "$csv" 2> /dev/null | wc -l) - 1))" -lt 2 ]; do
-  i=$((i + 1)); [ $i -le 600 ] || { cat "$T/sub2.err"; fail "the study wrote no rows in 120 s"; }
-  sleep 0.2
+# An MPI run in progress (a rank of a step of this job, a task of
+# slurmstepd, not of the harness): its tasks are killed with the job and the
+# run can end before the harness's own SIGTERM comes. The harness must see
+# the job ending, not a failed run, and write no row for it.
+mpi_running() {
+  for p in $(pgrep -x raytrace); do
+    pp=$(ps -o ppid= -p "$p" | tr -d ' ')
+    [ "$(ps -o comm= -p "$pp" 2> /dev/null)" = slurmstepd ] &&
+      tr '\0' '\n' < "/proc/$p/environ" 2> /dev/null | grep -qx "SLURM_JOB_ID=$1" && return 0
+  done
+  return 1
+}
+i=0 job=""
+until [ "$(($(cat "$csv" 2> /dev/null | wc -l) - 1))" -ge 2 ] && [ -n "$job" ] && mpi_running "$job"; do
+  i=$((i + 1)); [ $i -le 2400 ] || { cat "$T/sub2.err"; fail "no MPI run after 2 rows in 120 s"; }
+  job=$(submitted_job "$T/sub2.err")
+  sleep 0.05
 done
-job=$(submitted_job "$T/sub2.err")
-[ -n "$job" ] || fail "no job id in: $(cat "$T/sub2.err")"
 scancel "$job" || fail "scancel $job"
 wait $sub && fail "--submit of a cancelled job exited 0"
 cat "$T/sub2.err"
@@ -160,6 +171,26 @@ job2=$(submitted_job "$T/sub3.err")
 grep -q "$done1 skipped (resume)" "$T/repo/slurm-$job2.out" || { cat "$T/repo/slurm-$job2.out"; fail "no resume"; }
 head -n $((done1 + 1)) "$csv" | cmp -s - "$T/before.csv" || fail "the resubmission changed the first rows"
 check_csv "$csv"
+
+# ---- 2b: the job cancelled by its own third run, which then fails at once ----
+# The run ends before the harness's SIGTERM arrives (scancel, slurmctld,
+# slurmd, slurmstepd: milliseconds); its failure is the job ending, not the
+# run's own, so it gets no row.
+cat > "$T/repo/self.conf" <<CONF
+study: self
+command: sh -c 'n=\$(cat $T/count 2> /dev/null || echo 0); echo \$((n + 1)) > $T/count; [ "\$n" -lt 2 ] || { scancel "\$SLURM_JOB_ID"; exit 1; }; echo v=1'
+metric v: 'v=([0-9]+)' unit 1 better higher
+repeats: 6
+timeout: 60
+CONF
+submit self.conf > /dev/null 2> "$T/sub2b.err" && fail "--submit of a job cancelled by its run exited 0"
+grep -q "^harness slurm: job [0-9]* ended CANCELLED: 2/6 rows in results/self-slurm.csv" "$T/sub2b.err" ||
+  { cat "$T/sub2b.err"; fail "self-cancelled job: not 2 rows, CANCELLED"; }
+python3 - "$T/repo/results/self-slurm.csv" <<'PY' || fail "self-cancelled job's CSV"
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+assert [r["status"] for r in rows] == ["ok", "ok"], [(r["status"], r["status_detail"]) for r in rows]
+PY
 
 # ---- 3: a job that fails, and one that can never start: one line, exit 1 ----
 sed 's|^raytrace: .*|raytrace: /nonexistent/raytrace|; s/^study: real$/study: broken/' \
