@@ -31,6 +31,11 @@
 #           default threads, idle and beside one busy core; then every rank
 #           parsing and building at N ranks (--mpi-scene every), the same
 #           two scenes, beside one busy core
+#   idle    whether idle cores cost the first frame: MPI at N ranks and
+#           OpenMP at N threads, cold (--warmup 0 --runs 1), cold with a
+#           SCHED_IDLE spinner on every core (so no core idles, while any
+#           other thread preempts it), and warm (--warmup 3 --runs 9),
+#           interleaved, RES, ROUNDS rounds (default 8)
 #   bigbuild the BVH build of a 3.6M-triangle sphere field (large-4m) on
 #           16, N/2 and N threads (BUILD_THREADS), the older build and this
 #           one interleaved, ROUNDS rounds (default 3)
@@ -173,6 +178,25 @@ build)
     timeout 60 mpirun --bind-to core -np $N $x -b mpi -q -r 64x48 --mpi-scene every $sc -o /tmp/k.png | g
   done; done; done > "$O/build-mpi.txt" 2>&1
   kill $bp; log build-mpi ;;
+idle)
+  g() { tr ' ' '\n' | grep -E '^(render_ms|fork_ms|join_ms|thread_start_ms|rank_start_ms|rank_work_ms)=' | tr '\n' ' '; echo; }
+  mkdir -m 700 -p /tmp/cc-head
+  spinners() { for c in $(seq 0 $((N - 1))); do chrt --idle 0 taskset -c $c sh -c 'while :; do :; done' > /dev/null 2>&1 & done; }
+  for i in $(seq ${ROUNDS:-8}); do
+    for res in ${RES:-512x384 2048x1536}; do
+      for mode in cold spun warm; do
+        w="0 1"; [ $mode = warm ] && w="3 9"
+        set -- $w
+        [ $mode = spun ] && { spinners; sleep 0.5; }
+        echo -n "round=$i res=$res backend=mpi workers=$N mode=$mode "
+        mpirun --bind-to core -np $N $RT -b mpi -q -r $res --warmup $1 --runs $2 --cache /tmp/cc-head $dragon -o /tmp/k.png | g
+        echo -n "round=$i res=$res backend=openmp workers=$N mode=$mode "
+        OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -q -r $res --warmup $1 --runs $2 --cache /tmp/cc-head \
+          $dragon -o /tmp/k.png | g
+        [ $mode = spun ] && { pkill -f 'while :; do :; done'; sleep 0.5; }
+      done
+    done
+  done > "$O/idle.txt" 2>&1; log idle ;;
 bigbuild)
   g() { tr ' ' '\n' | grep -E '^(parse_ms|build_ms|build_threads|sah_cost|huge_pages)=' | tr '\n' ' '; echo; }
   ninja -C /tmp/bh renderer/scenegen > /dev/null 2>&1
