@@ -21,15 +21,37 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-/* One copy started in its own process group, bound to core, quiet. */
-static pid_t spawn(const HxCommand *c, const HxTopo *t, int core)
+/* What a copy is measured by: the metric `table` reads the study by
+ * (study.c's default_metric), so the ceiling and the efficiency against it
+ * are ratios of the same thing. A copy's wall time would add its start, its
+ * load and its writes, which scale otherwise: 40% of a 512x384 copy of the
+ * dragon. */
+typedef struct {
+    const char *name; /* render_ms, a command study's first metric, or wall_ms */
+    int higher;       /* a rate: the ratio is together / alone */
+} CeilMetric;
+
+static CeilMetric ceil_metric(const HxConfig *cfg)
+{
+    if (!cfg->prog)
+        return (CeilMetric){"render_ms", 0};
+    if (cfg->prog->nmetrics > 0 && !hx_metric_is_size(cfg->prog->metrics[0].name, cfg->prog->metrics[0].unit))
+        return (CeilMetric){cfg->prog->metrics[0].name, cfg->prog->metrics[0].higher};
+    return (CeilMetric){"wall_ms", 0};
+}
+
+/* One copy started in its own process group, bound to core, its stdout and
+ * stderr into out and err (a command study's metric may be in either). */
+static pid_t spawn(const HxCommand *c, const HxTopo *t, int core, const char *out, const char *err)
 {
     pid_t pid = fork();
     if (pid != 0)
         return pid;
-    int null = open("/dev/null", O_RDWR);
-    for (int fd = 0; fd < 3 && null >= 0; fd++)
-        dup2(null, fd);
+    int fds[3] = {open("/dev/null", O_RDONLY), open(out, O_WRONLY | O_CREAT | O_TRUNC, 0600),
+                  open(err, O_WRONLY | O_CREAT | O_TRUNC, 0600)};
+    for (int fd = 0; fd < 3; fd++)
+        if (fds[fd] >= 0)
+            dup2(fds[fd], fd);
     HxRun one;
     memset(&one, 0, sizeof one);
     one.ncores = 1;
@@ -37,15 +59,68 @@ static pid_t spawn(const HxCommand *c, const HxTopo *t, int core)
     hx_child_exec(c, t, &one, 1);
 }
 
-/* Runs n copies at once on cores[0..n-1]; each one's wall ms into ms.
- * 0, or -1 when one failed. */
-static int run_copies(HxCommand *c, const HxTopo *t, const int *cores, int n, double *ms)
+/* The copies' shared state: their commands, folders and metric. */
+typedef struct {
+    const HxConfig *cfg;
+    HxCommand *c;
+    char **dir;     /* each copy's run folder (command studies), else NULL */
+    const char *tmp;
+    CeilMetric m;
+} Copies;
+
+/* Copy i's value of the metric from its outputs (wall the copy's wall ms).
+ * 0, or -1 with why. */
+static int copy_value(const Copies *cp, int i, double wall, double *v, char *why, size_t n)
+{
+    if (strcmp(cp->m.name, "wall_ms") == 0) {
+        *v = wall;
+        return 0;
+    }
+    HxBuf path = {0}, out = {0}, err = {0}, extra = {0};
+    hx_buf_printf(&path, "%s/copy-%d.out", cp->tmp, i);
+    int rc = hx_read_file(path.s, &out) != 0 ? -1 : 0;
+    path.len = 0;
+    hx_buf_printf(&path, "%s/copy-%d.err", cp->tmp, i);
+    rc = rc || hx_read_file(path.s, &err) != 0 ? -1 : 0;
+    char num[64];
+    if (rc != 0) {
+        snprintf(why, n, "copy %d: its output cannot be read", i);
+    } else if (!cp->dir) { /* raytrace: the record's render_ms */
+        char *rec = out.s ? hx_record_find(out.s) : NULL;
+        if (!rec || !hx_record_get(rec, cp->m.name, num, sizeof num) || hx_parse_double(num, v) != 0)
+            rc = -1, snprintf(why, n, "copy %d: no %s in its record", i, cp->m.name);
+    } else if (hx_program_collect(cp->cfg, cp->dir[i], &out, &err, &extra, why, n) != 0) {
+        rc = -1;
+    } else { /* "name=value;...", the study's metrics in order: the first */
+        const char *eq = extra.s ? strchr(extra.s, '=') : NULL;
+        snprintf(num, sizeof num, "%.*s", eq ? (int)strcspn(eq + 1, ";") : 0, eq ? eq + 1 : "");
+        if (hx_parse_double(num, v) != 0)
+            rc = -1, snprintf(why, n, "copy %d: no %s", i, cp->m.name);
+    }
+    if (rc == 0 && !(*v > 0))
+        rc = -1, snprintf(why, n, "copy %d: %s = %g, not a positive value", i, cp->m.name, *v);
+    hx_buf_free(&path);
+    hx_buf_free(&out);
+    hx_buf_free(&err);
+    hx_buf_free(&extra);
+    return rc;
+}
+
+/* Runs n copies at once on cores[0..n-1]; each one's value of the metric
+ * into v. 0, or -1 when one failed (a line on stderr). */
+static int run_copies(const Copies *cp, const HxTopo *t, const int *cores, int n, double *v)
 {
     pid_t *pid = hx_xmalloc((size_t)n * sizeof *pid);
-    double t0 = hx_now_ms();
+    double t0 = hx_now_ms(), *wall = hx_xmalloc((size_t)n * sizeof *wall);
     int bad = 0;
-    for (int i = 0; i < n; i++)
-        pid[i] = spawn(&c[i], t, cores[i]);
+    for (int i = 0; i < n; i++) {
+        HxBuf o = {0}, e = {0};
+        hx_buf_printf(&o, "%s/copy-%d.out", cp->tmp, i);
+        hx_buf_printf(&e, "%s/copy-%d.err", cp->tmp, i);
+        pid[i] = spawn(&cp->c[i], t, cores[i], o.s, e.s);
+        hx_buf_free(&o);
+        hx_buf_free(&e);
+    }
     for (int done = 0; done < n;) {
         int st;
         pid_t p = wait(&st);
@@ -55,12 +130,18 @@ static int run_copies(HxCommand *c, const HxTopo *t, const int *cores, int n, do
             break;
         for (int i = 0; i < n; i++)
             if (pid[i] == p) {
-                ms[i] = hx_now_ms() - t0;
+                wall[i] = hx_now_ms() - t0;
                 bad |= !WIFEXITED(st) || WEXITSTATUS(st) != 0;
                 done++;
             }
     }
+    char why[512] = "a copy of the workload failed (run the study once to see why)";
+    for (int i = 0; i < n && !bad; i++)
+        bad = copy_value(cp, i, wall[i], &v[i], why, sizeof why) != 0;
+    if (bad)
+        fprintf(stderr, "harness ceiling: %s\n", why);
     free(pid);
+    free(wall);
     return bad ? -1 : 0;
 }
 
@@ -144,25 +225,28 @@ static int worker_counts(const HxPlan *plan, int *ws, int **cores, int max)
 }
 
 /* One copy's command line per slot, each with its own image or folder. */
-static int build_copies(const HxConfig *cfg, const HxTopo *t, const HxRun *one, const char *rt, const char *tmp,
-                        int n, HxCommand *c)
+static int build_copies(const HxConfig *cfg, const HxTopo *t, const HxRun *one, const char *rt, int n, Copies *cp)
 {
-    char *workdir = cfg->prog ? hx_path_join(tmp, "work") : NULL;
+    char *workdir = cfg->prog ? hx_path_join(cp->tmp, "work") : NULL;
     char why[512];
     int rc = workdir && (mkdir(workdir, 0700) != 0 || hx_program_setup(cfg, workdir, why, sizeof why) != 0) ? -1 : 0;
+    cp->dir = cfg->prog ? hx_xmalloc((size_t)n * sizeof *cp->dir) : NULL;
     for (int i = 0; i < n; i++) {
         HxBuf img = {0}, dir = {0};
-        hx_buf_printf(&img, "%s/copy-%d.ppm", tmp, i);
-        hx_buf_printf(&dir, "%s/copy-%d", workdir ? workdir : tmp, i);
+        hx_buf_printf(&img, "%s/copy-%d.ppm", cp->tmp, i);
+        hx_buf_printf(&dir, "%s/copy-%d", workdir ? workdir : cp->tmp, i);
         if (rc == 0 && cfg->prog) {
             HxVars vars;
             hx_vars_of_run(cfg, one, dir.s, workdir, &vars);
             rc = hx_program_prepare(cfg, &vars, dir.s, why, sizeof why);
             hx_vars_free(&vars);
         }
-        hx_build_command(cfg, t, one, rt, img.s, dir.s, workdir, &c[i]);
+        hx_build_command(cfg, t, one, rt, img.s, dir.s, workdir, &cp->c[i]);
         hx_buf_free(&img);
-        hx_buf_free(&dir);
+        if (cp->dir)
+            cp->dir[i] = dir.s;
+        else
+            hx_buf_free(&dir);
     }
     if (rc)
         fprintf(stderr, "harness ceiling: %s\n", why);
@@ -172,36 +256,37 @@ static int build_copies(const HxConfig *cfg, const HxTopo *t, const HxRun *one, 
 
 /* Measures every worker count; one line each on stdout, one CSV row each
  * into b. 0, or -1 when a copy failed. */
-static int measure(HxCommand *c, const HxTopo *t, const int *ws, int **cores, int nw, int repeats,
+static int measure(const Copies *cp, const HxTopo *t, const int *ws, int **cores, int nw, int repeats,
                    const HxFingerprint *fp, const char *config, HxBuf *b)
 {
     for (int k = 0; k < nw; k++) {
         int w = ws[k], n = 0;
-        double *ratio = hx_xmalloc((size_t)(w * repeats) * sizeof *ratio), *ms = hx_xmalloc((size_t)w * sizeof *ms);
+        double *ratio = hx_xmalloc((size_t)(w * repeats) * sizeof *ratio), *v = hx_xmalloc((size_t)w * sizeof *v);
         double solo = 0, solos = 0;
         for (int r = 0; r < repeats; r++) {
             /* alone, then all at once: a slow phase of the machine hits both */
-            if (run_copies(c, t, cores[k], 1, &solo) != 0 || run_copies(c, t, cores[k], w, ms) != 0) {
-                fprintf(stderr, "harness ceiling: a copy of the workload failed (run the study once to see why)\n");
+            if (run_copies(cp, t, cores[k], 1, &solo) != 0 || run_copies(cp, t, cores[k], w, v) != 0) {
                 free(ratio);
-                free(ms);
+                free(v);
                 return -1;
             }
             solos += solo;
             for (int i = 0; i < w; i++)
-                ratio[n++] = solo / ms[i];
+                ratio[n++] = cp->m.higher ? v[i] / solo : solo / v[i];
         }
         double med = hx_median(ratio, (size_t)n), lo = hx_min(ratio, (size_t)n), hi = lo;
         for (int i = 0; i < n; i++)
             hi = ratio[i] > hi ? ratio[i] : hi;
-        printf("W=%d: each copy at %.3f of a copy alone (median of %d, %.3f to %.3f; alone %.1f ms)\n", w, med, n,
-               lo, hi, solos / repeats);
-        hx_buf_printf(b, "%s,%s,%d,%d,%.4f,%.4f,%.4f,%.3f,", fp->fingerprint, fp->host, w, repeats, med, lo, hi,
+        printf("W=%d: each copy's %s at %.3f of a copy alone (median of %d, %.3f to %.3f; alone %.4g)\n", w,
+               cp->m.name, med, n, lo, hi, solos / repeats);
+        hx_buf_printf(b, "%s,%s,%d,%d,%.4f,%.4f,%.4f,%.6g,", fp->fingerprint, fp->host, w, repeats, med, lo, hi,
                       solos / repeats);
         hx_csv_field(b, config);
+        hx_buf_put(b, ",");
+        hx_csv_field(b, cp->m.name);
         hx_buf_put(b, "\n");
         free(ratio);
-        free(ms);
+        free(v);
         fflush(stdout);
     }
     return 0;
@@ -245,16 +330,20 @@ int hx_cmd_ceiling(int argc, char **argv)
         one_worker(&cfg, &plan.runs[0], &one);
         if (!cfg.prog)
             hx_resolve_scene_cache(&cfg, NULL);
-        HxCommand *c = hx_xmalloc((size_t)wmax * sizeof *c);
+        Copies cp = {&cfg, hx_xmalloc((size_t)wmax * sizeof *cp.c), NULL, tmp, ceil_metric(&cfg)};
         hx_fingerprint_get(&fp, &t, 0, cfg.prog ? NULL : rt, NULL, NULL);
-        hx_buf_put(&b, "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone_ms,config\n");
-        fprintf(stderr, "harness ceiling: %s on %s: %d worker count(s), %d repeat(s) each\n", cfg.path, fp.host, nw,
-                o.repeats);
-        rc = build_copies(&cfg, &t, &one, rt, tmp, wmax, c) != 0 ||
-             measure(c, &t, ws, cores, nw, o.repeats, &fp, cfg.path, &b) != 0;
-        for (int i = 0; i < wmax; i++)
-            hx_command_free(&c[i]);
-        free(c);
+        hx_buf_put(&b, "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone,config,metric\n");
+        fprintf(stderr, "harness ceiling: %s on %s: %d worker count(s), %d repeat(s) each, copies measured by %s\n",
+                cfg.path, fp.host, nw, o.repeats, cp.m.name);
+        rc = build_copies(&cfg, &t, &one, rt, wmax, &cp) != 0 ||
+             measure(&cp, &t, ws, cores, nw, o.repeats, &fp, cfg.path, &b) != 0;
+        for (int i = 0; i < wmax; i++) {
+            hx_command_free(&cp.c[i]);
+            if (cp.dir)
+                free(cp.dir[i]);
+        }
+        free(cp.c);
+        free(cp.dir);
         hx_rmtree(tmp);
     }
     if (rc == 0) {
@@ -310,12 +399,22 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
         }
         found = 1;
         s->ceil_path = hx_strdup(cand[i]);
+        /* a ceiling of another metric is no ceiling of this one; files
+         * without the column are of the copies' wall time */
+        const int has_metric = hx_csv_col(&c, "metric") >= 0;
+        size_t other = 0;
         for (size_t r = 0; r < c.nrows; r++) {
             long w;
             double v;
             if (strcmp(hx_csv_get(&c, r, "fingerprint"), fp) != 0 || hx_parse_int(hx_csv_get(&c, r, "workers"), 2, 1 << 20, &w) ||
                 hx_parse_double(hx_csv_get(&c, r, "ratio_median"), &v) || !(v > 0))
                 continue;
+            if (has_metric && strcmp(hx_csv_get(&c, r, "metric"), s->metric) != 0) {
+                if (!other++)
+                    fprintf(stderr, "%s: --ceiling: %s measures %s, this table reads %s: not used\n", who, cand[i],
+                            hx_csv_get(&c, r, "metric"), s->metric);
+                continue;
+            }
             s->ceil_w = hx_xrealloc(s->ceil_w, (size_t)(s->nceil + 1) * sizeof *s->ceil_w);
             s->ceil_r = hx_xrealloc(s->ceil_r, (size_t)(s->nceil + 1) * sizeof *s->ceil_r);
             s->ceil_w[s->nceil] = (int)w;

@@ -550,6 +550,9 @@ void hx_plot_sweep(HxPlot *c, const HxStudy *s);
  * first metric, else wall_ms), in s->metric with its unit, direction and
  * whether it is a size. */
 int hx_study_build(const char *path, const char *metric, HxStudy *s, char *err, size_t errlen);
+/* Whether the metric is a size (peak memory, a file's size): neither a
+ * time nor a rate, so it has no speedup (docs/harness.md, "Units"). */
+int hx_metric_is_size(const char *metric, const char *unit);
 int hx_study_load(const char *path, const char *metric, HxStudy *s,
                   char *err, size_t errlen);
 void hx_study_free(HxStudy *s);

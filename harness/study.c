@@ -229,9 +229,7 @@ static void default_metric(const HxCsv *csv, char *buf, size_t n)
     snprintf(buf, n, "wall_ms");
 }
 
-/* Whether the metric is a size (peak memory, a file's size): neither a
- * time nor a rate, so it has no speedup (docs/harness.md, "Units"). */
-static int metric_is_size(const char *metric, const char *unit)
+int hx_metric_is_size(const char *metric, const char *unit)
 {
     static const char *const sizes[] = {"B", "KiB", "MiB", "GiB", "kB", "MB", "GB", NULL};
     for (int i = 0; sizes[i]; i++)
@@ -246,7 +244,7 @@ static void metric_unit(HxStudy *s, const char *metric);
 static void metric_sense(HxStudy *s, const char *metric)
 {
     metric_unit(s, metric);
-    s->size = metric_is_size(metric, s->unit);
+    s->size = hx_metric_is_size(metric, s->unit);
 }
 
 /* The metric's unit and direction: a command study's declaration

@@ -7,6 +7,8 @@
 #           (ROUNDS, default 7)
 #   ceil    `harness ceiling` at 1, N/2 and N copies (WORKERS), both
 #           resolutions
+#   ceilprev the same with the older build's harness (its ceiling's own
+#           measure: before e.g. render_ms, the copies' wall time)
 #   tables  the report's tables 1 and 2 (BVH, tiles, dynamic) at 1, N/2 and
 #           N workers (WORKERS), 5 repeats, `order: rounds`; tables against
 #           the ceiling
@@ -60,7 +62,7 @@ if [ ! -x /tmp/bh/harness/harness ]; then
   tar xzf .devcarry/head.tar.gz -C /tmp; tar xzf .devcarry/prev.tar.gz -C /tmp
   { nproc; lscpu | grep -E 'Model name|NUMA|Socket|Thread'; mpirun --version | head -1; } > "$O/machine.txt" 2>&1
   (cd /tmp/head && meson setup /tmp/bh -Dcuda=disabled -Dhwloc=enabled -Dcourse_dir=none "${xx[@]}" > "$O/setup.log" 2>&1 && ninja -C /tmp/bh harness/harness renderer/raytrace > "$O/build.log" 2>&1) &
-  (cd /tmp/prev && meson setup /tmp/bp -Dcuda=disabled -Dcourse_dir=none "${xx[@]}" > /dev/null 2>&1 && ninja -C /tmp/bp renderer/raytrace > "$O/prev-build.log" 2>&1) &
+  (cd /tmp/prev && meson setup /tmp/bp -Dcuda=disabled -Dhwloc=enabled -Dcourse_dir=none "${xx[@]}" > /dev/null 2>&1 && ninja -C /tmp/bp renderer/raytrace harness/harness > "$O/prev-build.log" 2>&1) &
   wait
 fi
 [ -x /tmp/bh/renderer/raytrace ] && [ -x /tmp/bp/renderer/raytrace ] || { log "build failed"; tail -20 "$O"/*.log; exit 1; }
@@ -84,6 +86,11 @@ ceil)
     timeout 100 $H ceiling configs/openmp-scaling-bvh.conf --set scene_dir=$course --set resolution=$res --set threads="$W" --set schedule=tiles --repeats 5 "${X[@]}" -o "$O/ceiling-$res.csv" > "$O/ceiling-$res.log" 2>&1 || log "ceiling $res rc $?"
     tail -5 "$O/ceiling-$res.log"
   done; log ceilings ;;
+ceilprev)
+  W=${WORKERS:-1 $((N / 2)) $N}
+  for res in ${RES:-512x384 2048x1536}; do
+    timeout 100 /tmp/bp/harness/harness ceiling configs/openmp-scaling-bvh.conf --set scene_dir=$course --set resolution=$res --set threads="$W" --set schedule=tiles --repeats 5 "${X[@]}" -o "$O/ceilprev-$res.csv" > "$O/ceilprev-$res.log" 2>&1 || log "ceilprev $res rc $?"
+  done; log ceilprev ;;
 tables)
   W=${WORKERS:-1 $((N / 2)) $N}
   for res in ${RES:-512x384 2048x1536}; do

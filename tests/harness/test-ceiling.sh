@@ -1,8 +1,10 @@
 #!/bin/bash
 # harness ceiling: one-worker copies of a study's workload at once, one per
-# core where the study pins its workers, against one alone; the file it
-# writes, table's efficiency against it, and a machine (or a run) with one
-# allowed core, or a study with no parallel run, refused in one line.
+# core where the study pins its workers, against one alone, each measured by
+# the metric table reads the study by; the file it writes, table's
+# efficiency against it (and not against a ceiling of another metric), and
+# a machine (or a run) with one allowed core, or a study with no parallel
+# run, refused in one line.
 # usage: test-ceiling.sh HARNESS
 set -u
 . "$(dirname "$0")/common.sh"
@@ -16,7 +18,7 @@ repeats: 3
 CONF
 "$H" ceiling c.conf -o ceil.csv --repeats 2 > ceil.out 2> ceil.err || { cat ceil.out ceil.err; fail "ceiling failed"; }
 cat ceil.out ceil.err
-grep -q '^W=2: each copy at [0-9.]* of a copy alone (median of 4, ' ceil.out || fail "no W=2 line"
+grep -q '^W=2: each copy.s wall_ms at [0-9.]* of a copy alone (median of 4, ' ceil.out || fail "no W=2 line"
 python3 - <<'PY' || fail "the ceiling file"
 import csv
 rows = list(csv.DictReader(open("ceil.csv")))
@@ -24,6 +26,7 @@ assert [r["workers"] for r in rows] == ["2"], rows
 r = rows[0]
 assert 0.1 < float(r["ratio_median"]) < 1.5 and r["repeats"] == "2" and len(r["fingerprint"]) == 16, r
 assert float(r["ratio_min"]) <= float(r["ratio_median"]) <= float(r["ratio_max"]), r
+assert r["metric"] == "wall_ms", r
 PY
 "$H" run c.conf -o study.csv -q > /dev/null 2>&1 || fail "the study"
 fp=$(python3 -c 'import csv; print(next(csv.DictReader(open("study.csv")))["fingerprint"])')
@@ -32,6 +35,29 @@ cp ceil.csv "ceiling-$fp.csv"   # found beside the CSV without --ceiling
 grep -q "| awk T=2 | 3/3 | .* | [0-9.]* ([0-9.]* of [0-9.]*) |" t.md || { cat t.md; fail "no efficiency against the ceiling"; }
 "$H" table study.csv --format json | python3 -c 'import json,sys; d=json.load(sys.stdin); assert any(c["ceiling"] for c in d["configurations"] if c.get("ceiling"))' ||
     fail "json: no ceiling"
+# A metric of the copies' own: n, how many copies were running at once
+# (each leaves a file while it runs), better higher. Alone 1, together 2:
+# the ceiling is exactly 2, where the copies' wall times could give any
+# ratio near 1.
+mkdir running
+cat > n.conf <<CONF
+command: sh -c 'touch $PWD/running/\$\$; sleep 0.4; n=\$(ls $PWD/running | wc -l); sleep 0.3; rm $PWD/running/\$\$; echo n=\$n'
+metric n: 'n=([0-9]+)' unit 1 better higher
+threads: 1 2
+repeats: 1
+CONF
+"$H" ceiling n.conf -o n.csv --repeats 2 > n.out 2> n.err || { cat n.out n.err; fail "ceiling of a metric failed"; }
+grep -q '^W=2: each copy.s n at 2.000 of a copy alone (median of 4, 2.000 to 2.000; alone 1)' n.out ||
+  { cat n.out n.err; fail "the copies were not measured by their metric n"; }
+python3 -c 'import csv; r = next(csv.DictReader(open("n.csv"))); assert r["metric"] == "n" and r["ratio_median"] == "2.0000", r' ||
+  fail "n.csv: $(cat n.csv)"
+# ... and a ceiling of wall_ms is not the ceiling of a table that reads n
+"$H" run n.conf -o nstudy.csv -q > /dev/null 2>&1 || fail "the n study"
+"$H" table nstudy.csv --ceiling ceil.csv > nt.md 2> nt.err || { cat nt.err; fail "table of n"; }
+grep -q "ceil.csv measures wall_ms, this table reads n: not used" nt.err || { cat nt.err; fail "a wall_ms ceiling used for n"; }
+grep -q " of [0-9.]*) |" nt.md && { cat nt.md; fail "efficiency of n against a wall_ms ceiling"; }
+"$H" table nstudy.csv --ceiling n.csv > nt2.md 2> /dev/null || fail "table of n with its ceiling"
+grep -q " of 2.00) |" nt2.md || { cat nt2.md; fail "no efficiency of n against its own ceiling"; }
 taskset -c 0 "$H" ceiling c.conf -o one.csv > one.out 2> one.err && fail "one allowed core accepted"
 [ "$(wc -l < one.err)" -eq 1 ] && grep -q "only one core is allowed here" one.err || fail "one core: $(cat one.err)"
 printf 'command: true\nrepeats: 1\n' > serial.conf
