@@ -15,6 +15,7 @@
 #include <fcntl.h>
 #include <getopt.h>
 #include <math.h>
+#include <signal.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -118,10 +119,12 @@ static int run_copies(const Copies *cp, const HxTopo *t, const int *cores, int n
         hx_buf_printf(&o, "%s/copy-%d.out", cp->tmp, i);
         hx_buf_printf(&e, "%s/copy-%d.err", cp->tmp, i);
         pid[i] = spawn(&cp->c[i], t, cores[i], o.s, e.s);
+        if (pid[i] > 0)
+            setpgid(pid[i], pid[i]); /* both sides: no race with an early kill */
         hx_buf_free(&o);
         hx_buf_free(&e);
     }
-    for (int done = 0; done < n;) {
+    for (int done = 0; done < n && !hx_stop_signal();) {
         int st;
         pid_t p = wait(&st);
         if (p < 0 && errno == EINTR)
@@ -132,8 +135,18 @@ static int run_copies(const Copies *cp, const HxTopo *t, const int *cores, int n
             if (pid[i] == p) {
                 wall[i] = hx_now_ms() - t0;
                 bad |= !WIFEXITED(st) || WEXITSTATUS(st) != 0;
+                pid[i] = 0;
                 done++;
             }
+    }
+    if (hx_stop_signal()) { /* SIGINT or SIGTERM: no copy outlives the harness */
+        for (int i = 0; i < n; i++)
+            if (pid[i] > 0)
+                kill(-pid[i], SIGKILL);
+        hx_reap_strays();
+        free(pid);
+        free(wall);
+        return -1;
     }
     char why[512] = "a copy of the workload failed (run the study once to see why)";
     for (int i = 0; i < n && !bad; i++)
@@ -295,6 +308,7 @@ static int measure(const Copies *cp, const HxTopo *t, const int *ws, int **cores
 int hx_cmd_ceiling(int argc, char **argv)
 {
     CeilOpts o;
+    hx_install_stop_handlers();
     int rc = ceiling_opts(argc, argv, &o);
     HxConfig cfg;
     if (rc < 0 && hx_config_open_set(argv[optind], &o.set, &cfg) != 0)
@@ -345,6 +359,11 @@ int hx_cmd_ceiling(int argc, char **argv)
         free(cp.c);
         free(cp.dir);
         hx_rmtree(tmp);
+        if (hx_stop_signal()) {
+            fprintf(stderr, "harness ceiling: stopped by %s: its copies ended, no ceiling written\n",
+                    hx_stop_signal() == SIGINT ? "SIGINT" : "SIGTERM");
+            rc = 128 + hx_stop_signal();
+        }
     }
     if (rc == 0) {
         if (o.out)

@@ -58,6 +58,20 @@ grep -q "ceil.csv measures wall_ms, this table reads n: not used" nt.err || { ca
 grep -q " of [0-9.]*) |" nt.md && { cat nt.md; fail "efficiency of n against a wall_ms ceiling"; }
 "$H" table nstudy.csv --ceiling n.csv > nt2.md 2> /dev/null || fail "table of n with its ceiling"
 grep -q " of 2.00) |" nt2.md || { cat nt2.md; fail "no efficiency of n against its own ceiling"; }
+# SIGTERM (a job's time limit, `timeout`) ends the copies with the harness:
+# none is left to load the machine, and no ceiling is written
+printf 'command: sleep 37.5\nthreads: 1 2\nrepeats: 1\n' > slow.conf
+"$H" ceiling slow.conf -o slow.csv > /dev/null 2> slow.err &
+hp=$!
+i=0
+until [ "$(pgrep -fc '^sleep 37.5$')" -ge 1 ]; do i=$((i + 1)); [ $i -le 100 ] || fail "no copy started"; sleep 0.1; done
+kill -TERM $hp
+wait $hp; rc=$?
+[ $rc -eq 143 ] || fail "SIGTERM: exit $rc, not 143"
+grep -qx "harness ceiling: stopped by SIGTERM: its copies ended, no ceiling written" slow.err || fail "SIGTERM: $(cat slow.err)"
+sleep 0.2
+pgrep -f '^sleep 37.5$' > /dev/null && fail "a copy outlived the harness"
+[ -e slow.csv ] && fail "a ceiling written after SIGTERM"
 taskset -c 0 "$H" ceiling c.conf -o one.csv > one.out 2> one.err && fail "one allowed core accepted"
 [ "$(wc -l < one.err)" -eq 1 ] && grep -q "only one core is allowed here" one.err || fail "one core: $(cat one.err)"
 printf 'command: true\nrepeats: 1\n' > serial.conf
