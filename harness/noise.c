@@ -10,6 +10,7 @@
  * cores, and stolen when steal took a noticeable share. */
 #include "run.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 #include <unistd.h>
@@ -52,12 +53,17 @@ void hx_noise(const HxCpuStat *a, const HxCpuStat *b, double wall_ms, double own
         n->others_cores = 0;
     n->steal_pct = 100.0 * (double)steal / (double)total;
     n->iowait_pct = 100.0 * (double)iowait / (double)total;
-    /* below 0.2 s the clock ticks (10 ms, over every CPU) are too coarse to
-     * judge; above, other work of half a core or more that left the run
-     * fewer free CPUs than it has workers is competition, and a steal of 2%
-     * is already what makes cloud runners' numbers wander */
+    /* A steal of 2% is already what makes cloud runners' numbers wander.
+     * Each CPU's count is off by up to a tick, so the share is off by about
+     * tick / wall / sqrt(cpus): a steal counts when it is above 2% by more
+     * than that, so a 60 ms run of 64 CPUs with a third of its time stolen
+     * is flagged, and a short one on 2 CPUs is not judged on a tick or two. */
+    const double err_pct = 100.0 * tick_ms / (wall_ms * sqrt(cpus > 0 ? (double)cpus : 1.0));
+    n->stolen = n->steal_pct >= 2.0 + err_pct;
+    /* below 0.2 s the ticks are too coarse to count other work in cores;
+     * above, half a core or more that left the run fewer free CPUs than it
+     * has workers is competition */
     if (wall_ms < 200.0)
         return;
     n->busy = n->others_cores >= 0.5 && n->others_cores + workers > 0.9 * cpus;
-    n->stolen = n->steal_pct >= 2.0;
 }

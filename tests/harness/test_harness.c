@@ -406,6 +406,21 @@ static void test_noise(void)
     /* too short to judge */
     hx_noise(&a, &b, 100.0, 100.0, 2, 1, &n);
     CHECK(n.busy == 0 && n.stolen == 0);
+    /* 60 ms of 64 CPUs (384 ticks): a third stolen is flagged, 3% (within
+     * the ticks' 2.1 points of error above the 2%) is not */
+    b = a;
+    b.busy += 200;
+    b.idle += 54;
+    b.steal += 130;
+    hx_noise(&a, &b, 60.0, 60.0 * 64, 64, 64, &n);
+    CHECK(n.stolen == 1 && n.busy == 0);
+    b = a;
+    b.busy += 360;
+    b.idle += 12;
+    b.steal += 12;
+    hx_noise(&a, &b, 60.0, 60.0 * 64, 64, 64, &n);
+    CHECK_NEAR(n.steal_pct, 3.125, 1e-9);
+    CHECK(n.stolen == 0);
 }
 
 static void test_stats(void)
