@@ -276,12 +276,24 @@ static int measure(const Copies *cp, const HxTopo *t, const int *ws, int **cores
         int w = ws[k], n = 0;
         double *ratio = hx_xmalloc((size_t)(w * repeats) * sizeof *ratio), *v = hx_xmalloc((size_t)w * sizeof *v);
         double solo = 0, solos = 0;
+        /* the CPU time the hypervisor took while the copies ran together: a
+         * study's runs with more steal than this lose more than the ceiling */
+        unsigned long long stolen = 0, ticks = 0;
         for (int r = 0; r < repeats; r++) {
             /* alone, then all at once: a slow phase of the machine hits both */
-            if (run_copies(cp, t, cores[k], 1, &solo) != 0 || run_copies(cp, t, cores[k], w, v) != 0) {
+            HxCpuStat s0, s1;
+            int bad = run_copies(cp, t, cores[k], 1, &solo) != 0;
+            hx_cpu_stat(&s0);
+            bad = bad || run_copies(cp, t, cores[k], w, v) != 0;
+            hx_cpu_stat(&s1);
+            if (bad) {
                 free(ratio);
                 free(v);
                 return -1;
+            }
+            if (s0.ok && s1.ok) {
+                stolen += s1.steal - s0.steal;
+                ticks += (s1.busy - s0.busy) + (s1.idle - s0.idle) + (s1.iowait - s0.iowait) + (s1.steal - s0.steal);
             }
             solos += solo;
             for (int i = 0; i < w; i++)
@@ -290,14 +302,15 @@ static int measure(const Copies *cp, const HxTopo *t, const int *ws, int **cores
         double med = hx_median(ratio, (size_t)n), lo = hx_min(ratio, (size_t)n), hi = lo;
         for (int i = 0; i < n; i++)
             hi = ratio[i] > hi ? ratio[i] : hi;
-        printf("W=%d: each copy's %s at %.3f of a copy alone (median of %d, %.3f to %.3f; alone %.4g)\n", w,
-               cp->m.name, med, n, lo, hi, solos / repeats);
+        const double steal = ticks ? 100.0 * (double)stolen / (double)ticks : -1;
+        printf("W=%d: each copy's %s at %.3f of a copy alone (median of %d, %.3f to %.3f; alone %.4g; CPU steal "
+               "%.1f%%)\n", w, cp->m.name, med, n, lo, hi, solos / repeats, steal);
         hx_buf_printf(b, "%s,%s,%d,%d,%.4f,%.4f,%.4f,%.6g,", fp->fingerprint, fp->host, w, repeats, med, lo, hi,
                       solos / repeats);
         hx_csv_field(b, config);
         hx_buf_put(b, ",");
         hx_csv_field(b, cp->m.name);
-        hx_buf_put(b, "\n");
+        hx_buf_printf(b, ",%.2f\n", steal);
         free(ratio);
         free(v);
         fflush(stdout);
@@ -346,7 +359,7 @@ int hx_cmd_ceiling(int argc, char **argv)
             hx_resolve_scene_cache(&cfg, NULL);
         Copies cp = {&cfg, hx_xmalloc((size_t)wmax * sizeof *cp.c), NULL, tmp, ceil_metric(&cfg)};
         hx_fingerprint_get(&fp, &t, 0, cfg.prog ? NULL : rt, NULL, NULL);
-        hx_buf_put(&b, "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone,config,metric\n");
+        hx_buf_put(&b, "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone,config,metric,steal_pct\n");
         fprintf(stderr, "harness ceiling: %s on %s: %d worker count(s), %d repeat(s) each, copies measured by %s\n",
                 cfg.path, fp.host, nw, o.repeats, cp.m.name);
         rc = build_copies(&cfg, &t, &one, rt, wmax, &cp) != 0 ||
@@ -436,6 +449,12 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
             }
             s->ceil_w = hx_xrealloc(s->ceil_w, (size_t)(s->nceil + 1) * sizeof *s->ceil_w);
             s->ceil_r = hx_xrealloc(s->ceil_r, (size_t)(s->nceil + 1) * sizeof *s->ceil_r);
+            s->ceil_steal = hx_xrealloc(s->ceil_steal, (size_t)(s->nceil + 1) * sizeof *s->ceil_steal);
+            double st;
+            s->ceil_steal[s->nceil] =
+                hx_csv_col(&c, "steal_pct") >= 0 && hx_parse_double(hx_csv_get(&c, r, "steal_pct"), &st) == 0 && st >= 0
+                    ? st
+                    : -1;
             s->ceil_w[s->nceil] = (int)w;
             s->ceil_r[s->nceil++] = v;
         }

@@ -526,6 +526,7 @@ typedef struct {
     int nceil;           /* the machine's ceiling (harness ceiling): */
     int *ceil_w;         /* at ceil_w[i] workers, each keeps ceil_r[i] */
     double *ceil_r;      /* of a lone worker's speed */
+    double *ceil_steal;  /* with this CPU steal (%) while they ran, -1 unknown */
     char *ceil_path;
 } HxStudy;
 

@@ -500,6 +500,7 @@ void hx_study_free(HxStudy *s)
     hx_csv_free(&s->csv);
     free(s->ceil_w);
     free(s->ceil_r);
+    free(s->ceil_steal);
     free(s->ceil_path);
     memset(s, 0, sizeof *s);
 }

@@ -690,6 +690,15 @@ static void study_head(const HxStudy *s, const char *path, const char *baseline,
         b.len = 0;
         hx_buf_printf(&b, "Efficiency (a) also against this machine's ceiling from %s: \"0.750 (1.07 of 0.70)\" is "
                       "1.07 of the 0.70 that independent copies keep at that many workers.", s->ceil_path);
+        /* a study's runs with more steal than the copies had lose more
+         * than the ceiling says: the user compares the two */
+        int steals = 0;
+        for (int i = 0; i < s->nceil; i++)
+            if (s->ceil_steal[i] >= 0)
+                hx_buf_printf(&b, "%s%.1f%% at %d", steals++ ? ", " : " Its copies ran with CPU steal of ",
+                              s->ceil_steal[i], s->ceil_w[i]);
+        if (steals)
+            hx_buf_put(&b, " workers (the runs' own: the column steal_pct).");
         hx_md_para(stdout, b.s);
     }
     unsigned keys = 0;

@@ -27,12 +27,14 @@ r = rows[0]
 assert 0.1 < float(r["ratio_median"]) < 1.5 and r["repeats"] == "2" and len(r["fingerprint"]) == 16, r
 assert float(r["ratio_min"]) <= float(r["ratio_median"]) <= float(r["ratio_max"]), r
 assert r["metric"] == "wall_ms", r
+assert 0 <= float(r["steal_pct"]) <= 100, r
 PY
 "$H" run c.conf -o study.csv -q > /dev/null 2>&1 || fail "the study"
 fp=$(python3 -c 'import csv; print(next(csv.DictReader(open("study.csv")))["fingerprint"])')
 cp ceil.csv "ceiling-$fp.csv"   # found beside the CSV without --ceiling
 "$H" table study.csv > t.md || fail "table"
 grep -q "| awk T=2 | 3/3 | .* | [0-9.]* ([0-9.]* of [0-9.]*) |" t.md || { cat t.md; fail "no efficiency against the ceiling"; }
+tr '\n' ' ' < t.md | grep -q "Its copies ran with CPU steal of [0-9.]*% at 2 workers" || { cat t.md; fail "no steal of the ceiling's copies"; }
 "$H" table study.csv --format json | python3 -c 'import json,sys; d=json.load(sys.stdin); assert any(c["ceiling"] for c in d["configurations"] if c.get("ceiling"))' ||
     fail "json: no ceiling"
 # A metric of the copies' own: n, how many copies were running at once
@@ -47,7 +49,7 @@ threads: 1 2
 repeats: 1
 CONF
 "$H" ceiling n.conf -o n.csv --repeats 2 > n.out 2> n.err || { cat n.out n.err; fail "ceiling of a metric failed"; }
-grep -q '^W=2: each copy.s n at 2.000 of a copy alone (median of 4, 2.000 to 2.000; alone 1)' n.out ||
+grep -q '^W=2: each copy.s n at 2.000 of a copy alone (median of 4, 2.000 to 2.000; alone 1; CPU steal [0-9.]*%)' n.out ||
   { cat n.out n.err; fail "the copies were not measured by their metric n"; }
 python3 -c 'import csv; r = next(csv.DictReader(open("n.csv"))); assert r["metric"] == "n" and r["ratio_median"] == "2.0000", r' ||
   fail "n.csv: $(cat n.csv)"
