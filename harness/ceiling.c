@@ -69,10 +69,29 @@ typedef struct {
     CeilMetric m;
 } Copies;
 
-/* Copy i's value of the metric from its outputs (wall the copy's wall ms).
- * 0, or -1 with why. */
-static int copy_value(const Copies *cp, int i, double wall, double *v, char *why, size_t n)
+/* When raytrace's copy i rendered, in ms from the copies' start, from its
+ * record: its last render ends total_ms - write_ms after its start, and its
+ * timed ones (runs) take render_ms each. span[0] < 0: not known. */
+static void render_span(const char *rec, double started, double render, double *span)
 {
+    char num[64];
+    double total, write, runs = 1;
+    span[0] = span[1] = -1;
+    if (!hx_record_get(rec, "total_ms", num, sizeof num) || hx_parse_double(num, &total) != 0 ||
+        !hx_record_get(rec, "write_ms", num, sizeof num) || hx_parse_double(num, &write) != 0)
+        return;
+    if (hx_record_get(rec, "runs", num, sizeof num) && (hx_parse_double(num, &runs) != 0 || runs < 1))
+        runs = 1;
+    span[1] = started + total - write;
+    span[0] = span[1] - render * runs;
+}
+
+/* Copy i's value of the metric from its outputs (wall the copy's wall ms),
+ * and for raytrace when it rendered (render_span). 0, or -1 with why. */
+static int copy_value(const Copies *cp, int i, double started, double wall, double *v, double *span, char *why,
+                      size_t n)
+{
+    span[0] = span[1] = -1;
     if (strcmp(cp->m.name, "wall_ms") == 0) {
         *v = wall;
         return 0;
@@ -90,6 +109,8 @@ static int copy_value(const Copies *cp, int i, double wall, double *v, char *why
         char *rec = out.s ? hx_record_find(out.s) : NULL;
         if (!rec || !hx_record_get(rec, cp->m.name, num, sizeof num) || hx_parse_double(num, v) != 0)
             rc = -1, snprintf(why, n, "copy %d: no %s in its record", i, cp->m.name);
+        else
+            render_span(rec, started, *v, span);
     } else if (hx_program_collect(cp->cfg, cp->dir[i], &out, &err, &extra, why, n) != 0) {
         rc = -1;
     } else { /* "name=value;...", the study's metrics in order: the first */
@@ -107,14 +128,42 @@ static int copy_value(const Copies *cp, int i, double wall, double *v, char *why
     return rc;
 }
 
+/* How much of each copy's render the others spent rendering too (0..1),
+ * into ov; -1 where a span is not known. Copies that load for different
+ * times can render partly alone, and then read faster than together. */
+static void overlaps(const double *span, int n, double *ov)
+{
+    for (int i = 0; i < n; i++) {
+        const double *a = span + 2 * i;
+        ov[i] = -1;
+        if (a[0] < 0 || !(a[1] > a[0]))
+            continue;
+        double sum = 0;
+        int known = 1;
+        for (int j = 0; j < n && known; j++) {
+            const double *b = span + 2 * j;
+            known = b[0] >= 0;
+            if (j != i) {
+                const double lo = a[0] > b[0] ? a[0] : b[0], hi = a[1] < b[1] ? a[1] : b[1];
+                sum += hi > lo ? hi - lo : 0;
+            }
+        }
+        if (known)
+            ov[i] = sum / ((double)(n - 1) * (a[1] - a[0]));
+    }
+}
+
 /* Runs n copies at once on cores[0..n-1]; each one's value of the metric
- * into v. 0, or -1 when one failed (a line on stderr). */
-static int run_copies(const Copies *cp, const HxTopo *t, const int *cores, int n, double *v)
+ * into v and, when n > 1 and ov is not NULL, its overlap (overlaps). 0, or
+ * -1 when one failed (a line on stderr). */
+static int run_copies(const Copies *cp, const HxTopo *t, const int *cores, int n, double *v, double *ov)
 {
     pid_t *pid = hx_xmalloc((size_t)n * sizeof *pid);
     double t0 = hx_now_ms(), *wall = hx_xmalloc((size_t)n * sizeof *wall);
+    double *started = hx_xmalloc((size_t)n * sizeof *started), *span = hx_xmalloc(2 * (size_t)n * sizeof *span);
     int bad = 0;
     for (int i = 0; i < n; i++) {
+        started[i] = hx_now_ms() - t0;
         HxBuf o = {0}, e = {0};
         hx_buf_printf(&o, "%s/copy-%d.out", cp->tmp, i);
         hx_buf_printf(&e, "%s/copy-%d.err", cp->tmp, i);
@@ -144,17 +193,19 @@ static int run_copies(const Copies *cp, const HxTopo *t, const int *cores, int n
             if (pid[i] > 0)
                 kill(-pid[i], SIGKILL);
         hx_reap_strays();
-        free(pid);
-        free(wall);
-        return -1;
+        bad = -1;
     }
     char why[512] = "a copy of the workload failed (run the study once to see why)";
     for (int i = 0; i < n && !bad; i++)
-        bad = copy_value(cp, i, wall[i], &v[i], why, sizeof why) != 0;
-    if (bad)
+        bad = copy_value(cp, i, started[i], wall[i], &v[i], span + 2 * i, why, sizeof why) != 0;
+    if (bad > 0)
         fprintf(stderr, "harness ceiling: %s\n", why);
+    if (!bad && ov && n > 1)
+        overlaps(span, n, ov);
     free(pid);
     free(wall);
+    free(started);
+    free(span);
     return bad ? -1 : 0;
 }
 
@@ -275,22 +326,29 @@ static int measure(const Copies *cp, const HxTopo *t, const int *ws, int **cores
     for (int k = 0; k < nw; k++) {
         int w = ws[k], n = 0;
         double *ratio = hx_xmalloc((size_t)(w * repeats) * sizeof *ratio), *v = hx_xmalloc((size_t)w * sizeof *v);
+        double *ov = hx_xmalloc((size_t)w * sizeof *ov), *ovs = hx_xmalloc((size_t)(w * repeats) * sizeof *ovs);
         double solo = 0, solos = 0;
+        size_t nov = 0;
         /* the CPU time the hypervisor took while the copies ran together: a
          * study's runs with more steal than this lose more than the ceiling */
         unsigned long long stolen = 0, ticks = 0;
         for (int r = 0; r < repeats; r++) {
             /* alone, then all at once: a slow phase of the machine hits both */
             HxCpuStat s0, s1;
-            int bad = run_copies(cp, t, cores[k], 1, &solo) != 0;
+            int bad = run_copies(cp, t, cores[k], 1, &solo, NULL) != 0;
             hx_cpu_stat(&s0);
-            bad = bad || run_copies(cp, t, cores[k], w, v) != 0;
+            bad = bad || run_copies(cp, t, cores[k], w, v, ov) != 0;
             hx_cpu_stat(&s1);
             if (bad) {
                 free(ratio);
                 free(v);
+                free(ov);
+                free(ovs);
                 return -1;
             }
+            for (int i = 0; i < w; i++)
+                if (ov[i] >= 0)
+                    ovs[nov++] = ov[i];
             if (s0.ok && s1.ok) {
                 stolen += s1.steal - s0.steal;
                 ticks += (s1.busy - s0.busy) + (s1.idle - s0.idle) + (s1.iowait - s0.iowait) + (s1.steal - s0.steal);
@@ -303,16 +361,22 @@ static int measure(const Copies *cp, const HxTopo *t, const int *ws, int **cores
         for (int i = 0; i < n; i++)
             hi = ratio[i] > hi ? ratio[i] : hi;
         const double steal = ticks ? 100.0 * (double)stolen / (double)ticks : -1;
+        const double overlap = nov ? hx_median(ovs, nov) : -1;
         printf("W=%d: each copy's %s at %.3f of a copy alone (median of %d, %.3f to %.3f; alone %.4g; CPU steal "
-               "%.1f%%)\n", w, cp->m.name, med, n, lo, hi, solos / repeats, steal);
+               "%.1f%%", w, cp->m.name, med, n, lo, hi, solos / repeats, steal);
+        if (overlap >= 0) /* below 1, the copies rendered partly alone and the ceiling reads high */
+            printf("; renders overlapping %.2f", overlap);
+        printf(")\n");
         hx_buf_printf(b, "%s,%s,%d,%d,%.4f,%.4f,%.4f,%.6g,", fp->fingerprint, fp->host, w, repeats, med, lo, hi,
                       solos / repeats);
         hx_csv_field(b, config);
         hx_buf_put(b, ",");
         hx_csv_field(b, cp->m.name);
-        hx_buf_printf(b, ",%.2f\n", steal);
+        hx_buf_printf(b, ",%.2f,%.3f\n", steal, overlap);
         free(ratio);
         free(v);
+        free(ov);
+        free(ovs);
         fflush(stdout);
     }
     return 0;
@@ -359,7 +423,7 @@ int hx_cmd_ceiling(int argc, char **argv)
             hx_resolve_scene_cache(&cfg, NULL);
         Copies cp = {&cfg, hx_xmalloc((size_t)wmax * sizeof *cp.c), NULL, tmp, ceil_metric(&cfg)};
         hx_fingerprint_get(&fp, &t, 0, cfg.prog ? NULL : rt, NULL, NULL);
-        hx_buf_put(&b, "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone,config,metric,steal_pct\n");
+        hx_buf_put(&b, "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone,config,metric,steal_pct,overlap\n");
         fprintf(stderr, "harness ceiling: %s on %s: %d worker count(s), %d repeat(s) each, copies measured by %s\n",
                 cfg.path, fp.host, nw, o.repeats, cp.m.name);
         rc = build_copies(&cfg, &t, &one, rt, wmax, &cp) != 0 ||

@@ -5,9 +5,10 @@
 # efficiency against it (and not against a ceiling of another metric), and
 # a machine (or a run) with one allowed core, or a study with no parallel
 # run, refused in one line.
-# usage: test-ceiling.sh HARNESS
+# usage: test-ceiling.sh HARNESS [RAYTRACE SOURCE_ROOT]
 set -u
 . "$(dirname "$0")/common.sh"
+RT=${2:+$(abs "$2")} SRC=${3:+$(abs "$3")}
 test_setup ceiling "$1" "$1"
 command -v taskset > /dev/null || fail "taskset missing (util-linux)"
 [ "$(nproc)" -ge 2 ] || { echo "SKIP: one CPU: no ceiling to measure"; exit 77; }
@@ -60,6 +61,22 @@ grep -q "ceil.csv measures wall_ms, this table reads n: not used" nt.err || { ca
 grep -q " of [0-9.]*) |" nt.md && { cat nt.md; fail "efficiency of n against a wall_ms ceiling"; }
 "$H" table nstudy.csv --ceiling n.csv > nt2.md 2> /dev/null || fail "table of n with its ceiling"
 grep -q " of 2.00) |" nt2.md || { cat nt2.md; fail "no efficiency of n against its own ceiling"; }
+# raytrace's copies: by render_ms, with how much their renders overlapped
+if [ -z "$RT" ]; then echo "raytrace not built here: its copies not checked"; else
+cat > rt.conf <<CONF
+scene_dir: $SRC/scenes
+scenes: demo
+backend: serial openmp
+threads: 1 2
+resolution: 160x120
+repeats: 1
+CONF
+"$H" ceiling rt.conf -o rt.csv --repeats 2 --raytrace "$RT" > rt.out 2> rt.err || { cat rt.out rt.err; fail "raytrace ceiling failed"; }
+grep -q "^W=2: each copy's render_ms at [0-9.]* of a copy alone (.*; renders overlapping [0-9.]*)" rt.out ||
+  { cat rt.out rt.err; fail "raytrace ceiling: no render_ms or overlap"; }
+python3 -c 'import csv; r = next(csv.DictReader(open("rt.csv"))); assert r["metric"] == "render_ms" and 0 <= float(r["overlap"]) <= 1, r' ||
+  fail "rt.csv: $(cat rt.csv)"
+fi
 # SIGTERM (a job's time limit, `timeout`) ends the copies with the harness:
 # none is left to load the machine, and no ceiling is written
 printf 'command: sleep 37.5\nthreads: 1 2\nrepeats: 1\n' > slow.conf
