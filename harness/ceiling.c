@@ -53,6 +53,9 @@ static pid_t spawn(const HxCommand *c, const HxTopo *t, int core, const char *ou
     for (int fd = 0; fd < 3; fd++)
         if (fds[fd] >= 0)
             dup2(fds[fd], fd);
+    for (int fd = 0; fd < 3; fd++)
+        if (fds[fd] > 2)
+            close(fds[fd]);
     HxRun one;
     memset(&one, 0, sizeof one);
     one.ncores = 1;
@@ -170,24 +173,37 @@ static int run_copies(const Copies *cp, const HxTopo *t, const int *cores, int n
         pid[i] = spawn(&cp->c[i], t, cores[i], o.s, e.s);
         if (pid[i] > 0)
             setpgid(pid[i], pid[i]); /* both sides: no race with an early kill */
+        else
+            bad = 1; /* no fork: nothing of this copy to read */
         hx_buf_free(&o);
         hx_buf_free(&e);
     }
+    /* The stop signals and SIGCHLD held but in sigsuspend, so a stop that
+     * comes between the check and the wait still wakes it. */
+    sigset_t hold, old;
+    sigemptyset(&hold);
+    sigaddset(&hold, SIGINT);
+    sigaddset(&hold, SIGTERM);
+    sigaddset(&hold, SIGCHLD);
+    sigprocmask(SIG_BLOCK, &hold, &old);
     for (int done = 0; done < n && !hx_stop_signal();) {
-        int st;
-        pid_t p = wait(&st);
-        if (p < 0 && errno == EINTR)
-            continue;
-        if (p < 0)
+        int st, reaped = 0;
+        pid_t p;
+        while ((p = waitpid(-1, &st, WNOHANG)) > 0)
+            for (int i = 0; i < n; i++)
+                if (pid[i] == p) {
+                    wall[i] = hx_now_ms() - t0;
+                    bad |= !WIFEXITED(st) || WEXITSTATUS(st) != 0;
+                    pid[i] = 0;
+                    done++;
+                    reaped++;
+                }
+        if (p < 0 && errno == ECHILD)
             break;
-        for (int i = 0; i < n; i++)
-            if (pid[i] == p) {
-                wall[i] = hx_now_ms() - t0;
-                bad |= !WIFEXITED(st) || WEXITSTATUS(st) != 0;
-                pid[i] = 0;
-                done++;
-            }
+        if (!reaped && done < n)
+            sigsuspend(&old);
     }
+    sigprocmask(SIG_SETMASK, &old, NULL);
     if (hx_stop_signal()) { /* SIGINT or SIGTERM: no copy outlives the harness */
         for (int i = 0; i < n; i++)
             if (pid[i] > 0)
@@ -362,8 +378,10 @@ static int measure(const Copies *cp, const HxTopo *t, const int *ws, int **cores
             hi = ratio[i] > hi ? ratio[i] : hi;
         const double steal = ticks ? 100.0 * (double)stolen / (double)ticks : -1;
         const double overlap = nov ? hx_median(ovs, nov) : -1;
-        printf("W=%d: each copy's %s at %.3f of a copy alone (median of %d, %.3f to %.3f; alone %.4g; CPU steal "
-               "%.1f%%", w, cp->m.name, med, n, lo, hi, solos / repeats, steal);
+        printf("W=%d: each copy's %s at %.3f of a copy alone (median of %d, %.3f to %.3f; alone %.4g", w, cp->m.name,
+               med, n, lo, hi, solos / repeats);
+        if (steal >= 0)
+            printf("; CPU steal %.1f%%", steal);
         if (overlap >= 0) /* below 1, the copies rendered partly alone and the ceiling reads high */
             printf("; renders overlapping %.2f", overlap);
         printf(")\n");
@@ -382,10 +400,18 @@ static int measure(const Copies *cp, const HxTopo *t, const int *ws, int **cores
     return 0;
 }
 
+/* Only wakes sigsuspend in run_copies: the default would discard it. */
+static void on_child(int sig) { (void)sig; }
+
 int hx_cmd_ceiling(int argc, char **argv)
 {
     CeilOpts o;
     hx_install_stop_handlers();
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_child;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGCHLD, &sa, NULL);
     int rc = ceiling_opts(argc, argv, &o);
     HxConfig cfg;
     if (rc < 0 && hx_config_open_set(argv[optind], &o.set, &cfg) != 0)
@@ -496,9 +522,13 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
         found = 1;
         s->ceil_path = hx_strdup(cand[i]);
         /* a ceiling of another metric is no ceiling of this one; files
-         * without the column are of the copies' wall time */
+         * without the column are of the copies' wall time, used with a
+         * line that says so (docs/harness.md, "Ceiling") */
         const int has_metric = hx_csv_col(&c, "metric") >= 0;
         size_t other = 0;
+        if (!has_metric && strcmp(s->metric, "wall_ms") != 0)
+            fprintf(stderr, "%s: --ceiling: %s has no metric column: a ceiling of the copies' wall time, read "
+                            "against %s\n", who, cand[i], s->metric);
         for (size_t r = 0; r < c.nrows; r++) {
             long w;
             double v;
@@ -523,6 +553,10 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
             s->ceil_r[s->nceil++] = v;
         }
         hx_csv_free(&c);
+        if (!s->nceil) { /* nothing of it applies: no ceiling named in the table */
+            free(s->ceil_path);
+            s->ceil_path = NULL;
+        }
     }
     free(dir);
     free(beside);

@@ -398,7 +398,10 @@ int hx_srun_job_gone(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, co
         hx_strlist_push(&c.argv, fixed[i]);
     hx_command_terminate(&c);
     HxChildResult res;
-    int spawned = hx_run_child(&c, topo, r, cfg->timeout_s, &res);
+    /* at least 30 s: a slow controller is not a lost job (a false one would
+     * stop the study at this run every time it is resumed) */
+    const double limit = cfg->timeout_s > 30 ? cfg->timeout_s : 30;
+    int spawned = hx_run_child(&c, topo, r, limit, &res);
     hx_reap_strays();
     hx_command_free(&c);
     int lost = 1;
@@ -406,7 +409,7 @@ int hx_srun_job_gone(const HxConfig *cfg, const HxTopo *topo, const HxRun *r, co
     if (hx_stop_signal() || spawned != 0) {
         lost = hx_stop_signal() != 0; /* no fork: nothing known about the nodes */
     } else if (res.timed_out) {
-        hx_buf_printf(&b, "srun on each of the job's %d nodes did not finish in %g s", nodes, cfg->timeout_s);
+        hx_buf_printf(&b, "srun on each of the job's %d nodes did not finish in %g s", nodes, limit);
     } else if (!res.exited || res.code != 0) {
         int len;
         const char *e = hx_first_line(res.err.s, &len);

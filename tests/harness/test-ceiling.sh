@@ -59,6 +59,12 @@ python3 -c 'import csv; r = next(csv.DictReader(open("n.csv"))); assert r["metri
 "$H" table nstudy.csv --ceiling ceil.csv > nt.md 2> nt.err || { cat nt.err; fail "table of n"; }
 grep -q "ceil.csv measures wall_ms, this table reads n: not used" nt.err || { cat nt.err; fail "a wall_ms ceiling used for n"; }
 grep -q " of [0-9.]*) |" nt.md && { cat nt.md; fail "efficiency of n against a wall_ms ceiling"; }
+grep -q "against this machine's ceiling" nt.md && { cat nt.md; fail "a ceiling named that gave nothing"; }
+# a file from before the metric column: the copies' wall time, said so
+cut -d, -f1-9 ceil.csv > old.csv
+"$H" table nstudy.csv --ceiling old.csv > /dev/null 2> ot.err || fail "table with an old ceiling file"
+grep -q "old.csv has no metric column: a ceiling of the copies' wall time, read against n" ot.err ||
+  { cat ot.err; fail "an old ceiling file used without a word"; }
 "$H" table nstudy.csv --ceiling n.csv > nt2.md 2> /dev/null || fail "table of n with its ceiling"
 grep -q " of 2.00) |" nt2.md || { cat nt2.md; fail "no efficiency of n against its own ceiling"; }
 # raytrace's copies: by render_ms, with how much their renders overlapped
