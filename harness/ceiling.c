@@ -70,6 +70,7 @@ typedef struct {
     char **dir;     /* each copy's run folder (command studies), else NULL */
     const char *tmp;
     CeilMetric m;
+    double pre; /* raytrace: how long the last copy alone took to reach its render, ms; 0 unknown */
 } Copies;
 
 /* When raytrace's copy i rendered, in ms from the copies' start, from its
@@ -159,12 +160,24 @@ static void overlaps(const double *span, int n, double *ov)
 /* Runs n copies at once on cores[0..n-1]; each one's value of the metric
  * into v and, when n > 1 and ov is not NULL, its overlap (overlaps). 0, or
  * -1 when one failed (a line on stderr). */
-static int run_copies(const Copies *cp, const HxTopo *t, const int *cores, int n, double *v, double *ov)
+static int run_copies(Copies *cp, const HxTopo *t, const int *cores, int n, double *v, double *ov)
 {
     pid_t *pid = hx_xmalloc((size_t)n * sizeof *pid);
     double t0 = hx_now_ms(), *wall = hx_xmalloc((size_t)n * sizeof *wall);
     double *started = hx_xmalloc((size_t)n * sizeof *started), *span = hx_xmalloc(2 * (size_t)n * sizeof *span);
     int bad = 0;
+    /* raytrace's copies render together: from a start time past what the
+     * copy alone took to load, four times over (loads contend), 0.1 s at
+     * least; a copy that loads slower still starts late, and its overlap
+     * shows it */
+    char gate[64] = "0";
+    if (!cp->dir && cp->pre > 0 && n > 1)
+        snprintf(gate, sizeof gate, "%.3f", t0 + (4 * cp->pre > cp->pre + 100 ? 4 * cp->pre : cp->pre + 100));
+    for (int i = 0; i < n && !cp->dir; i++) { /* the value after --start-at (build_copies) */
+        HxStrList *a = &cp->c[i].argv;
+        free(a->v[a->n - 1]);
+        a->v[a->n - 1] = hx_strdup(gate);
+    }
     for (int i = 0; i < n; i++) {
         started[i] = hx_now_ms() - t0;
         HxBuf o = {0}, e = {0};
@@ -218,6 +231,8 @@ static int run_copies(const Copies *cp, const HxTopo *t, const int *cores, int n
         fprintf(stderr, "harness ceiling: %s\n", why);
     if (!bad && ov && n > 1)
         overlaps(span, n, ov);
+    if (!bad && n == 1)
+        cp->pre = span[0] > started[0] ? span[0] - started[0] : 0;
     free(pid);
     free(wall);
     free(started);
@@ -322,6 +337,12 @@ static int build_copies(const HxConfig *cfg, const HxTopo *t, const HxRun *one, 
             hx_vars_free(&vars);
         }
         hx_build_command(cfg, t, one, rt, img.s, dir.s, workdir, &cp->c[i]);
+        if (!cfg->prog) { /* its value set by run_copies */
+            HxStrList *a = &cp->c[i].argv;
+            hx_strlist_push(a, "--start-at");
+            hx_strlist_push(a, "0");
+            hx_command_terminate(&cp->c[i]);
+        }
         hx_buf_free(&img);
         if (cp->dir)
             cp->dir[i] = dir.s;
@@ -336,7 +357,7 @@ static int build_copies(const HxConfig *cfg, const HxTopo *t, const HxRun *one, 
 
 /* Measures every worker count; one line each on stdout, one CSV row each
  * into b. 0, or -1 when a copy failed. */
-static int measure(const Copies *cp, const HxTopo *t, const int *ws, int **cores, int nw, int repeats,
+static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int nw, int repeats,
                    const HxFingerprint *fp, const char *config, HxBuf *b)
 {
     for (int k = 0; k < nw; k++) {
@@ -447,7 +468,7 @@ int hx_cmd_ceiling(int argc, char **argv)
         one_worker(&cfg, &plan.runs[0], &one);
         if (!cfg.prog)
             hx_resolve_scene_cache(&cfg, NULL);
-        Copies cp = {&cfg, hx_xmalloc((size_t)wmax * sizeof *cp.c), NULL, tmp, ceil_metric(&cfg)};
+        Copies cp = {&cfg, hx_xmalloc((size_t)wmax * sizeof *cp.c), NULL, tmp, ceil_metric(&cfg), 0};
         hx_fingerprint_get(&fp, &t, 0, cfg.prog ? NULL : rt, NULL, NULL);
         hx_buf_put(&b, "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone,config,metric,steal_pct,overlap\n");
         fprintf(stderr, "harness ceiling: %s on %s: %d worker count(s), %d repeat(s) each, copies measured by %s\n",

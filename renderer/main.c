@@ -1,5 +1,6 @@
 /* main.c - the raytrace command: options (cli/options.c) -> scene -> accel ->
  * backend -> image + one machine-readable record line on stdout. */
+#include <errno.h>
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
@@ -426,6 +427,14 @@ static int render(Run *r, RtError *err)
     if (!o->isa && rt_cpu_isa_select(NULL, err) != 0)
         return -1;
     void *soa = !r->be->gpu ? rt_cpu_prepare(&job.view) : NULL;
+    /* --start-at: processes started at once but loaded at different speeds
+     * render together from here (harness ceiling's copies) */
+    if (o->start_at_ms > 0) {
+        const struct timespec at = {(time_t)(o->start_at_ms / 1e3),
+                                    (long)((o->start_at_ms - floor(o->start_at_ms / 1e3) * 1e3) * 1e6)};
+        while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &at, NULL) == EINTR)
+            ;
+    }
     /* Right before the render, on the same core: the machine's speed now. */
     r->calib_ms = o->calibrate ? rt_calibrate_ms() : 0.0;
     memset(&r->out, 0, sizeof r->out);

@@ -73,6 +73,8 @@ static void usage(FILE *fp)
             "      --verify             check the BVH's invariants, poison the image first and fail unless\n"
             "                           every pixel is written\n"
             "      --calibrate          time a fixed CPU workload before rendering (record key calib_ms)\n"
+            "      --start-at MS        render no earlier than MS on CLOCK_MONOTONIC (harness ceiling starts its\n"
+            "                           copies' renders together with it); 0: at once (default)\n"
             "      --isa NAME           CPU traversal: c, sse2, avx2 or avx512 (default: the best this CPU runs;\n"
             "                           the same images and counters with any; record key isa)\n"
             "  -q, --quiet              no progress output (warnings and errors still go to stderr)\n"
@@ -109,7 +111,7 @@ static int opt_error(const char *opt, const char *val, const char *why)
 
 enum { OPT_TILE = 256, OPT_SCHEDULE, OPT_MPI_SCHEDULE, OPT_BLOCK, OPT_DEVICE, OPT_VERIFY, OPT_MPI_SCENE, OPT_CALIBRATE,
        OPT_RUNS, OPT_WARMUP, OPT_BUILD_THREADS, OPT_CACHE, OPT_ISA, OPT_SHARE_GPU, OPT_HUGE_PAGES,
-       OPT_MAX_MODEL_TRIS, OPT_BUILDER, OPT_GPU_SPLIT };
+       OPT_MAX_MODEL_TRIS, OPT_BUILDER, OPT_GPU_SPLIT, OPT_START_AT };
 
 static void print_version(void)
 {
@@ -120,8 +122,8 @@ static void print_version(void)
     printf("\nbuild: %s\ncommit: %s\n", RT_BUILD_FLAGS, RT_COMMIT);
 }
 
-/* --cache, --max-model-triangles, --build-threads, --builder, --gpu-split, --huge-pages, --runs and
- * --warmup. */
+/* --cache, --max-model-triangles, --build-threads, --builder, --gpu-split, --huge-pages, --runs,
+ * --warmup and --start-at. */
 static int parse_load_timing(int c, const char *arg, Options *o)
 {
     switch (c) {
@@ -165,6 +167,16 @@ static int parse_load_timing(int c, const char *arg, Options *o)
         if (rt_parse_int(arg, 1, 1000, &o->runs) != 0)
             return opt_error("--runs", arg, "expected an integer from 1 to 1000");
         return 0;
+    case OPT_START_AT: {
+        /* at most 10 minutes ahead: a bad value never hangs a run for long */
+        char *end;
+        errno = 0;
+        const double t = strtod(arg, &end);
+        if (errno || end == arg || *end || !(t >= 0) || t > rt_now_ms() + 600000.0)
+            return opt_error("--start-at", arg, "expected 0 or a CLOCK_MONOTONIC time in ms, at most 10 minutes ahead");
+        o->start_at_ms = t;
+        return 0;
+    }
     default:
         if (parse_warmup(arg, &o->warmup_runs, &o->warmup_ms) != 0)
             return opt_error("--warmup", arg, "expected a count from 0 to 1000, or a time such as 50ms (at most 600000ms)");
@@ -226,6 +238,7 @@ static int parse_options(int argc, char **argv, Options *o)
         {"mpi-scene", required_argument, NULL, OPT_MPI_SCENE},
         {"block", required_argument, NULL, OPT_BLOCK}, {"device", required_argument, NULL, OPT_DEVICE},
         {"runs", required_argument, NULL, OPT_RUNS},  {"warmup", required_argument, NULL, OPT_WARMUP},
+        {"start-at", required_argument, NULL, OPT_START_AT},
         {"build-threads", required_argument, NULL, OPT_BUILD_THREADS}, {"cache", required_argument, NULL, OPT_CACHE},
         {"max-model-triangles", required_argument, NULL, OPT_MAX_MODEL_TRIS},
         {"huge-pages", required_argument, NULL, OPT_HUGE_PAGES}, {"builder", required_argument, NULL, OPT_BUILDER},
@@ -275,7 +288,7 @@ static int parse_options(int argc, char **argv, Options *o)
                 return -1;
             break;
         case OPT_CACHE: case OPT_BUILD_THREADS: case OPT_RUNS: case OPT_WARMUP: case OPT_HUGE_PAGES:
-        case OPT_MAX_MODEL_TRIS: case OPT_BUILDER: case OPT_GPU_SPLIT:
+        case OPT_MAX_MODEL_TRIS: case OPT_BUILDER: case OPT_GPU_SPLIT: case OPT_START_AT:
             if (parse_load_timing(c, optarg, o) != 0)
                 return -1;
             break;

@@ -26,6 +26,7 @@ typedef struct Options {
     int runs;           /* 0: the backend's default */
     int warmup_runs;    /* -1: unset */
     double warmup_ms;   /* -1: unset */
+    double start_at_ms; /* --start-at: CLOCK_MONOTONIC ms the render waits for; 0: none */
     int quiet;
     int verify;
     int calibrate;
