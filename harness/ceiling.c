@@ -103,9 +103,11 @@ static int copy_value(const Copies *cp, int i, double started, double wall, doub
     HxBuf path = {0}, out = {0}, err = {0}, extra = {0};
     hx_buf_printf(&path, "%s/copy-%d.out", cp->tmp, i);
     int rc = hx_read_file(path.s, &out) != 0 ? -1 : 0;
-    path.len = 0;
-    hx_buf_printf(&path, "%s/copy-%d.err", cp->tmp, i);
-    rc = rc || hx_read_file(path.s, &err) != 0 ? -1 : 0;
+    if (cp->dir) { /* a command study's metric may be in stderr too */
+        path.len = 0;
+        hx_buf_printf(&path, "%s/copy-%d.err", cp->tmp, i);
+        rc = rc || hx_read_file(path.s, &err) != 0 ? -1 : 0;
+    }
     char num[64];
     if (rc != 0) {
         snprintf(why, n, "copy %d: its output cannot be read", i);
@@ -388,7 +390,7 @@ static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int 
                     ovs[nov++] = ov[i];
             if (s0.ok && s1.ok) {
                 stolen += s1.steal - s0.steal;
-                ticks += (s1.busy - s0.busy) + (s1.idle - s0.idle) + (s1.iowait - s0.iowait) + (s1.steal - s0.steal);
+                ticks += hx_cpu_ticks(&s0, &s1);
             }
             solos += solo;
             for (int i = 0; i < w; i++)
@@ -485,7 +487,7 @@ int hx_cmd_ceiling(int argc, char **argv)
         hx_rmtree(tmp);
         if (hx_stop_signal()) {
             fprintf(stderr, "harness ceiling: stopped by %s: its copies ended, no ceiling written\n",
-                    hx_stop_signal() == SIGINT ? "SIGINT" : "SIGTERM");
+                    hx_signal_name(hx_stop_signal()));
             rc = 128 + hx_stop_signal();
         }
     }
@@ -545,7 +547,7 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
         /* a ceiling of another metric is no ceiling of this one; files
          * without the column are of the copies' wall time, used with a
          * line that says so (docs/harness.md, "Ceiling") */
-        const int has_metric = hx_csv_col(&c, "metric") >= 0;
+        const int has_metric = hx_csv_col(&c, "metric") >= 0, has_steal = hx_csv_col(&c, "steal_pct") >= 0;
         size_t other = 0;
         if (!has_metric && strcmp(s->metric, "wall_ms") != 0)
             fprintf(stderr, "%s: --ceiling: %s has no metric column: a ceiling of the copies' wall time, read "
@@ -567,7 +569,7 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
             s->ceil_steal = hx_xrealloc(s->ceil_steal, (size_t)(s->nceil + 1) * sizeof *s->ceil_steal);
             double st;
             s->ceil_steal[s->nceil] =
-                hx_csv_col(&c, "steal_pct") >= 0 && hx_parse_double(hx_csv_get(&c, r, "steal_pct"), &st) == 0 && st >= 0
+                has_steal && hx_parse_double(hx_csv_get(&c, r, "steal_pct"), &st) == 0 && st >= 0
                     ? st
                     : -1;
             s->ceil_w[s->nceil] = (int)w;

@@ -37,6 +37,11 @@ void hx_cpu_stat(HxCpuStat *s)
         fclose(f);
 }
 
+unsigned long long hx_cpu_ticks(const HxCpuStat *a, const HxCpuStat *b)
+{
+    return (b->busy - a->busy) + (b->idle - a->idle) + (b->iowait - a->iowait) + (b->steal - a->steal);
+}
+
 void hx_noise(const HxCpuStat *a, const HxCpuStat *b, double wall_ms, double own_cpu_ms, int cpus, int workers,
               HxNoise *n)
 {
@@ -44,7 +49,7 @@ void hx_noise(const HxCpuStat *a, const HxCpuStat *b, double wall_ms, double own
     n->load1 = a->load1;
     n->others_cores = n->steal_pct = n->iowait_pct = -1;
     unsigned long long busy = b->busy - a->busy, steal = b->steal - a->steal, iowait = b->iowait - a->iowait;
-    unsigned long long total = busy + (b->idle - a->idle) + iowait + steal;
+    unsigned long long total = hx_cpu_ticks(a, b);
     if (!a->ok || !b->ok || total == 0 || !(wall_ms > 0))
         return;
     double tick_ms = 1000.0 / (double)sysconf(_SC_CLK_TCK);

@@ -83,6 +83,8 @@ typedef struct {
     int busy, stolen;
 } HxNoise;
 void hx_cpu_stat(HxCpuStat *s);
+/* The clock ticks from a to b over every CPU: busy, idle, iowait and stolen. */
+unsigned long long hx_cpu_ticks(const HxCpuStat *a, const HxCpuStat *b);
 /* The noise between samples a and b of a run of wall_ms that used
  * own_cpu_ms of CPU itself, with workers workers on a machine of cpus. */
 void hx_noise(const HxCpuStat *a, const HxCpuStat *b, double wall_ms, double own_cpu_ms, int cpus, int workers,

@@ -520,7 +520,7 @@ static int summary(const Study *st, int rc)
 {
     if (hx_stop_signal()) {
         fprintf(stderr, "harness run: stopped by %s: the run in progress was ended and not recorded; continue "
-                        "with --resume\n", hx_stop_signal() == SIGINT ? "SIGINT" : "SIGTERM");
+                        "with --resume\n", hx_signal_name(hx_stop_signal()));
         rc = 128 + hx_stop_signal();
     } else if (st->lost) {
         fprintf(stderr, "harness run: the Slurm job cannot run on its nodes any more, a node lost or the job "
