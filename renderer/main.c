@@ -427,6 +427,7 @@ static int render(Run *r, RtError *err)
     if (!o->isa && rt_cpu_isa_select(NULL, err) != 0)
         return -1;
     void *soa = !r->be->gpu ? rt_cpu_prepare(&job.view) : NULL;
+    void *shared = !r->be->gpu && r->col && r->col->share ? r->col->share(&job.view) : NULL;
     /* --start-at: processes started at once but loaded at different speeds
      * render together from here (harness ceiling's copies) */
     if (o->start_at_ms > 0) {
@@ -444,6 +445,8 @@ static int render(Run *r, RtError *err)
     if (!r->be->gpu || job.want_float) /* (a GPU backend leaves the floats alone) */
         poison(r->rgbf, r->npix * 3);
     const int rc = r->be->times_runs ? r->be->render(&job, &r->out, err) : render_runs(r, &job, err);
+    if (shared)
+        r->col->unshare(shared);
     free(soa);
     if (rc != 0)
         return -1;

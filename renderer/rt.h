@@ -428,6 +428,12 @@ typedef struct RtCollective {
      * 16 bytes as the root (the scene's digest: ranks that read different
      * bytes must not render one image together); err then names a rank. */
     int (*same)(const uint8_t digest[16], RtError *err);
+    /* optional, CPU backends: points the view's arrays at one copy for all
+     * the processes of a node, so that their caches hold one scene rather
+     * than one per process. Returns what unshare releases (NULL: nothing
+     * shared, the view unchanged). Both collective. */
+    void *(*share)(RtSceneView *v);
+    void (*unshare)(void *shared);
 } RtCollective;
 
 const RtBackend *rt_backend_find(const char *name);

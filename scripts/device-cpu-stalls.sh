@@ -41,6 +41,11 @@
 #   bigbuild the BVH build of a 3.6M-triangle sphere field (large-4m) on
 #           16, N/2 and N threads (BUILD_THREADS), the older build and this
 #           one interleaved, ROUNDS rounds (default 3)
+#   share   MPI at N ranks (or at each of WORKERS), the older build, the
+#           middle one (.devcarry/mid.tar.gz, git archive --prefix=mid/,
+#           where carried) and this one, and OpenMP at as many threads,
+#           interleaved, RES, ROUNDS rounds (default 10): render_ms,
+#           scene_copies and the starts
 #   hybrid  the hybrid table (configs/hybrid-dragon.conf): every P x T <= N
 #           of powers of two, both resolutions, 3 repeats, `order: rounds`,
 #           against the ceiling (run ceil first)
@@ -63,6 +68,10 @@ if [ ! -x /tmp/bh/harness/harness ]; then
   { nproc; lscpu | grep -E 'Model name|NUMA|Socket|Thread'; mpirun --version | head -1; } > "$O/machine.txt" 2>&1
   (cd /tmp/head && meson setup /tmp/bh -Dcuda=disabled -Dhwloc=enabled -Dcourse_dir=none "${xx[@]}" > "$O/setup.log" 2>&1 && ninja -C /tmp/bh harness/harness renderer/raytrace > "$O/build.log" 2>&1) &
   (cd /tmp/prev && meson setup /tmp/bp -Dcuda=disabled -Dhwloc=enabled -Dcourse_dir=none "${xx[@]}" > /dev/null 2>&1 && ninja -C /tmp/bp renderer/raytrace harness/harness > "$O/prev-build.log" 2>&1) &
+  if [ -f .devcarry/mid.tar.gz ]; then
+    tar xzf .devcarry/mid.tar.gz -C /tmp
+    (cd /tmp/mid && meson setup /tmp/bm -Dcuda=disabled -Dcourse_dir=none "${xx[@]}" > /dev/null 2>&1 && ninja -C /tmp/bm renderer/raytrace > "$O/mid-build.log" 2>&1) &
+  fi
   wait
 fi
 [ -x /tmp/bh/renderer/raytrace ] && [ -x /tmp/bp/renderer/raytrace ] || { log "build failed"; tail -20 "$O"/*.log; exit 1; }
@@ -204,6 +213,22 @@ idle)
       done
     done
   done > "$O/idle.txt" 2>&1; log idle ;;
+share)
+  g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|scene_copies|fork_ms|thread_start_ms|rank_claims|rank_start_ms|rank_work_ms)=' | tr '\n' ' '; echo; }
+  V="prev head"; [ -x /tmp/bm/renderer/raytrace ] && V="prev mid head"
+  mkdir -m 700 -p /tmp/cc-head
+  for i in $(seq ${ROUNDS:-10}); do
+    for res in ${RES:-512x384 2048x1536}; do for w in ${WORKERS:-$N}; do
+      for v in $V; do
+        x=$RT; [ $v = prev ] && x=$PR; [ $v = mid ] && x=/tmp/bm/renderer/raytrace
+        echo -n "round=$i res=$res backend=mpi workers=$w version=$v "
+        timeout 60 mpirun --bind-to core -np $w $x -b mpi -q -r $res --cache /tmp/cc-head $dragon -o /tmp/k.png | g
+      done
+      echo -n "round=$i res=$res backend=openmp workers=$w version=head "
+      OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $w -q -r $res --cache /tmp/cc-head $dragon -o /tmp/k.png | g
+    done; done
+    [ "$(left)" -lt 60 ] && break
+  done > "$O/share.txt" 2>&1; log share ;;
 bigbuild)
   g() { tr ' ' '\n' | grep -E '^(parse_ms|build_ms|build_threads|sah_cost|huge_pages)=' | tr '\n' ' '; echo; }
   ninja -C /tmp/bh renderer/scenegen > /dev/null 2>&1

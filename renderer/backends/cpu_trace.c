@@ -75,6 +75,7 @@ void *rt_cpu_prepare(RtSceneView *v)
 {
     v->cpu_wide = NULL;
     v->cpu_leaves = NULL;
+    v->ncpu_leaves = 0;
     if (!v->wide || v->nnodes == 0)
         return NULL;
     const uint32_t nw = v->nwide;
@@ -101,6 +102,7 @@ void *rt_cpu_prepare(RtSceneView *v)
     free(first);
     v->cpu_wide = w;
     v->cpu_leaves = leaves;
+    v->ncpu_leaves = (uint32_t)groups;
     return block;
 }
 

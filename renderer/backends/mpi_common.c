@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include "config.h"
+#include "cpu_trace.h"
 #include "mpi_common.h"
 #include "rt.h"
 
@@ -34,6 +35,7 @@ int rt_mpi_local_rank, rt_mpi_local_size = 1, rt_mpi_node, rt_mpi_nodes = 1;
 MPI_Comm rt_mpi_node_comm = MPI_COMM_NULL;
 int rt_mpi_thread_level;
 double rt_mpi_load_ms;
+int rt_mpi_scene_copies = 1;
 const char *rt_mpi_scene_how = "every";
 static int g_inited;
 
@@ -232,7 +234,136 @@ static int mpi_scene_load(const char *path, const char *how, RtScene *scene, RtW
     return rc;
 }
 
-const RtCollective rt_mpi_collective = {mpi_is_root, rt_mpi_agree, mpi_scene_load, mpi_same};
+/* ---------------------------------------------------------------- one scene per NUMA node */
+
+/* Lays the view's arrays out one after another from base, each on a
+ * 128-byte line pair of its own; with base, points the view at them there,
+ * and with copy, copies them in first. Returns the bytes they take. */
+static size_t place_view(RtSceneView *v, char *base, int copy)
+{
+    size_t off = 0;
+#define PLACE(ptr, bytes)                                                                                             \
+    do {                                                                                                              \
+        const size_t b_ = (bytes);                                                                                    \
+        off = (off + 127) & ~(size_t)127;                                                                             \
+        if (base && b_) {                                                                                             \
+            if (copy)                                                                                                 \
+                memcpy(base + off, (ptr), b_);                                                                        \
+            (ptr) = (void *)(base + off);                                                                             \
+        }                                                                                                             \
+        off += b_;                                                                                                    \
+    } while (0)
+    PLACE(v->prims, (size_t)v->nprims * sizeof *v->prims);
+    PLACE(v->nodes, v->nodes ? (size_t)v->nnodes * sizeof *v->nodes : 0);
+    PLACE(v->wide, v->wide ? (size_t)v->nwide * sizeof *v->wide : 0);
+#define PLACE_ARRAY(T, name) PLACE(v->name, (size_t)v->n##name * sizeof(T));
+    RT_SCENE_ARRAYS(PLACE_ARRAY)
+#undef PLACE_ARRAY
+    PLACE(v->cpu_wide, v->cpu_wide ? (size_t)v->nwide * sizeof *v->cpu_wide : 0);
+    PLACE(v->cpu_leaves, (size_t)v->ncpu_leaves * sizeof(RtCpuLeaf4));
+#undef PLACE
+    return off;
+}
+
+/* The same view on every rank of comm: the same counts of everything. */
+static int same_counts(const RtSceneView *v, MPI_Comm comm)
+{
+    uint64_t c[] = {v->nprims, v->nnodes, v->nwide, v->ncpu_leaves, v->nodes != NULL, v->wide != NULL,
+                    v->cpu_wide != NULL,
+#define COUNT(T, name) v->n##name,
+                    RT_SCENE_ARRAYS(COUNT)
+#undef COUNT
+    };
+    enum { N = sizeof c / sizeof c[0] };
+    uint64_t both[2 * N], max[2 * N];
+    for (int i = 0; i < N; i++)
+        both[i] = c[i], both[N + i] = ~c[i];
+    RT_MPI_CHECK(MPI_Allreduce(both, max, 2 * N, MPI_UINT64_T, MPI_MAX, comm));
+    for (int i = 0; i < N; i++) /* max == min everywhere: the same answer on every rank */
+        if (max[i] != ~max[N + i])
+            return 0;
+    return 1;
+}
+
+typedef struct NodeScene {
+    MPI_Comm comm;
+    MPI_Win win;
+} NodeScene;
+static NodeScene g_node_scene = {MPI_COMM_NULL, MPI_WIN_NULL};
+
+/* RtCollective.share. Every rank renders from its own copy of the scene
+ * otherwise: at 64 ranks, 64 copies of the dragon's 2 MB contend for the
+ * last-level cache that one copy fits (the OpenMP backend's case), and the
+ * ranks' misses go to memory. The ranks of a NUMA node (Open MPI's
+ * OMPI_COMM_TYPE_NUMA; elsewhere those of the shared-memory node) now read
+ * one copy in an MPI-3 shared window on their lowest rank, which copies it
+ * there (Hoefler et al., "MPI + MPI: a new hybrid approach to parallel
+ * programming with MPI plus shared memory", Computing 95, 2013). */
+static NodeScene *share_numa(RtSceneView *v)
+{
+    NodeScene *s = &g_node_scene;
+#ifdef OMPI_COMM_TYPE_NUMA
+    RT_MPI_CHECK(MPI_Comm_split_type(MPI_COMM_WORLD, OMPI_COMM_TYPE_NUMA, 0, MPI_INFO_NULL, &s->comm));
+#else
+    RT_MPI_CHECK(MPI_Comm_dup(rt_mpi_node_comm, &s->comm));
+#endif
+    int lrank, lsize;
+    RT_MPI_CHECK(MPI_Comm_rank(s->comm, &lrank));
+    RT_MPI_CHECK(MPI_Comm_size(s->comm, &lsize));
+    /* (a rank alone on its NUMA node still takes part in the collectives) */
+    if (!same_counts(v, s->comm) || lsize < 2) {
+        MPI_Comm_free(&s->comm);
+        return NULL;
+    }
+    const size_t bytes = place_view(v, NULL, 0);
+    char *base;
+    MPI_Aint seg;
+    int disp;
+    RT_MPI_CHECK(MPI_Win_allocate_shared(lrank == 0 ? (MPI_Aint)(bytes + 128) : 0, 1, MPI_INFO_NULL, s->comm, &base,
+                                         &s->win));
+    MPI_Win_set_errhandler(s->win, MPI_ERRORS_RETURN);
+    RT_MPI_CHECK(MPI_Win_shared_query(s->win, 0, &seg, &disp, &base));
+    /* the lowest rank's alignment, which every mapping of the segment shares */
+    int pad = (int)((128 - (uintptr_t)base % 128) % 128);
+    RT_MPI_CHECK(MPI_Bcast(&pad, 1, MPI_INT, 0, s->comm));
+    RT_MPI_CHECK(MPI_Win_lock_all(MPI_MODE_NOCHECK, s->win));
+    if (lrank == 0)
+        place_view(v, base + pad, 1);
+    RT_MPI_CHECK(MPI_Win_sync(s->win));
+    RT_MPI_CHECK(MPI_Barrier(s->comm));
+    RT_MPI_CHECK(MPI_Win_sync(s->win));
+    if (lrank != 0)
+        place_view(v, base + pad, 0);
+    return s;
+}
+
+static void *mpi_share(RtSceneView *v)
+{
+    rt_mpi_scene_copies = rt_mpi_size;
+    if (rt_mpi_size < 2 || g_node_scene.win != MPI_WIN_NULL)
+        return NULL;
+    NodeScene *s = share_numa(v);
+    int mine = 1, lrank = 0;
+    if (s) {
+        RT_MPI_CHECK(MPI_Comm_rank(s->comm, &lrank));
+        mine = lrank == 0;
+    }
+    RT_MPI_CHECK(MPI_Allreduce(&mine, &rt_mpi_scene_copies, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD));
+    return s;
+}
+
+/* RtCollective.unshare. */
+static void mpi_unshare(void *shared)
+{
+    NodeScene *s = shared;
+    if (!s)
+        return;
+    RT_MPI_CHECK(MPI_Win_unlock_all(s->win));
+    RT_MPI_CHECK(MPI_Win_free(&s->win));
+    MPI_Comm_free(&s->comm);
+}
+
+const RtCollective rt_mpi_collective = {mpi_is_root, rt_mpi_agree, mpi_scene_load, mpi_same, mpi_share, mpi_unshare};
 
 /* ---------------------------------------------------------------- the shared image */
 

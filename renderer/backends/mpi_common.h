@@ -24,6 +24,9 @@ extern int rt_mpi_thread_level;
  * load_ms_max and mpi_scene. */
 extern double rt_mpi_load_ms;
 extern const char *rt_mpi_scene_how;
+/* The copies of the scene the ranks render from: one per NUMA node where
+ * RtCollective.share made one (the record's scene_copies), else one each. */
+extern int rt_mpi_scene_copies;
 
 /* Names the failed call with MPI's error string, then MPI_Abort (never a hang). */
 void rt_mpi_die(const char *file, int line, const char *call, int code);

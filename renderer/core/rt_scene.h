@@ -120,8 +120,9 @@ typedef struct RtSceneView {
     int32_t max_depth;            /* 1: primary and shadow rays only */
     /* CPU backends: their copy of the 4-wide tree, whose leaves refer to
      * groups of four records in cpu_leaves (backends/cpu_trace.h); NULL: none. */
-    const RtBvh4Node *cpu_wide;
-    const struct RtCpuLeaf4 *cpu_leaves;
+    const RtBvh4Node *cpu_wide;         /* nwide nodes */
+    const struct RtCpuLeaf4 *cpu_leaves; /* ncpu_leaves groups */
+    uint32_t ncpu_leaves;
 } RtSceneView;
 #undef RT_VIEW_ARRAY_
 
