@@ -120,6 +120,22 @@ for sep in 1 0; do
     if [ $sep = 0 ] && [ "$puts" != 0 ]; then echo "FAIL: shared: time in puts"; fails=$((fails + 1)); fi
 done
 
+# One copy of the scene for the three ranks (one NUMA node here), by both
+# ways the scene reaches them; a rank whose view differs in one count
+# (RT_MPI_TEST_VIEW_DIFFERS) leaves each rank its own copy: three copies,
+# and still the serial image.
+for case in bcast every differs; do
+    how=$case want=1 hook=
+    [ $case = differs ] && how=bcast want=3 hook=1
+    rec=$(RT_MPI_TEST_VIEW_DIFFERS=$hook timeout 60 "$mpirun" --quiet --oversubscribe -np 3 "$rt" -q --backend mpi \
+          --mpi-scene $how -r 64x48 -o "$tmp/m.ppm" "$good" 2> "$tmp/err") ||
+        { echo "FAIL: scene copies ($case): $(cat "$tmp/err")"; fails=$((fails + 1)); }
+    echo "scene copies ($case): scene_copies=$(key "$rec" scene_copies)"
+    [ "$(key "$rec" scene_copies)" = $want ] || { echo "FAIL: scene copies ($case): want $want"; fails=$((fails + 1)); }
+    [ "$(key "$rec" image_fnv1a)" = "$(key "$serial" image_fnv1a)" ] ||
+        { echo "FAIL: scene copies ($case): not the serial image"; fails=$((fails + 1)); }
+done
+
 # A rank that claims no tile (3 ranks, one 8x8 tile) still names its core:
 # the harness's pinning check must not see a rank that ran nowhere.
 rec=$(timeout 60 "$mpirun" --quiet --oversubscribe -np 3 "$rt" -q --backend mpi -r 8x8 -o "$tmp/m.ppm" "$good" \
