@@ -11,6 +11,7 @@
  * string, then MPI_Abort, which ends all ranks: never a hang). Failures
  * before rendering are agreed on with MPI_Allreduce (rt_mpi_agree) so that
  * exactly one rank, rank 0, prints exactly one message. */
+#define _GNU_SOURCE /* sched_getaffinity */
 #include <mpi.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -304,11 +305,21 @@ static NodeScene g_node_scene = {MPI_COMM_NULL, MPI_WIN_NULL};
 static NodeScene *share_numa(RtSceneView *v)
 {
     NodeScene *s = &g_node_scene;
-#ifdef OMPI_COMM_TYPE_NUMA
-    RT_MPI_CHECK(MPI_Comm_split_type(MPI_COMM_WORLD, OMPI_COMM_TYPE_NUMA, 0, MPI_INFO_NULL, &s->comm));
-#else
-    RT_MPI_CHECK(MPI_Comm_dup(rt_mpi_node_comm, &s->comm));
+    s->comm = MPI_COMM_NULL;
+#if defined(OPEN_MPI) && OPEN_MPI
+    RT_MPI_CHECK(MPI_Comm_split_type(rt_mpi_node_comm, OMPI_COMM_TYPE_NUMA, 0, MPI_INFO_NULL, &s->comm));
 #endif
+    /* Open MPI puts a rank bound to no NUMA node (--bind-to none: every
+     * CPU) in a communicator of its own: the node's ranks then share one copy */
+    cpu_set_t set;
+    const int unbound = sched_getaffinity(0, sizeof set, &set) == 0 && CPU_COUNT(&set) >= sysconf(_SC_NPROCESSORS_ONLN);
+    int numa = s->comm != MPI_COMM_NULL && !unbound, all;
+    RT_MPI_CHECK(MPI_Allreduce(&numa, &all, 1, MPI_INT, MPI_MIN, rt_mpi_node_comm));
+    if (!all) {
+        if (s->comm != MPI_COMM_NULL)
+            MPI_Comm_free(&s->comm);
+        RT_MPI_CHECK(MPI_Comm_dup(rt_mpi_node_comm, &s->comm));
+    }
     int lrank, lsize;
     RT_MPI_CHECK(MPI_Comm_rank(s->comm, &lrank));
     RT_MPI_CHECK(MPI_Comm_size(s->comm, &lsize));
