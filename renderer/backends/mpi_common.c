@@ -16,6 +16,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <dirent.h>
+#include <fcntl.h>
 #include <sched.h>
 #include <sys/mman.h>
 #include <unistd.h>
@@ -255,8 +257,9 @@ static size_t place_view(RtSceneView *v, char *base, int copy)
         off += b_;                                                                                                    \
     } while (0)
     PLACE(v->prims, (size_t)v->nprims * sizeof *v->prims);
-    PLACE(v->nodes, v->nodes ? (size_t)v->nnodes * sizeof *v->nodes : 0);
-    PLACE(v->wide, v->wide ? (size_t)v->nwide * sizeof *v->wide : 0);
+    /* (the binary and 4-wide trees: only where the CPU's copy is missing) */
+    PLACE(v->nodes, v->nodes && !v->cpu_wide ? (size_t)v->nnodes * sizeof *v->nodes : 0);
+    PLACE(v->wide, v->wide && !v->cpu_wide ? (size_t)v->nwide * sizeof *v->wide : 0);
 #define PLACE_ARRAY(T, name) PLACE(v->name, (size_t)v->n##name * sizeof(T));
     RT_SCENE_ARRAYS(PLACE_ARRAY)
 #undef PLACE_ARRAY
@@ -290,36 +293,95 @@ static int same_counts(const RtSceneView *v, MPI_Comm comm)
 
 typedef struct NodeScene {
     MPI_Comm comm;
-    MPI_Win win;
+    void *map; /* the node's copy, mapped here */
+    size_t len;
 } NodeScene;
-static NodeScene g_node_scene = {MPI_COMM_NULL, MPI_WIN_NULL};
+static NodeScene g_node_scene = {MPI_COMM_NULL, NULL, 0};
 
-/* RtCollective.share. Every rank renders from its own copy of the scene
- * otherwise: at 64 ranks, 64 copies of the dragon's 2 MB contend for the
- * last-level cache that one copy fits (the OpenMP backend's case), and the
- * ranks' misses go to memory. The ranks of a NUMA node (Open MPI's
- * OMPI_COMM_TYPE_NUMA; elsewhere those of the shared-memory node) now read
- * one copy in an MPI-3 shared window on their lowest rank, which copies it
- * there (Hoefler et al., "MPI + MPI: a new hybrid approach to parallel
- * programming with MPI plus shared memory", Computing 95, 2013). */
+/* The NUMA node that holds every CPU this process may run on (sysfs), or
+ * -1: they span several (a rank bound to none), or the kernel does not say. */
+static int numa_node(void)
+{
+    cpu_set_t mine, node, both;
+    DIR *d = opendir("/sys/devices/system/node");
+    if (!d || sched_getaffinity(0, sizeof mine, &mine) != 0) {
+        if (d)
+            closedir(d);
+        return -1;
+    }
+    int found = -1;
+    for (struct dirent *e; found < 0 && (e = readdir(d));) {
+        char path[300], list[4096];
+        int id;
+        if (sscanf(e->d_name, "node%d", &id) != 1)
+            continue;
+        snprintf(path, sizeof path, "/sys/devices/system/node/%s/cpulist", e->d_name);
+        FILE *f = fopen(path, "r");
+        const int ok = f && fgets(list, sizeof list, f);
+        if (f)
+            fclose(f);
+        CPU_ZERO(&node);
+        /* "0-31,64-95" */
+        for (char *p = list; ok && *p && *p != '\n';) {
+            char *end;
+            long a = strtol(p, &end, 10), b = a;
+            if (end == p)
+                break;
+            if (*end == '-')
+                b = strtol(end + 1, &end, 10);
+            for (long c = a; c <= b && c < CPU_SETSIZE; c++)
+                CPU_SET((int)c, &node);
+            p = *end == ',' ? end + 1 : end;
+        }
+        CPU_AND(&both, &mine, &node);
+        if (ok && CPU_EQUAL(&both, &mine))
+            found = id;
+    }
+    closedir(d);
+    return found;
+}
+
+/* The node's copy on its lowest rank: a POSIX shared-memory object of len
+ * bytes, named in name, the view's arrays copied in. 0, or -1 (nothing
+ * left behind). Its pages are reserved first (posix_fallocate): /dev/shm
+ * can be small (64 MiB in a default Docker container), and a page that does
+ * not fit would otherwise end the rank with SIGBUS. */
+static int node_copy_create(RtSceneView *v, size_t len, char *name, size_t size, void **map)
+{
+    snprintf(name, size, "/raytrace.%ld.%llx", (long)getpid(), (unsigned long long)rt_now_ns());
+    /* (RT_MPI_TEST_SHM_FAIL: tests/cpu/mpi_fail.sh, the fallback) */
+    const int fd = rt_mpi_test_rank("RT_MPI_TEST_SHM_FAIL") ? -1 : shm_open(name, O_RDWR | O_CREAT | O_EXCL, 0600);
+    if (fd < 0)
+        return -1;
+    *map = MAP_FAILED;
+    if (posix_fallocate(fd, 0, (off_t)len) == 0)
+        *map = mmap(NULL, len, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+    close(fd);
+    if (*map == MAP_FAILED) {
+        shm_unlink(name);
+        return -1;
+    }
+    RtSceneView copy = *v; /* (this rank's view moves there only once every rank can map it) */
+    place_view(&copy, *map, 1);
+    __atomic_thread_fence(__ATOMIC_RELEASE);
+    return 0;
+}
+
+/* RtCollective.share's work. Every rank renders from its own copy of the
+ * scene otherwise: at 64 ranks, 64 copies of the dragon's 2 MB contend for
+ * the last-level cache that one copy fits (the OpenMP backend's case), and
+ * the ranks' misses go to memory. The ranks of a NUMA node (sysfs: the node
+ * holding all of a rank's CPUs; the whole node where a rank is bound to
+ * none) read one copy in shared memory, which their lowest rank makes
+ * (the "MPI + MPI" model: Hoefler et al., Computing 95, 2013). Where it
+ * cannot, each rank keeps its own. */
 static NodeScene *share_numa(RtSceneView *v)
 {
     NodeScene *s = &g_node_scene;
-    s->comm = MPI_COMM_NULL;
-#if defined(OPEN_MPI) && OPEN_MPI
-    RT_MPI_CHECK(MPI_Comm_split_type(rt_mpi_node_comm, OMPI_COMM_TYPE_NUMA, 0, MPI_INFO_NULL, &s->comm));
-#endif
-    /* Open MPI puts a rank bound to no NUMA node (--bind-to none: every
-     * CPU) in a communicator of its own: the node's ranks then share one copy */
-    cpu_set_t set;
-    const int unbound = sched_getaffinity(0, sizeof set, &set) == 0 && CPU_COUNT(&set) >= sysconf(_SC_NPROCESSORS_ONLN);
-    int numa = s->comm != MPI_COMM_NULL && !unbound, all;
-    RT_MPI_CHECK(MPI_Allreduce(&numa, &all, 1, MPI_INT, MPI_MIN, rt_mpi_node_comm));
-    if (!all) {
-        if (s->comm != MPI_COMM_NULL)
-            MPI_Comm_free(&s->comm);
-        RT_MPI_CHECK(MPI_Comm_dup(rt_mpi_node_comm, &s->comm));
-    }
+    /* one copy per NUMA node; one per node where a rank is bound to none */
+    int id = numa_node(), low;
+    RT_MPI_CHECK(MPI_Allreduce(&id, &low, 1, MPI_INT, MPI_MIN, rt_mpi_node_comm));
+    RT_MPI_CHECK(MPI_Comm_split(rt_mpi_node_comm, low < 0 ? 0 : id, rt_mpi_local_rank, &s->comm));
     int lrank, lsize;
     RT_MPI_CHECK(MPI_Comm_rank(s->comm, &lrank));
     RT_MPI_CHECK(MPI_Comm_size(s->comm, &lsize));
@@ -328,32 +390,43 @@ static NodeScene *share_numa(RtSceneView *v)
         MPI_Comm_free(&s->comm);
         return NULL;
     }
-    const size_t bytes = place_view(v, NULL, 0);
-    char *base;
-    MPI_Aint seg;
-    int disp;
-    RT_MPI_CHECK(MPI_Win_allocate_shared(lrank == 0 ? (MPI_Aint)(bytes + 128) : 0, 1, MPI_INFO_NULL, s->comm, &base,
-                                         &s->win));
-    MPI_Win_set_errhandler(s->win, MPI_ERRORS_RETURN);
-    RT_MPI_CHECK(MPI_Win_shared_query(s->win, 0, &seg, &disp, &base));
-    /* the lowest rank's alignment, which every mapping of the segment shares */
-    int pad = (int)((128 - (uintptr_t)base % 128) % 128);
-    RT_MPI_CHECK(MPI_Bcast(&pad, 1, MPI_INT, 0, s->comm));
-    RT_MPI_CHECK(MPI_Win_lock_all(MPI_MODE_NOCHECK, s->win));
-    if (lrank == 0)
-        place_view(v, base + pad, 1);
-    RT_MPI_CHECK(MPI_Win_sync(s->win));
-    RT_MPI_CHECK(MPI_Barrier(s->comm));
-    RT_MPI_CHECK(MPI_Win_sync(s->win));
-    if (lrank != 0)
-        place_view(v, base + pad, 0);
+    s->len = place_view(v, NULL, 0);
+    s->map = NULL;
+    char name[64] = "";
+    int failed = lrank == 0 && node_copy_create(v, s->len, name, sizeof name, &s->map) != 0;
+    RT_MPI_CHECK(MPI_Bcast(name, (int)sizeof name, MPI_CHAR, 0, s->comm));
+    RT_MPI_CHECK(MPI_Bcast(&failed, 1, MPI_INT, 0, s->comm));
+    int any = failed;
+    if (!failed) {
+        int mine = 0;
+        if (lrank != 0) {
+            const int fd = rt_mpi_test_rank("RT_MPI_TEST_SHM_FAIL") ? -1 : shm_open(name, O_RDONLY, 0);
+            void *m = fd < 0 ? MAP_FAILED : mmap(NULL, s->len, PROT_READ, MAP_SHARED, fd, 0);
+            if (fd >= 0)
+                close(fd);
+            s->map = m == MAP_FAILED ? NULL : m;
+            mine = !s->map;
+        }
+        RT_MPI_CHECK(MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, s->comm));
+        if (lrank == 0) /* every rank has mapped it, or failed to: no name left behind */
+            shm_unlink(name);
+    }
+    if (any) {
+        if (s->map)
+            munmap(s->map, s->len);
+        s->map = NULL;
+        MPI_Comm_free(&s->comm);
+        return NULL;
+    }
+    __atomic_thread_fence(__ATOMIC_ACQUIRE);
+    place_view(v, s->map, 0);
     return s;
 }
 
 static void *mpi_share(RtSceneView *v)
 {
     rt_mpi_scene_copies = rt_mpi_size;
-    if (rt_mpi_size < 2 || g_node_scene.win != MPI_WIN_NULL)
+    if (rt_mpi_size < 2 || g_node_scene.map)
         return NULL;
     NodeScene *s = share_numa(v);
     int mine = 1, lrank = 0;
@@ -371,8 +444,8 @@ static void mpi_unshare(void *shared)
     NodeScene *s = shared;
     if (!s)
         return;
-    RT_MPI_CHECK(MPI_Win_unlock_all(s->win));
-    RT_MPI_CHECK(MPI_Win_free(&s->win));
+    munmap(s->map, s->len);
+    s->map = NULL;
     MPI_Comm_free(&s->comm);
 }
 
@@ -437,7 +510,7 @@ void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared
 
 void rt_mpi_frame_start(RtMpiImage *m)
 {
-    int64_t *arrived = (int64_t *)(void *)((char *)m->base + 64); /* (shared memory only) */
+    int64_t *arrived = (int64_t *)(void *)((char *)m->base + 128); /* (shared memory only) */
     if (rt_mpi_rank == 0) {
         *(int64_t *)m->base = 0;
         if (m->atomic)

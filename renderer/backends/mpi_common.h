@@ -54,11 +54,12 @@ void rt_mpi_rank_nodes(char *buf, size_t size);
 extern const RtCollective rt_mpi_collective;
 
 /* The shared image of the dynamic scheme. The window on rank 0 (disp_unit
- * 1) holds the claim counter, then `extra` bytes of the caller's (the tile
+ * 1) holds the claim counter, the starting barrier's (shared memory only),
+ * then `extra` bytes of the caller's (the tile
  * board, shared memory only), then the image at byte img_off, each part
  * 128-byte line pairs apart (the adjacent-line prefetcher's pair), so that
  * claims never contend with the pixels written beside them. */
-#define RT_WIN_EXTRA 128
+#define RT_WIN_EXTRA 256
 typedef struct RtMpiImage {
     MPI_Win win;
     void *base;     /* rank 0's window (the counter at its start) */

@@ -120,15 +120,21 @@ for sep in 1 0; do
     if [ $sep = 0 ] && [ "$puts" != 0 ]; then echo "FAIL: shared: time in puts"; fails=$((fails + 1)); fi
 done
 
-# One copy of the scene for the three ranks (one NUMA node here), by both
-# ways the scene reaches them; a rank whose view differs in one count
-# (RT_MPI_TEST_VIEW_DIFFERS) leaves each rank its own copy: three copies,
-# and still the serial image.
-for case in bcast every differs; do
-    how=$case want=1 hook=
-    [ $case = differs ] && how=bcast want=3 hook=1
-    rec=$(RT_MPI_TEST_VIEW_DIFFERS=$hook timeout 60 "$mpirun" --quiet --oversubscribe -np 3 "$rt" -q --backend mpi \
-          --mpi-scene $how -r 64x48 -o "$tmp/m.ppm" "$good" 2> "$tmp/err") ||
+# One copy of the scene for the three ranks (unbound: one per node), by
+# both ways the scene reaches them. Each rank keeps its own copy, and the
+# image stays the serial one, where a rank's view differs in one count
+# (RT_MPI_TEST_VIEW_DIFFERS), where rank 0 cannot make the shared copy and
+# where rank 2 cannot map it (RT_MPI_TEST_SHM_FAIL).
+for case in bcast every differs create map; do
+    how=bcast want=3 differs= shm=
+    case $case in
+    bcast|every) how=$case want=1 ;;
+    differs) differs=1 ;;
+    create) shm=0 ;;
+    map) shm=2 ;;
+    esac
+    rec=$(RT_MPI_TEST_VIEW_DIFFERS=$differs RT_MPI_TEST_SHM_FAIL=$shm timeout 60 "$mpirun" --quiet --oversubscribe \
+          --bind-to none -np 3 "$rt" -q --backend mpi --mpi-scene $how -r 64x48 -o "$tmp/m.ppm" "$good" 2> "$tmp/err") ||
         { echo "FAIL: scene copies ($case): $(cat "$tmp/err")"; fails=$((fails + 1)); }
     echo "scene copies ($case): scene_copies=$(key "$rec" scene_copies)"
     [ "$(key "$rec" scene_copies)" = $want ] || { echo "FAIL: scene copies ($case): want $want"; fails=$((fails + 1)); }
