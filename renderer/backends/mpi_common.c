@@ -401,7 +401,8 @@ static NodeScene *share_numa(RtSceneView *v)
         int mine = 0;
         if (lrank != 0) {
             const int fd = rt_mpi_test_rank("RT_MPI_TEST_SHM_FAIL") ? -1 : shm_open(name, O_RDONLY, 0);
-            void *m = fd < 0 ? MAP_FAILED : mmap(NULL, s->len, PROT_READ, MAP_SHARED, fd, 0);
+            /* (its page tables filled now, not by faults inside the frame) */
+            void *m = fd < 0 ? MAP_FAILED : mmap(NULL, s->len, PROT_READ, MAP_SHARED | MAP_POPULATE, fd, 0);
             if (fd >= 0)
                 close(fd);
             s->map = m == MAP_FAILED ? NULL : m;
