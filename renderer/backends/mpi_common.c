@@ -368,9 +368,9 @@ static int node_copy_create(RtSceneView *v, size_t len, char *name, size_t size,
 }
 
 /* RtCollective.share's work. Every rank renders from its own copy of the
- * scene otherwise: at 64 ranks, 64 copies of the dragon's 2 MB contend for
- * the last-level cache that one copy fits (the OpenMP backend's case), and
- * the ranks' misses go to memory. The ranks of a NUMA node (sysfs: the node
+ * scene otherwise: at 64 ranks, 64 copies of the dragon's 2 MB ask 128 MB
+ * of a last-level cache that one copy fits, as the OpenMP backend's threads
+ * share theirs, and as many times the memory. The ranks of a NUMA node (sysfs: the node
  * holding all of a rank's CPUs; the whole node where a rank is bound to
  * none) read one copy in shared memory, which their lowest rank makes
  * (the "MPI + MPI" model: Hoefler et al., Computing 95, 2013). Where it
