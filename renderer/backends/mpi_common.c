@@ -1,6 +1,7 @@
 /* mpi_common.c - what the two MPI backends share (mpi_common.h): start and
- * end, agreeing on failures, the scene on every rank, and the dynamic
- * scheme's shared image.
+ * end, agreeing on failures, the scene on every rank (and, for the CPU
+ * backend, one copy of it per NUMA node), and the dynamic scheme's shared
+ * image.
  *
  * Scene: every rank parses the file (--mpi-scene every, as the report) or
  * rank 0 parses and broadcasts the settings and the flat arrays
