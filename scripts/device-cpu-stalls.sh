@@ -37,7 +37,8 @@
 #           OpenMP at N threads, cold (--warmup 0 --runs 1), cold with a
 #           SCHED_IDLE spinner on every core (so no core idles, while any
 #           other thread preempts it), and warm (--warmup 3 --runs 9),
-#           interleaved, RES, ROUNDS rounds (default 8)
+#           interleaved, RES, ROUNDS rounds (default 8): each run's keys and
+#           the host's steal over it (steal_pct, % of all CPU time)
 #   bigbuild the BVH build of a 3.6M-triangle sphere field (large-4m) on
 #           16, N/2 and N threads (BUILD_THREADS), the older build and this
 #           one interleaved, ROUNDS rounds (default 3)
@@ -51,6 +52,8 @@
 #           against the ceiling (run ceil first)
 # RES limits ceil, tables and warm to one resolution; EXTRA gives their runs
 # raytrace arguments (extra_args), e.g. EXTRA="--warmup 3 --runs 9".
+# CEIL_S bounds each ceiling (default 100 s; 2048x1536 with that EXTRA
+# needs about 300).
 # The code measured is .devcarry/head.tar.gz (git archive --prefix=head/ HEAD
 # | gzip), the older one .devcarry/prev.tar.gz (git archive --prefix=prev/
 # OLD | gzip). Carry [".devcarry", ".devwl"] (scripts/device-ceiling.sh says
@@ -92,13 +95,13 @@ ab)
 ceil)
   W=${WORKERS:-1 $((N / 2)) $N}
   for res in ${RES:-512x384 2048x1536}; do
-    timeout 100 $H ceiling configs/openmp-scaling-bvh.conf --set scene_dir=$course --set resolution=$res --set threads="$W" --set schedule=tiles --repeats 5 "${X[@]}" -o "$O/ceiling-$res.csv" > "$O/ceiling-$res.log" 2>&1 || log "ceiling $res rc $?"
+    timeout ${CEIL_S:-100} $H ceiling configs/openmp-scaling-bvh.conf --set scene_dir=$course --set resolution=$res --set threads="$W" --set schedule=tiles --repeats 5 "${X[@]}" -o "$O/ceiling-$res.csv" > "$O/ceiling-$res.log" 2>&1 || log "ceiling $res rc $?"
     tail -5 "$O/ceiling-$res.log"
   done; log ceilings ;;
 ceilprev)
   W=${WORKERS:-1 $((N / 2)) $N}
   for res in ${RES:-512x384 2048x1536}; do
-    timeout 100 /tmp/bp/harness/harness ceiling configs/openmp-scaling-bvh.conf --set scene_dir=$course --set resolution=$res --set threads="$W" --set schedule=tiles --repeats 5 "${X[@]}" -o "$O/ceilprev-$res.csv" > "$O/ceilprev-$res.log" 2>&1 || log "ceilprev $res rc $?"
+    timeout ${CEIL_S:-100} /tmp/bp/harness/harness ceiling configs/openmp-scaling-bvh.conf --set scene_dir=$course --set resolution=$res --set threads="$W" --set schedule=tiles --repeats 5 "${X[@]}" -o "$O/ceilprev-$res.csv" > "$O/ceilprev-$res.log" 2>&1 || log "ceilprev $res rc $?"
   done; log ceilprev ;;
 tables)
   W=${WORKERS:-1 $((N / 2)) $N}
@@ -198,6 +201,12 @@ idle)
   g() { tr ' ' '\n' | grep -E '^(render_ms|fork_ms|join_ms|thread_start_ms|rank_start_ms|rank_work_ms)=' | tr '\n' ' '; echo; }
   mkdir -m 700 -p /tmp/cc-head
   spinners() { for c in $(seq 0 $((N - 1))); do chrt --idle 0 taskset -c $c sh -c 'while :; do :; done' > /dev/null 2>&1 & done; }
+  # the run's keys, then the host's steal over it in % of all CPU time (/proc/stat)
+  ticks() { awk '/^cpu /{t = 0; for (i = 2; i <= 9; i++) t += $i; print $9, t}' /proc/stat; }
+  stolen() {
+    local a b; a=$(ticks); "$@" | g | tr -d '\n'; b=$(ticks)
+    echo "$a $b" | awk '{printf " steal_pct=%.2f\n", 100 * ($3 - $1) / ($4 - $2 + 1)}'
+  }
   for i in $(seq ${ROUNDS:-8}); do
     for res in ${RES:-512x384 2048x1536}; do
       for mode in cold spun warm; do
@@ -205,13 +214,15 @@ idle)
         set -- $w
         [ $mode = spun ] && { spinners; sleep 0.5; }
         echo -n "round=$i res=$res backend=mpi workers=$N mode=$mode "
-        mpirun --bind-to core -np $N $RT -b mpi -q -r $res --warmup $1 --runs $2 --cache /tmp/cc-head $dragon -o /tmp/k.png | g
+        stolen mpirun --bind-to core -np $N $RT -b mpi -q -r $res --warmup $1 --runs $2 --cache /tmp/cc-head $dragon \
+          -o /tmp/k.png
         echo -n "round=$i res=$res backend=openmp workers=$N mode=$mode "
-        OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -q -r $res --warmup $1 --runs $2 --cache /tmp/cc-head \
-          $dragon -o /tmp/k.png | g
+        stolen env OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -q -r $res --warmup $1 --runs $2 \
+          --cache /tmp/cc-head $dragon -o /tmp/k.png
         [ $mode = spun ] && { pkill -f 'while :; do :; done'; sleep 0.5; }
       done
     done
+    [ "$(left)" -lt 40 ] && break
   done > "$O/idle.txt" 2>&1; log idle ;;
 share)
   g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|scene_copies|fork_ms|thread_start_ms|rank_claims|rank_start_ms|rank_work_ms)=' | tr '\n' ' '; echo; }
