@@ -346,11 +346,12 @@ static int render_mpi(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     }
     free(all);
     snprintf(out->extra, sizeof out->extra,
-             " mpi_schedule=%s schedule=%s mpi_scene=%s scene_copies=%d load_ms_max=%.3f strips_per_claim=%lld"
+             " mpi_schedule=%s schedule=%s mpi_scene=%s scene_copies=%d core_sharing_ranks=%d load_ms_max=%.3f"
+             " strips_per_claim=%lld"
              " backups=%llu backups_won=%llu rank_cores=%s nodes=%d rank_node=%s%s",
              job->mpi_schedule == RT_MPI_ROWS ? "rows" : "dynamic",
              job->schedule == RT_SCHED_PIXELS ? "pixels" : "tiles",
-             rt_mpi_scene_how, rt_mpi_scene_copies, load_max,
+             rt_mpi_scene_how, rt_mpi_scene_copies, rt_mpi_core_sharing_ranks, load_max,
              (long long)strips_per_claim(threads), (unsigned long long)backups[0], (unsigned long long)backups[1],
              per_rank, rt_mpi_nodes, nodes, keys);
     if (job->progress)

@@ -40,6 +40,7 @@ MPI_Comm rt_mpi_node_comm = MPI_COMM_NULL;
 int rt_mpi_thread_level;
 double rt_mpi_load_ms;
 int rt_mpi_scene_copies = 1;
+int rt_mpi_shares_core, rt_mpi_core_sharing_ranks;
 const char *rt_mpi_scene_how = "every";
 static int g_inited;
 
@@ -52,6 +53,29 @@ void rt_mpi_die(const char *file, int line, const char *call, int code)
     fprintf(stderr, "raytrace: rank %d: %s:%d: %s failed: %s\n", rt_mpi_rank, file, line, call, s);
     fflush(stderr);
     MPI_Abort(MPI_COMM_WORLD, 1);
+}
+
+/* Whether another rank of this node may run on one of this rank's CPUs:
+ * their affinity masks overlap (unbound ranks, or oversubscribed cores).
+ * A mask this rank cannot read counts as every CPU. */
+static int shares_core(void)
+{
+    cpu_set_t mine;
+    CPU_ZERO(&mine);
+    if (sched_getaffinity(0, sizeof mine, &mine) != 0)
+        memset(&mine, 0xff, sizeof mine);
+    unsigned char *all = malloc(sizeof mine * (size_t)rt_mpi_local_size);
+    if (!all)
+        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
+    RT_MPI_CHECK(MPI_Allgather(&mine, (int)sizeof mine, MPI_BYTE, all, (int)sizeof mine, MPI_BYTE, rt_mpi_node_comm));
+    int shared = 0;
+    for (int r = 0; r < rt_mpi_local_size && !shared; r++) {
+        cpu_set_t both, *theirs = (cpu_set_t *)(void *)(all + sizeof mine * (size_t)r);
+        CPU_AND(&both, &mine, theirs);
+        shared = r != rt_mpi_local_rank && CPU_COUNT(&both) > 0;
+    }
+    free(all);
+    return shared;
 }
 
 int rt_mpi_init(int *argc, char ***argv, RtError *err)
@@ -73,6 +97,8 @@ int rt_mpi_init(int *argc, char ***argv, RtError *err)
     RT_MPI_CHECK(MPI_Exscan(&leader, &before, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD));
     rt_mpi_node = rt_mpi_rank == 0 ? 0 : before; /* (Exscan leaves rank 0's undefined) */
     RT_MPI_CHECK(MPI_Bcast(&rt_mpi_node, 1, MPI_INT, 0, rt_mpi_node_comm));
+    rt_mpi_shares_core = shares_core();
+    RT_MPI_CHECK(MPI_Allreduce(&rt_mpi_shares_core, &rt_mpi_core_sharing_ranks, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD));
     return 0;
 }
 
@@ -527,10 +553,14 @@ void rt_mpi_frame_start(RtMpiImage *m)
      * barrier releases its ranks along a tree, and one rank preempted on
      * the way holds up its whole subtree (at 64 ranks, groups of ranks 16
      * apart left it 1-5 ms after the first). Here each rank leaves as soon
-     * as it sees the last arrival, within a cache line's transfer. */
+     * as it sees the last arrival, within a cache line's transfer. A rank
+     * yields its core only where a rank it waits for may need that core
+     * (Open MPI's own rule: yield when idle only when oversubscribed);
+     * elsewhere a yield hands the core to any other task on it, a
+     * background job's, until the next tick. */
     __atomic_fetch_add(arrived, 1, __ATOMIC_ACQ_REL);
     for (unsigned i = 0; __atomic_load_n(arrived, __ATOMIC_ACQUIRE) < rt_mpi_size; i++) {
-        if (i >= 4096) /* past ~0.2 ms, a rank it waits for may share its core (oversubscribed) */
+        if (i >= 4096 && rt_mpi_shares_core) /* past ~0.2 ms */
             sched_yield();
 #if defined(__x86_64__) || defined(__i386__)
         else

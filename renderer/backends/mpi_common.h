@@ -27,6 +27,10 @@ extern const char *rt_mpi_scene_how;
 /* The copies of the scene the ranks render from: one per NUMA node where
  * RtCollective.share made one (the record's scene_copies), else one each. */
 extern int rt_mpi_scene_copies;
+/* 1 where another rank of this node may run on one of this rank's CPUs
+ * (their affinity masks overlap: unbound or oversubscribed), and the number
+ * of such ranks (the record's core_sharing_ranks); set by rt_mpi_init. */
+extern int rt_mpi_shares_core, rt_mpi_core_sharing_ranks;
 
 /* Names the failed call with MPI's error string, then MPI_Abort (never a hang). */
 void rt_mpi_die(const char *file, int line, const char *call, int code);

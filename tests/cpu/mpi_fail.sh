@@ -7,7 +7,8 @@
 # one line on stderr (from rank 0; mpirun --quiet keeps Open MPI's own
 # "process returned a non-zero exit code" banner out of the count). Ranks
 # that read different scene bytes fail the same way; with --cache the ranks
-# render the serial image.
+# render the serial image. Also the scene's copies and whether ranks share
+# cores (the record's scene_copies and core_sharing_ranks).
 set -u
 rt=$1 mpirun=$2 good=$3
 tmp=$(mktemp -d)
@@ -140,6 +141,21 @@ for case in bcast every differs create map; do
     [ "$(key "$rec" scene_copies)" = $want ] || { echo "FAIL: scene copies ($case): want $want"; fails=$((fails + 1)); }
     [ "$(key "$rec" image_fnv1a)" = "$(key "$serial" image_fnv1a)" ] ||
         { echo "FAIL: scene copies ($case): not the serial image"; fails=$((fails + 1)); }
+done
+
+# A rank yields its core while it waits at the frame's start only where
+# another rank may run there: none of two ranks on cores of their own, all
+# three unbound on two cores. The image is the serial one either way.
+for case in "0 --bind-to core -np 2" "3 --oversubscribe --bind-to none -np 3"; do
+    set -- $case
+    want=$1
+    shift
+    rec=$(timeout 60 "$mpirun" --quiet "$@" "$rt" -q --backend mpi -r 64x48 -o "$tmp/m.ppm" "$good" 2> "$tmp/err") ||
+        { echo "FAIL: core sharing ($*): $(cat "$tmp/err")"; fails=$((fails + 1)); }
+    echo "core sharing ($*): core_sharing_ranks=$(key "$rec" core_sharing_ranks) rank_cores=$(key "$rec" rank_cores)"
+    [ "$(key "$rec" core_sharing_ranks)" = "$want" ] || { echo "FAIL: core sharing ($*): want $want"; fails=$((fails + 1)); }
+    [ "$(key "$rec" image_fnv1a)" = "$(key "$serial" image_fnv1a)" ] ||
+        { echo "FAIL: core sharing ($*): not the serial image"; fails=$((fails + 1)); }
 done
 
 # A rank that claims no tile (3 ranks, one 8x8 tile) still names its core:
