@@ -73,6 +73,9 @@ static void note_suspect(HxGroup *g, const HxCsv *csv, size_t r)
     const char *noise = hx_csv_get(csv, r, "noise");
     g->nbusy += strstr(noise, "busy") != NULL;
     g->nstolen += strstr(noise, "stolen") != NULL;
+    double steal;
+    if (hx_parse_double(hx_csv_get(csv, r, "steal_pct"), &steal) == 0 && steal > g->steal_max)
+        g->steal_max = steal;
     g->npartial += strcmp(hx_csv_get(csv, r, "status"), "ok") == 0 && strcmp(hx_csv_get(csv, r, "pin_held"), "partial") == 0;
     if (strcmp(hx_csv_get(csv, r, "oversubscribed"), "1") == 0) {
         g->suspect = 1;
@@ -420,6 +423,7 @@ static void group_rows(HxStudy *s, const char *metric)
             g->workers = (int)w;
             g->first_row = r;
             g->ok_row = (size_t)-1;
+            g->steal_max = -1;
             g->t = hx_xmalloc(n * sizeof(double));
             g->raw = hx_xmalloc(n * sizeof(double));
             if (hx_strlist_find(&s->scenes, g->scene) < 0)

@@ -195,7 +195,9 @@ static void note_codes(ConfigStats *c)
         add_code(&b, &c->used, NC_PARTIAL, "P%zu/%zu", g->npartial, g->nrows);
     if (g->nbusy)
         add_code(&b, &c->used, NC_BUSY, "B%zu/%zu", g->nbusy, g->nrows);
-    if (g->nstolen)
+    if (g->nstolen && g->steal_max >= 0)
+        add_code(&b, &c->used, NC_STEAL, "CS%zu/%zu %.0f%%", g->nstolen, g->nrows, g->steal_max);
+    else if (g->nstolen)
         add_code(&b, &c->used, NC_STEAL, "CS%zu/%zu", g->nstolen, g->nrows);
     if (c->efa > 1.0 && g->axis > 1)
         add_code(&b, &c->used, NC_EFF, ">1");
@@ -234,6 +236,8 @@ void tab_config_stats(const HxStudy *s, const HxGroup *g, const char *baseline, 
         hx_buf_printf(&n, "%sbusy machine %zu/%zu", n.len ? ", " : "", g->nbusy, g->nrows);
     if (g->nstolen)
         hx_buf_printf(&n, "%sCPU steal %zu/%zu", n.len ? ", " : "", g->nstolen, g->nrows);
+    if (g->nstolen && g->steal_max >= 0)
+        hx_buf_printf(&n, " (up to %.1f%%)", g->steal_max);
     if (c->efa > 1.0 && g->axis > 1)
         hx_buf_printf(&n, "%sefficiency above 1", n.len ? ", " : "");
     if (g->noutliers)

@@ -559,7 +559,7 @@ static const char *const nc_text[NC_N] = {
     "Tn = n runs timed out (TLE)", "Wn = n wrong images", "STATUS:n = n runs failed with that status",
     "OS = oversubscribed, left out of the fits", "NP = pinning did not hold, left out of the fits",
     "Pk/n = pinning partial in k of n runs", "Bk/n = busy machine in k of n runs",
-    "CSk/n = CPU steal in k of n runs", ">1 = efficiency above 1", "On = n outliers", "<1 = slower than 1 worker"};
+    "CSk/n M% = CPU steal in k of n runs, up to M% of all CPU time", ">1 = efficiency above 1", "On = n outliers", "<1 = slower than 1 worker"};
 static const char *const fc_text[FC_N] = {
     "I = implausible: serial fraction outside [0, 1]", "U = uncertain: std. error above the value",
     "Ln = n suspect samples left out", "no fit = too few points once they are left out"};
