@@ -492,7 +492,7 @@ typedef struct {
     const char *suspect_why;
     size_t npartial;     /* ok rows whose pinning held only in part */
     size_t nbusy, nstolen; /* rows on a busy machine, with CPU steal (noise) */
-    double steal_max;    /* the largest CPU steal of its rows, % (-1: none recorded) */
+    double steal_max;    /* the largest CPU steal of its stolen rows, % (-1: none recorded) */
     double ci_lo, ci_hi; /* 95% bootstrap interval of the median */
     char *label;         /* short, readable, for tables and plots */
     char *backend;

@@ -57,23 +57,28 @@ void rt_mpi_die(const char *file, int line, const char *call, int code)
 
 /* Whether another rank of this node may run on one of this rank's CPUs:
  * their affinity masks overlap (unbound ranks, or oversubscribed cores).
- * A mask this rank cannot read counts as every CPU. */
+ * The masks are sized for every CPU the system may have; one this rank
+ * cannot read counts as every CPU. */
 static int shares_core(void)
 {
-    cpu_set_t mine;
-    CPU_ZERO(&mine);
-    if (sched_getaffinity(0, sizeof mine, &mine) != 0)
-        memset(&mine, 0xff, sizeof mine);
-    unsigned char *all = malloc(sizeof mine * (size_t)rt_mpi_local_size);
-    if (!all)
+    long conf = sysconf(_SC_NPROCESSORS_CONF);
+    const int ncpu = conf > CPU_SETSIZE ? (int)conf : CPU_SETSIZE;
+    const size_t size = CPU_ALLOC_SIZE(ncpu);
+    cpu_set_t *mine = CPU_ALLOC(ncpu), *both = CPU_ALLOC(ncpu);
+    unsigned char *all = malloc(size * (size_t)rt_mpi_local_size);
+    if (!mine || !both || !all)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
-    RT_MPI_CHECK(MPI_Allgather(&mine, (int)sizeof mine, MPI_BYTE, all, (int)sizeof mine, MPI_BYTE, rt_mpi_node_comm));
+    CPU_ZERO_S(size, mine);
+    if (sched_getaffinity(0, size, mine) != 0)
+        memset(mine, 0xff, size);
+    RT_MPI_CHECK(MPI_Allgather(mine, (int)size, MPI_BYTE, all, (int)size, MPI_BYTE, rt_mpi_node_comm));
     int shared = 0;
     for (int r = 0; r < rt_mpi_local_size && !shared; r++) {
-        cpu_set_t both, *theirs = (cpu_set_t *)(void *)(all + sizeof mine * (size_t)r);
-        CPU_AND(&both, &mine, theirs);
-        shared = r != rt_mpi_local_rank && CPU_COUNT(&both) > 0;
+        CPU_AND_S(size, both, mine, (cpu_set_t *)(void *)(all + size * (size_t)r));
+        shared = r != rt_mpi_local_rank && CPU_COUNT_S(size, both) > 0;
     }
+    CPU_FREE(mine);
+    CPU_FREE(both);
     free(all);
     return shared;
 }
