@@ -72,10 +72,12 @@ static void note_suspect(HxGroup *g, const HxCsv *csv, size_t r)
 {
     const char *noise = hx_csv_get(csv, r, "noise");
     g->nbusy += strstr(noise, "busy") != NULL;
-    double steal; /* (of flagged rows: a short run's few ticks read high) */
-    if (strstr(noise, "stolen") && ++g->nstolen &&
-        hx_parse_double(hx_csv_get(csv, r, "steal_pct"), &steal) == 0 && steal > g->steal_max)
-        g->steal_max = steal;
+    if (strstr(noise, "stolen")) { /* (flagged rows only: a short run's few ticks read high) */
+        g->nstolen++;
+        double steal;
+        if (hx_parse_double(hx_csv_get(csv, r, "steal_pct"), &steal) == 0 && steal > g->steal_max)
+            g->steal_max = steal;
+    }
     g->npartial += strcmp(hx_csv_get(csv, r, "status"), "ok") == 0 && strcmp(hx_csv_get(csv, r, "pin_held"), "partial") == 0;
     if (strcmp(hx_csv_get(csv, r, "oversubscribed"), "1") == 0) {
         g->suspect = 1;

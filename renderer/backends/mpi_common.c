@@ -55,21 +55,36 @@ void rt_mpi_die(const char *file, int line, const char *call, int code)
     MPI_Abort(MPI_COMM_WORLD, 1);
 }
 
+/* A CPU set of *size bytes, sized for every CPU the system may have (*ncpu
+ * of them), and in it this process's CPUs; with none set where the kernel
+ * does not say. Free with CPU_FREE. */
+static cpu_set_t *own_cpus(size_t *size, int *ncpu, int *known)
+{
+    const long conf = sysconf(_SC_NPROCESSORS_CONF);
+    *ncpu = conf > CPU_SETSIZE ? (int)conf : CPU_SETSIZE;
+    *size = CPU_ALLOC_SIZE(*ncpu);
+    cpu_set_t *set = CPU_ALLOC(*ncpu);
+    if (!set)
+        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
+    CPU_ZERO_S(*size, set);
+    *known = sched_getaffinity(0, *size, set) == 0;
+    if (!*known)
+        CPU_ZERO_S(*size, set);
+    return set;
+}
+
 /* Whether another rank of this node may run on one of this rank's CPUs:
  * their affinity masks overlap (unbound ranks, or oversubscribed cores).
- * The masks are sized for every CPU the system may have; one this rank
- * cannot read counts as every CPU. */
+ * A mask this rank cannot read counts as every CPU. */
 static int shares_core(void)
 {
-    long conf = sysconf(_SC_NPROCESSORS_CONF);
-    const int ncpu = conf > CPU_SETSIZE ? (int)conf : CPU_SETSIZE;
-    const size_t size = CPU_ALLOC_SIZE(ncpu);
-    cpu_set_t *mine = CPU_ALLOC(ncpu), *both = CPU_ALLOC(ncpu);
+    size_t size;
+    int ncpu, known;
+    cpu_set_t *mine = own_cpus(&size, &ncpu, &known), *both = CPU_ALLOC(ncpu);
     unsigned char *all = malloc(size * (size_t)rt_mpi_local_size);
-    if (!mine || !both || !all)
+    if (!both || !all)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
-    CPU_ZERO_S(size, mine);
-    if (sched_getaffinity(0, size, mine) != 0)
+    if (!known)
         memset(mine, 0xff, size);
     RT_MPI_CHECK(MPI_Allgather(mine, (int)size, MPI_BYTE, all, (int)size, MPI_BYTE, rt_mpi_node_comm));
     int shared = 0;
@@ -334,15 +349,14 @@ static NodeScene g_node_scene = {MPI_COMM_NULL, NULL, 0};
  * -1: they span several (a rank bound to none), or the kernel does not say. */
 static int numa_node(void)
 {
-    cpu_set_t mine, node, both;
-    DIR *d = opendir("/sys/devices/system/node");
-    if (!d || sched_getaffinity(0, sizeof mine, &mine) != 0) {
-        if (d)
-            closedir(d);
-        return -1;
-    }
+    size_t size;
+    int ncpu, known;
+    cpu_set_t *mine = own_cpus(&size, &ncpu, &known), *node = CPU_ALLOC(ncpu), *both = CPU_ALLOC(ncpu);
+    if (!node || !both)
+        rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
+    DIR *d = known ? opendir("/sys/devices/system/node") : NULL;
     int found = -1;
-    for (struct dirent *e; found < 0 && (e = readdir(d));) {
+    for (struct dirent *e; d && found < 0 && (e = readdir(d));) {
         char path[300], list[4096];
         int id;
         if (sscanf(e->d_name, "node%d", &id) != 1)
@@ -352,7 +366,7 @@ static int numa_node(void)
         const int ok = f && fgets(list, sizeof list, f);
         if (f)
             fclose(f);
-        CPU_ZERO(&node);
+        CPU_ZERO_S(size, node);
         /* "0-31,64-95" */
         for (char *p = list; ok && *p && *p != '\n';) {
             char *end;
@@ -361,15 +375,19 @@ static int numa_node(void)
                 break;
             if (*end == '-')
                 b = strtol(end + 1, &end, 10);
-            for (long c = a; c <= b && c < CPU_SETSIZE; c++)
-                CPU_SET((int)c, &node);
+            for (long c = a; c <= b && c < ncpu; c++)
+                CPU_SET_S((int)c, size, node);
             p = *end == ',' ? end + 1 : end;
         }
-        CPU_AND(&both, &mine, &node);
-        if (ok && CPU_EQUAL(&both, &mine))
+        CPU_AND_S(size, both, mine, node);
+        if (ok && CPU_EQUAL_S(size, both, mine))
             found = id;
     }
-    closedir(d);
+    if (d)
+        closedir(d);
+    CPU_FREE(mine);
+    CPU_FREE(node);
+    CPU_FREE(both);
     return found;
 }
 
