@@ -366,6 +366,7 @@ static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int 
         int w = ws[k], n = 0;
         double *ratio = hx_xmalloc((size_t)(w * repeats) * sizeof *ratio), *v = hx_xmalloc((size_t)w * sizeof *v);
         double *ov = hx_xmalloc((size_t)w * sizeof *ov), *ovs = hx_xmalloc((size_t)(w * repeats) * sizeof *ovs);
+        double *tog = hx_xmalloc((size_t)(w * repeats) * sizeof *tog);
         double solo = 0, solos = 0;
         size_t nov = 0;
         /* the CPU time the hypervisor took while the copies ran together: a
@@ -383,6 +384,7 @@ static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int 
                 free(v);
                 free(ov);
                 free(ovs);
+                free(tog);
                 return -1;
             }
             for (int i = 0; i < w; i++)
@@ -393,16 +395,21 @@ static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int 
                 ticks += hx_cpu_ticks(&s0, &s1);
             }
             solos += solo;
-            for (int i = 0; i < w; i++)
+            for (int i = 0; i < w; i++) {
+                tog[n] = v[i];
                 ratio[n++] = cp->m.higher ? v[i] / solo : solo / v[i];
+            }
         }
+        /* each copy's own value together: table's pace compares a W-worker
+         * run with it directly, without the one-worker time */
+        const double together = hx_median(tog, (size_t)n);
         double med = hx_median(ratio, (size_t)n), lo = hx_min(ratio, (size_t)n), hi = lo;
         for (int i = 0; i < n; i++)
             hi = ratio[i] > hi ? ratio[i] : hi;
         const double steal = ticks ? 100.0 * (double)stolen / (double)ticks : -1;
         const double overlap = nov ? hx_median(ovs, nov) : -1;
-        printf("W=%d: each copy's %s at %.3f of a copy alone (median of %d, %.3f to %.3f; alone %.4g", w, cp->m.name,
-               med, n, lo, hi, solos / repeats);
+        printf("W=%d: each copy's %s at %.3f of a copy alone (median of %d, %.3f to %.3f; alone %.4g, together %.4g", w,
+               cp->m.name, med, n, lo, hi, solos / repeats, together);
         if (steal >= 0)
             printf("; CPU steal %.1f%%", steal);
         if (overlap >= 0) /* below 1, the copies rendered partly alone and the ceiling reads high */
@@ -413,8 +420,9 @@ static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int 
         hx_csv_field(b, config);
         hx_buf_put(b, ",");
         hx_csv_field(b, cp->m.name);
-        hx_buf_printf(b, ",%.2f,%.3f\n", steal, overlap);
+        hx_buf_printf(b, ",%.2f,%.3f,%.6g\n", steal, overlap, together);
         free(ratio);
+        free(tog);
         free(v);
         free(ov);
         free(ovs);
@@ -472,7 +480,8 @@ int hx_cmd_ceiling(int argc, char **argv)
             hx_resolve_scene_cache(&cfg, NULL);
         Copies cp = {&cfg, hx_xmalloc((size_t)wmax * sizeof *cp.c), NULL, tmp, ceil_metric(&cfg), 0};
         hx_fingerprint_get(&fp, &t, 0, cfg.prog ? NULL : rt, NULL, NULL);
-        hx_buf_put(&b, "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone,config,metric,steal_pct,overlap\n");
+        hx_buf_put(&b, "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone,config,metric,steal_pct,"
+                       "overlap,together\n");
         fprintf(stderr, "harness ceiling: %s on %s: %d worker count(s), %d repeat(s) each, copies measured by %s\n",
                 cfg.path, fp.host, nw, o.repeats, cp.m.name);
         rc = build_copies(&cfg, &t, &one, rt, wmax, &cp) != 0 ||
@@ -547,7 +556,8 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
         /* a ceiling of another metric is no ceiling of this one; files
          * without the column are of the copies' wall time, used with a
          * line that says so (docs/harness.md, "Ceiling") */
-        const int has_metric = hx_csv_col(&c, "metric") >= 0, has_steal = hx_csv_col(&c, "steal_pct") >= 0;
+        const int has_metric = hx_csv_col(&c, "metric") >= 0, has_steal = hx_csv_col(&c, "steal_pct") >= 0,
+                  has_together = hx_csv_col(&c, "together") >= 0;
         size_t other = 0;
         if (!has_metric && strcmp(s->metric, "wall_ms") != 0)
             fprintf(stderr, "%s: --ceiling: %s has no metric column: a ceiling of the copies' wall time, read "
@@ -567,7 +577,10 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
             s->ceil_w = hx_xrealloc(s->ceil_w, (size_t)(s->nceil + 1) * sizeof *s->ceil_w);
             s->ceil_r = hx_xrealloc(s->ceil_r, (size_t)(s->nceil + 1) * sizeof *s->ceil_r);
             s->ceil_steal = hx_xrealloc(s->ceil_steal, (size_t)(s->nceil + 1) * sizeof *s->ceil_steal);
-            double st;
+            s->ceil_t = hx_xrealloc(s->ceil_t, (size_t)(s->nceil + 1) * sizeof *s->ceil_t);
+            double st, tg;
+            s->ceil_t[s->nceil] =
+                has_together && hx_parse_double(hx_csv_get(&c, r, "together"), &tg) == 0 && tg > 0 ? tg : NAN;
             s->ceil_steal[s->nceil] =
                 has_steal && hx_parse_double(hx_csv_get(&c, r, "steal_pct"), &st) == 0 && st >= 0
                     ? st
@@ -588,10 +601,15 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
     return rc;
 }
 
-double hx_ceiling_at(const HxStudy *s, int workers)
+double hx_ceiling_at(const HxStudy *s, int workers, double *together)
 {
     for (int i = 0; i < s->nceil; i++)
-        if (s->ceil_w[i] == workers)
+        if (s->ceil_w[i] == workers) {
+            if (together)
+                *together = s->ceil_t[i];
             return s->ceil_r[i];
+        }
+    if (together)
+        *together = NAN;
     return NAN;
 }

@@ -528,6 +528,7 @@ typedef struct {
     int *ceil_w;         /* at ceil_w[i] workers, each keeps ceil_r[i] */
     double *ceil_r;      /* of a lone worker's speed */
     double *ceil_steal;  /* with this CPU steal (%) while they ran, -1 unknown */
+    double *ceil_t;      /* each copy's own metric while they ran, NAN unknown */
     char *ceil_path;
 } HxStudy;
 
@@ -569,8 +570,9 @@ int hx_study_better(const HxStudy *s, double a, double b);
  * ceiling-FINGERPRINT.csv beside the CSV or in results/. 0 when one was
  * read (or none is there and none was asked for), -1 with a line said. */
 int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *csv_path);
-/* Its ratio at workers, NAN when not measured. */
-double hx_ceiling_at(const HxStudy *s, int workers);
+/* Its ratio at workers, NAN when not measured; *together (may be NULL):
+ * each copy's own metric with that many running, NAN unknown. */
+double hx_ceiling_at(const HxStudy *s, int workers, double *together);
 /* table's per-configuration, fit and cross tables as HTML (harness report). */
 void hx_table_html(FILE *out, const HxStudy *s, const char *baseline);
 /* Speedup baselines of a group: (a) same series at one worker, (b) the

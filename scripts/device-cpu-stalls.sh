@@ -38,7 +38,10 @@
 #           SCHED_IDLE spinner on every core (so no core idles, while any
 #           other thread preempts it), and warm (--warmup 3 --runs 9),
 #           interleaved, RES, ROUNDS rounds (default 8): each run's keys and
-#           the host's steal over it (steal_pct, % of all CPU time)
+#           the host's steal over it (steal_pct, % of all CPU time).
+#           IDLE_MODES picks the modes (default "cold spun warm"); "active"
+#           is cold with OMP_WAIT_POLICY=active for OpenMP (its threads spin
+#           between regions instead of sleeping)
 #   bigbuild the BVH build of a 3.6M-triangle sphere field (large-4m) on
 #           16, N/2 and N threads (BUILD_THREADS), the older build and this
 #           one interleaved, ROUNDS rounds (default 3)
@@ -209,15 +212,16 @@ idle)
   }
   for i in $(seq ${ROUNDS:-8}); do
     for res in ${RES:-512x384 2048x1536}; do
-      for mode in cold spun warm; do
+      for mode in ${IDLE_MODES:-cold spun warm}; do
         w="0 1"; [ $mode = warm ] && w="3 9"
         set -- $w
+        pol=(); [ $mode = active ] && pol=(OMP_WAIT_POLICY=active)
         [ $mode = spun ] && { spinners; sleep 0.5; }
         echo -n "round=$i res=$res backend=mpi workers=$N mode=$mode "
         stolen mpirun --bind-to core -np $N $RT -b mpi -q -r $res --warmup $1 --runs $2 --cache /tmp/cc-head $dragon \
           -o /tmp/k.png
         echo -n "round=$i res=$res backend=openmp workers=$N mode=$mode "
-        stolen env OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -q -r $res --warmup $1 --runs $2 \
+        stolen env "${pol[@]}" OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -q -r $res --warmup $1 --runs $2 \
           --cache /tmp/cc-head $dragon -o /tmp/k.png
         [ $mode = spun ] && { pkill -f 'while :; do :; done'; sleep 0.5; }
       done

@@ -19,7 +19,8 @@ repeats: 3
 CONF
 "$H" ceiling c.conf -o ceil.csv --repeats 2 > ceil.out 2> ceil.err || { cat ceil.out ceil.err; fail "ceiling failed"; }
 cat ceil.out ceil.err
-grep -q '^W=2: each copy.s wall_ms at [0-9.]* of a copy alone (median of 4, ' ceil.out || fail "no W=2 line"
+grep -q '^W=2: each copy.s wall_ms at [0-9.]* of a copy alone (median of 4, [0-9.]* to [0-9.]*; alone [0-9.]*, together [0-9.]*;' ceil.out ||
+  fail "no W=2 line"
 python3 - <<'PY' || fail "the ceiling file"
 import csv
 rows = list(csv.DictReader(open("ceil.csv")))
@@ -29,14 +30,15 @@ assert 0.1 < float(r["ratio_median"]) < 1.5 and r["repeats"] == "2" and len(r["f
 assert float(r["ratio_min"]) <= float(r["ratio_median"]) <= float(r["ratio_max"]), r
 assert r["metric"] == "wall_ms", r
 assert 0 <= float(r["steal_pct"]) <= 100, r
+assert float(r["together"]) > 0, r
 PY
 "$H" run c.conf -o study.csv -q > /dev/null 2>&1 || fail "the study"
 fp=$(python3 -c 'import csv; print(next(csv.DictReader(open("study.csv")))["fingerprint"])')
 cp ceil.csv "ceiling-$fp.csv"   # found beside the CSV without --ceiling
 "$H" table study.csv > t.md || fail "table"
-grep -q "| awk T=2 | 3/3 | .* | [0-9.]* ([0-9.]* of [0-9.]*) |" t.md || { cat t.md; fail "no efficiency against the ceiling"; }
+grep -q "| awk T=2 | 3/3 | .* | [0-9.]* ([0-9.]* of [0-9.]*, pace [0-9.]*) |" t.md || { cat t.md; fail "no efficiency against the ceiling"; }
 tr '\n' ' ' < t.md | grep -q "Its copies ran with CPU steal of [0-9.]*% at 2 workers" || { cat t.md; fail "no steal of the ceiling's copies"; }
-"$H" table study.csv --format json | python3 -c 'import json,sys; d=json.load(sys.stdin); assert any(c["ceiling"] for c in d["configurations"] if c.get("ceiling"))' ||
+"$H" table study.csv --format json | python3 -c 'import json,sys; d=json.load(sys.stdin); assert any(c["ceiling"] and c["ceiling_pace"] > 0 for c in d["configurations"] if c.get("ceiling"))' ||
     fail "json: no ceiling"
 # A metric of the copies' own: n, how many copies were running at once
 # (each leaves a file while it runs), better higher. Alone 1, together 2:
@@ -50,7 +52,7 @@ threads: 1 2
 repeats: 1
 CONF
 "$H" ceiling n.conf -o n.csv --repeats 2 > n.out 2> n.err || { cat n.out n.err; fail "ceiling of a metric failed"; }
-grep -q '^W=2: each copy.s n at 2.000 of a copy alone (median of 4, 2.000 to 2.000; alone 1; CPU steal [0-9.]*%)' n.out ||
+grep -q '^W=2: each copy.s n at 2.000 of a copy alone (median of 4, 2.000 to 2.000; alone 1, together 2; CPU steal [0-9.]*%)' n.out ||
   { cat n.out n.err; fail "the copies were not measured by their metric n"; }
 python3 -c 'import csv; r = next(csv.DictReader(open("n.csv"))); assert r["metric"] == "n" and r["ratio_median"] == "2.0000", r' ||
   fail "n.csv: $(cat n.csv)"
@@ -62,11 +64,16 @@ grep -q " of [0-9.]*) |" nt.md && { cat nt.md; fail "efficiency of n against a w
 grep -q "against this machine's ceiling" nt.md && { cat nt.md; fail "a ceiling named that gave nothing"; }
 # a file from before the metric column: the copies' wall time, said so
 cut -d, -f1-9 ceil.csv > old.csv
-"$H" table nstudy.csv --ceiling old.csv > /dev/null 2> ot.err || fail "table with an old ceiling file"
+"$H" table nstudy.csv --ceiling old.csv > ot.md 2> ot.err || fail "table with an old ceiling file"
+grep -q " of [0-9.]*) |" ot.md || { cat ot.md; fail "no efficiency against an old ceiling file"; }
+grep -q "pace" ot.md && { cat ot.md; fail "a pace without the copies' own values"; }
 grep -q "old.csv has no metric column: a ceiling of the copies' wall time, read against n" ot.err ||
   { cat ot.err; fail "an old ceiling file used without a word"; }
 "$H" table nstudy.csv --ceiling n.csv > nt2.md 2> /dev/null || fail "table of n with its ceiling"
-grep -q " of 2.00) |" nt2.md || { cat nt2.md; fail "no efficiency of n against its own ceiling"; }
+# the study's runs count themselves alone (n 1, at 1 and 2 threads): efficiency
+# 0.5, a quarter of the ceiling 2; and against the copies' own n together (2),
+# 1 / (2 x 2): the pace 0.25
+grep -q "| 0.500 (0.25 of 2.00, pace 0.25) |" nt2.md || { cat nt2.md; fail "no efficiency of n against its own ceiling"; }
 # raytrace's copies: by render_ms, with how much their renders overlapped
 if [ -z "$RT" ]; then echo "raytrace not built here: its copies not checked"; else
 cat > rt.conf <<CONF
