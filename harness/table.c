@@ -340,10 +340,12 @@ void tab_speed_cells(const ConfigStats *c, SpeedCells *p)
     tab_fmt_num(p->sps, sizeof p->sps, "%.2f", c->spa);
     tab_fmt_num(p->efs, sizeof p->efs, "%.3f", c->efa);
     snprintf(p->ef, sizeof p->ef, "%s", p->efs);
-    if (isfinite(c->ceil) && isfinite(c->efa) && isfinite(c->pace)) /* against what this machine allows */
-        snprintf(p->ef, sizeof p->ef, "%.3f (%.2f of %.2f, pace %.2f)", c->efa, c->efa / c->ceil, c->ceil, c->pace);
-    else if (isfinite(c->ceil) && isfinite(c->efa))
-        snprintf(p->ef, sizeof p->ef, "%.3f (%.2f of %.2f)", c->efa, c->efa / c->ceil, c->ceil);
+    if (isfinite(c->ceil) && isfinite(c->efa)) { /* against what this machine allows */
+        char pace[32] = "";
+        if (isfinite(c->pace))
+            snprintf(pace, sizeof pace, ", pace %.2f", c->pace);
+        snprintf(p->ef, sizeof p->ef, "%.3f (%.2f of %.2f%s)", c->efa, c->efa / c->ceil, c->ceil, pace);
+    }
     tab_fmt_num(p->kf, sizeof p->kf, "%.3f", c->kf);
     tab_fmt_ms(p->bt, sizeof p->bt, c->b ? c->b->median : NAN);
     tab_fmt_num(p->sb, sizeof p->sb, "%.2f", c->spb);
