@@ -30,15 +30,23 @@
 typedef struct {
     const char *name; /* render_ms, a command study's first metric, or wall_ms */
     int higher;       /* a rate: the ratio is together / alone */
+    double ms;        /* one unit in ms where it is a time, else 0 */
 } CeilMetric;
 
 static CeilMetric ceil_metric(const HxConfig *cfg)
 {
     if (!cfg->prog)
-        return (CeilMetric){"render_ms", 0};
-    if (cfg->prog->nmetrics > 0 && !hx_metric_is_size(cfg->prog->metrics[0].name, cfg->prog->metrics[0].unit))
-        return (CeilMetric){cfg->prog->metrics[0].name, cfg->prog->metrics[0].higher};
-    return (CeilMetric){"wall_ms", 0};
+        return (CeilMetric){"render_ms", 0, 1};
+    const HxMetric *m = cfg->prog->nmetrics > 0 ? &cfg->prog->metrics[0] : NULL;
+    if (m && !hx_metric_is_size(m->name, m->unit)) {
+        static const char *const unit[] = {"ns", "us", "ms", "s"};
+        static const double scale[] = {1e-6, 1e-3, 1, 1e3};
+        double ms = 0;
+        for (int i = 0; i < 4 && !m->higher && m->unit; i++)
+            ms = strcmp(m->unit, unit[i]) == 0 ? scale[i] : ms;
+        return (CeilMetric){m->name, m->higher, ms};
+    }
+    return (CeilMetric){"wall_ms", 0, 1};
 }
 
 /* One copy started in its own process group, bound to core, its stdout and
@@ -357,6 +365,32 @@ static int build_copies(const HxConfig *cfg, const HxTopo *t, const HxRun *one, 
     return rc;
 }
 
+/* The step probe (syncstep.c) after W copies ran together: each worker's work
+ * per step is what W workers sharing one copy's work would each do, the
+ * copies' value together / W where the metric is a time, else their wall
+ * time / W; as many steps as fill the copies' time (0.3 to 2 s), 5 to
+ * 500. Its share into share[*n], the CPU steal over it into *stolen and
+ * *ticks. */
+static void step_after(const Copies *cp, const HxTopo *t, const int *cores, int w, const double *v, double wall,
+                       double *share, int *n, double *quantum, unsigned long long *stolen, unsigned long long *ticks)
+{
+    const double q = (cp->m.ms > 0 ? hx_median(v, (size_t)w) * cp->m.ms : wall) / w;
+    const double fill = wall < 300 ? 300 : wall > 2000 ? 2000 : wall;
+    const int steps = fill / q < 5 ? 5 : fill / q > 500 ? 500 : (int)(fill / q);
+    HxCpuStat s0, s1;
+    HxSyncStep st;
+    hx_cpu_stat(&s0);
+    if (hx_sync_step(t, cores, w, q, steps, &st) != 0)
+        return;
+    hx_cpu_stat(&s1);
+    share[(*n)++] = st.share;
+    *quantum = q;
+    if (s0.ok && s1.ok) {
+        *stolen += s1.steal - s0.steal;
+        *ticks += hx_cpu_ticks(&s0, &s1);
+    }
+}
+
 /* Measures every worker count; one line each on stdout, one CSV row each
  * into b. 0, or -1 when a copy failed. */
 static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int nw, int repeats,
@@ -367,19 +401,25 @@ static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int 
         double *ratio = hx_xmalloc((size_t)(w * repeats) * sizeof *ratio), *v = hx_xmalloc((size_t)w * sizeof *v);
         double *ov = hx_xmalloc((size_t)w * sizeof *ov), *ovs = hx_xmalloc((size_t)(w * repeats) * sizeof *ovs);
         double *tog = hx_xmalloc((size_t)(w * repeats) * sizeof *tog);
-        double solo = 0, solos = 0;
+        double solo = 0, solos = 0, *sshare = hx_xmalloc((size_t)repeats * sizeof *sshare), quantum = NAN;
         size_t nov = 0;
+        int nstep = 0;
         /* the CPU time the hypervisor took while the copies ran together: a
          * study's runs with more steal than this lose more than the ceiling */
-        unsigned long long stolen = 0, ticks = 0;
+        unsigned long long stolen = 0, ticks = 0, sstolen = 0, sticks = 0;
         for (int r = 0; r < repeats; r++) {
             /* alone, then all at once: a slow phase of the machine hits both */
             HxCpuStat s0, s1;
             int bad = run_copies(cp, t, cores[k], 1, &solo, NULL) != 0;
             hx_cpu_stat(&s0);
+            const double t0 = hx_now_ms();
             bad = bad || run_copies(cp, t, cores[k], w, v, ov) != 0;
+            const double wall = hx_now_ms() - t0;
             hx_cpu_stat(&s1);
+            if (!bad)
+                step_after(cp, t, cores[k], w, v, wall, sshare, &nstep, &quantum, &sstolen, &sticks);
             if (bad) {
+                free(sshare);
                 free(ratio);
                 free(v);
                 free(ov);
@@ -414,13 +454,18 @@ static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int 
             printf("; CPU steal %.1f%%", steal);
         if (overlap >= 0) /* below 1, the copies rendered partly alone and the ceiling reads high */
             printf("; renders overlapping %.2f", overlap);
+        const double step = nstep ? hx_median(sshare, (size_t)nstep) : NAN;
+        if (nstep) /* the step: what a W-way split of that work keeps when all W must end */
+            printf("; a step of %.4g ms on %d cores at once keeps %.3f (CPU steal %.1f%%)", quantum, w, step,
+                   sticks ? 100.0 * (double)sstolen / (double)sticks : 0.0);
         printf(")\n");
         hx_buf_printf(b, "%s,%s,%d,%d,%.4f,%.4f,%.4f,%.6g,", fp->fingerprint, fp->host, w, repeats, med, lo, hi,
                       solos / repeats);
         hx_csv_field(b, config);
         hx_buf_put(b, ",");
         hx_csv_field(b, cp->m.name);
-        hx_buf_printf(b, ",%.2f,%.3f,%.6g\n", steal, overlap, together);
+        hx_buf_printf(b, ",%.2f,%.3f,%.6g,%.4f,%.6g\n", steal, overlap, together, step, quantum);
+        free(sshare);
         free(ratio);
         free(tog);
         free(v);
@@ -481,7 +526,7 @@ int hx_cmd_ceiling(int argc, char **argv)
         Copies cp = {&cfg, hx_xmalloc((size_t)wmax * sizeof *cp.c), NULL, tmp, ceil_metric(&cfg), 0};
         hx_fingerprint_get(&fp, &t, 0, cfg.prog ? NULL : rt, NULL, NULL);
         hx_buf_put(&b, "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone,config,metric,steal_pct,"
-                       "overlap,together\n");
+                       "overlap,together,step,step_ms\n");
         fprintf(stderr, "harness ceiling: %s on %s: %d worker count(s), %d repeat(s) each, copies measured by %s\n",
                 cfg.path, fp.host, nw, o.repeats, cp.m.name);
         rc = build_copies(&cfg, &t, &one, rt, wmax, &cp) != 0 ||
@@ -557,7 +602,7 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
          * without the column are of the copies' wall time, used with a
          * line that says so (docs/harness.md, "Ceiling") */
         const int has_metric = hx_csv_col(&c, "metric") >= 0, has_steal = hx_csv_col(&c, "steal_pct") >= 0,
-                  has_together = hx_csv_col(&c, "together") >= 0;
+                  has_together = hx_csv_col(&c, "together") >= 0, has_step = hx_csv_col(&c, "step") >= 0;
         size_t other = 0;
         if (!has_metric && strcmp(s->metric, "wall_ms") != 0)
             fprintf(stderr, "%s: --ceiling: %s has no metric column: a ceiling of the copies' wall time, read "
@@ -578,7 +623,11 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
             s->ceil_r = hx_xrealloc(s->ceil_r, (size_t)(s->nceil + 1) * sizeof *s->ceil_r);
             s->ceil_steal = hx_xrealloc(s->ceil_steal, (size_t)(s->nceil + 1) * sizeof *s->ceil_steal);
             s->ceil_t = hx_xrealloc(s->ceil_t, (size_t)(s->nceil + 1) * sizeof *s->ceil_t);
-            double st, tg;
+            s->ceil_s = hx_xrealloc(s->ceil_s, (size_t)(s->nceil + 1) * sizeof *s->ceil_s);
+            double st, tg, sh;
+            s->ceil_s[s->nceil] = has_step && hx_parse_double(hx_csv_get(&c, r, "step"), &sh) == 0 && sh > 0 && sh <= 1.5
+                                      ? sh
+                                      : NAN;
             s->ceil_t[s->nceil] =
                 has_together && hx_parse_double(hx_csv_get(&c, r, "together"), &tg) == 0 && tg > 0 ? tg : NAN;
             s->ceil_steal[s->nceil] =
@@ -601,15 +650,41 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
     return rc;
 }
 
-double hx_ceiling_at(const HxStudy *s, int workers, double *together)
+double hx_ceiling_at(const HxStudy *s, int workers, double *together, double *step)
 {
-    for (int i = 0; i < s->nceil; i++)
-        if (s->ceil_w[i] == workers) {
-            if (together)
-                *together = s->ceil_t[i];
-            return s->ceil_r[i];
-        }
+    int i = 0;
+    while (i < s->nceil && s->ceil_w[i] != workers)
+        i++;
     if (together)
-        *together = NAN;
-    return NAN;
+        *together = i < s->nceil ? s->ceil_t[i] : NAN;
+    if (step)
+        *step = i < s->nceil ? s->ceil_s[i] : NAN;
+    return i < s->nceil ? s->ceil_r[i] : NAN;
+}
+
+void hx_ceiling_para(const HxStudy *s, HxBuf *b)
+{
+    hx_buf_printf(b, "Efficiency (a) also against this machine's ceiling from %s: \"0.750 (1.07 of 0.70)\" is "
+                  "1.07 of the 0.70 that independent copies keep at that many workers.", s->ceil_path);
+    /* a study's runs with more steal than the copies had lose more than
+     * the ceiling says: the user compares the two */
+    int steals = 0, paced = 0, stepped = 0;
+    for (int i = 0; i < s->nceil; i++)
+        if (s->ceil_steal[i] >= 0)
+            hx_buf_printf(b, "%s%.1f%% at %d", steals++ ? ", " : " Its copies ran with CPU steal of ", s->ceil_steal[i],
+                          s->ceil_w[i]);
+    if (steals)
+        hx_buf_put(b, " workers (the runs' own: the column steal_pct).");
+    for (int i = 0; i < s->nceil; i++) {
+        paced |= isfinite(s->ceil_t[i]);
+        stepped |= isfinite(s->ceil_s[i]);
+    }
+    if (paced)
+        hx_buf_put(b, " \"pace 1.04\": the run is 1.04 times as fast as W workers that split the work perfectly at "
+                      "the speed each of W copies at once kept: the same share without the one-worker time, which was "
+                      "measured alone and at another moment.");
+    if (stepped)
+        hx_buf_put(b, " \"pace 0.74 of 0.83\": W workers that each did their share of that work at once, released "
+                      "together, kept 0.83 of it from the first's start to the last's end on this machine: the pace "
+                      "that its noise leaves a run whose workers must all end.");
 }

@@ -529,6 +529,7 @@ typedef struct {
     double *ceil_r;      /* of a lone worker's speed */
     double *ceil_steal;  /* with this CPU steal (%) while they ran, -1 unknown */
     double *ceil_t;      /* each copy's own metric while they ran, NAN unknown */
+    double *ceil_s;      /* the share a step of W workers kept (syncstep.c), NAN unknown */
     char *ceil_path;
 } HxStudy;
 
@@ -570,9 +571,12 @@ int hx_study_better(const HxStudy *s, double a, double b);
  * ceiling-FINGERPRINT.csv beside the CSV or in results/. 0 when one was
  * read (or none is there and none was asked for), -1 with a line said. */
 int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *csv_path);
-/* Its ratio at workers, NAN when not measured; *together (may be NULL):
- * each copy's own metric with that many running, NAN unknown. */
-double hx_ceiling_at(const HxStudy *s, int workers, double *together);
+/* Its ratio at workers, NAN when not measured; *together and *step (may be
+ * NULL): each copy's own metric with that many running, and the share a
+ * step of that many workers kept, NAN unknown. */
+double hx_ceiling_at(const HxStudy *s, int workers, double *together, double *step);
+/* table's paragraph on the study's ceiling, appended to b. */
+void hx_ceiling_para(const HxStudy *s, HxBuf *b);
 /* table's per-configuration, fit and cross tables as HTML (harness report). */
 void hx_table_html(FILE *out, const HxStudy *s, const char *baseline);
 /* Speedup baselines of a group: (a) same series at one worker, (b) the

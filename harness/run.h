@@ -90,6 +90,23 @@ unsigned long long hx_cpu_ticks(const HxCpuStat *a, const HxCpuStat *b);
 void hx_noise(const HxCpuStat *a, const HxCpuStat *b, double wall_ms, double own_cpu_ms, int cpus, int workers,
               HxNoise *n);
 
+/* ---- the machine's floor for one synchronised step (syncstep.c) ---- */
+typedef struct {
+    double share;      /* median over steps: the fastest worker's own time over the step */
+    double worst;      /* the lowest step's share */
+    double span_ms;    /* median step, first start to last end */
+    double quantum_ms; /* each worker's work per step, alone */
+    int steps;
+    uint64_t sink;     /* the work's result, kept so that it is done */
+} HxSyncStep;
+/* nsteps steps of w threads pinned one per core of cores (the calling
+ * thread on cores[0], its binding restored after), each doing quantum_ms of
+ * fixed work per step. 0, or -1 when a thread or the binding failed. */
+int hx_sync_step(const HxTopo *t, const int *cores, int w, double quantum_ms, int nsteps, HxSyncStep *out);
+/* The shares of nsteps steps of w workers from their start and end times
+ * (ns, step-major). */
+void hx_sync_summarise(const int64_t *start, const int64_t *end, int nsteps, int w, HxSyncStep *out);
+
 /* ---- which CPUs a run's threads use (watch.c) ---- */
 typedef struct HxWatch HxWatch;
 /* Follows the descendants of pid (itself included) whose executable's

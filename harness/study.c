@@ -508,6 +508,7 @@ void hx_study_free(HxStudy *s)
     free(s->ceil_r);
     free(s->ceil_steal);
     free(s->ceil_t);
+    free(s->ceil_s);
     free(s->ceil_path);
     memset(s, 0, sizeof *s);
 }

@@ -155,8 +155,8 @@ static void scaling_stats(const HxStudy *s, const HxGroup *g, const char *baseli
         }
     }
     c->efa = c->spa / g->axis;
-    double tog = NAN;
-    c->ceil = g->axis > 1 ? hx_ceiling_at(s, g->workers, &tog) : NAN;
+    double tog = NAN, step = NAN;
+    c->ceil = g->axis > 1 ? hx_ceiling_at(s, g->workers, &tog, &step) : NAN;
     /* The same share without the one-worker time: W copies each took tog at
      * once, so W workers sharing the work as well would take tog / W. The
      * one-worker time is measured alone, at another moment: on a VM whose
@@ -165,6 +165,7 @@ static void scaling_stats(const HxStudy *s, const HxGroup *g, const char *baseli
     c->pace = isfinite(c->ceil) && isfinite(tog) && g->nt && g->median > 0
                   ? (s->higher ? g->median / tog : tog / g->median) / g->workers
                   : NAN;
+    c->step = isfinite(c->pace) ? step : NAN;
     /* Karp-Flatt only where it means something: a speedup below 1 gives
      * e > 1, a "serial fraction" that no program has */
     c->kf = g->axis > 1 && c->spa >= 1 ? hx_karp_flatt(c->spa, g->axis) : NAN;
@@ -225,7 +226,7 @@ void tab_config_stats(const HxStudy *s, const HxGroup *g, const char *baseline, 
     memset(c, 0, sizeof *c);
     c->g = g;
     c->a = hx_baseline_one_worker(s, g);
-    c->spa = c->spa_lo = c->spa_hi = c->efa = c->kf = c->spb = c->efb = c->ceil = c->pace = NAN;
+    c->spa = c->spa_lo = c->spa_hi = c->efa = c->kf = c->spb = c->efb = c->ceil = c->pace = c->step = NAN;
     c->ratio = c->a && g->nt ? g->median / c->a->median : NAN;
     if (!s->size)
         scaling_stats(s, g, baseline, c);
@@ -341,9 +342,9 @@ void tab_speed_cells(const ConfigStats *c, SpeedCells *p)
     tab_fmt_num(p->efs, sizeof p->efs, "%.3f", c->efa);
     snprintf(p->ef, sizeof p->ef, "%s", p->efs);
     if (isfinite(c->ceil) && isfinite(c->efa)) { /* against what this machine allows */
-        char pace[32] = "";
-        if (isfinite(c->pace))
-            snprintf(pace, sizeof pace, ", pace %.2f", c->pace);
+        char pace[40] = "";
+        if (isfinite(c->pace)) /* and the pace the machine's steps allow */
+            snprintf(pace, sizeof pace, isfinite(c->step) ? ", pace %.2f of %.2f" : ", pace %.2f", c->pace, c->step);
         snprintf(p->ef, sizeof p->ef, "%.3f (%.2f of %.2f%s)", c->efa, c->efa / c->ceil, c->ceil, pace);
     }
     tab_fmt_num(p->kf, sizeof p->kf, "%.3f", c->kf);
@@ -602,6 +603,7 @@ static void json_scaling(FILE *o, const ConfigStats *c)
     hx_json_num(o, "efficiency_a", c->efa);
     hx_json_num(o, "ceiling", c->ceil);
     hx_json_num(o, "ceiling_pace", c->pace);
+    hx_json_num(o, "ceiling_step", c->step);
     hx_json_num(o, "karp_flatt", c->kf);
     if (c->b)
         hx_json_kstr(o, "baseline_b", c->b->label);
@@ -706,24 +708,7 @@ static void study_head(const HxStudy *s, const char *path, const char *baseline,
     hx_md_para(stdout, b.s);
     if (s->ceil_path && !s->size) {
         b.len = 0;
-        hx_buf_printf(&b, "Efficiency (a) also against this machine's ceiling from %s: \"0.750 (1.07 of 0.70)\" is "
-                      "1.07 of the 0.70 that independent copies keep at that many workers.", s->ceil_path);
-        /* a study's runs with more steal than the copies had lose more
-         * than the ceiling says: the user compares the two */
-        int steals = 0;
-        for (int i = 0; i < s->nceil; i++)
-            if (s->ceil_steal[i] >= 0)
-                hx_buf_printf(&b, "%s%.1f%% at %d", steals++ ? ", " : " Its copies ran with CPU steal of ",
-                              s->ceil_steal[i], s->ceil_w[i]);
-        if (steals)
-            hx_buf_put(&b, " workers (the runs' own: the column steal_pct).");
-        int paced = 0;
-        for (int i = 0; i < s->nceil; i++)
-            paced |= isfinite(s->ceil_t[i]);
-        if (paced)
-            hx_buf_put(&b, " \"pace 1.04\": the run is 1.04 times as fast as W workers that split the work "
-                           "perfectly at the speed each of W copies at once kept: the same share without the one-worker "
-                           "time, which was measured alone and at another moment.");
+        hx_ceiling_para(s, &b);
         hx_md_para(stdout, b.s);
     }
     unsigned keys = 0;

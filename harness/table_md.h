@@ -70,6 +70,7 @@ typedef struct {
     double spa, spa_lo, spa_hi, efa, kf, spb, efb;
     double ceil;         /* the machine's ceiling at these workers, NAN none */
     double pace;         /* this run against that many copies at once, NAN none */
+    double step;         /* the best pace W workers' steps keep there (syncstep.c), NAN none */
     double ratio;        /* a size: median / the one-worker median (a) */
     char notes[256];
     char codes[160];     /* the notes as codes (default Markdown) */
@@ -89,7 +90,7 @@ typedef struct {
 /* A time's or rate's speedup cells: sp with its interval (spc compact, sps
  * none), ef with the ceiling (efs without). */
 typedef struct {
-    char sp[112], spc[112], sps[32], ef[64], efs[32], kf[32], bt[32], sb[32], eb[32];
+    char sp[112], spc[112], sps[32], ef[80], efs[32], kf[32], bt[32], sb[32], eb[32];
 } SpeedCells;
 
 /* One Amdahl fit over a series' samples (table.c's fit_series). */

@@ -4,13 +4,16 @@
 # the metric table reads the study by; the file it writes, table's
 # efficiency against it (and not against a ceiling of another metric), and
 # a machine (or a run) with one allowed core, or a study with no parallel
-# run, refused in one line.
+# run, refused in one line. The step: W pinned threads doing their share
+# of the copies' work at once, released together, keep all of it on a
+# quiet machine and far less beside a busy neighbour on one of the cores.
 # usage: test-ceiling.sh HARNESS [RAYTRACE SOURCE_ROOT]
 set -u
 . "$(dirname "$0")/common.sh"
 RT=${2:+$(abs "$2")} SRC=${3:+$(abs "$3")}
 test_setup ceiling "$1" "$1"
 command -v taskset > /dev/null || fail "taskset missing (util-linux)"
+command -v stress-ng > /dev/null || fail "stress-ng missing (scripts/install-deps.sh)"
 [ "$(nproc)" -ge 2 ] || { echo "SKIP: one CPU: no ceiling to measure"; exit 77; }
 cat > c.conf <<'CONF'
 command: awk 'BEGIN{for(i=0;i<3e6;i++)s+=i; print s}'
@@ -21,6 +24,7 @@ CONF
 cat ceil.out ceil.err
 grep -q '^W=2: each copy.s wall_ms at [0-9.]* of a copy alone (median of 4, [0-9.]* to [0-9.]*; alone [0-9.]*, together [0-9.]*;' ceil.out ||
   fail "no W=2 line"
+grep -q '; a step of [0-9.]* ms on 2 cores at once keeps [0-9.]* (CPU steal [0-9.]*%))$' ceil.out || fail "no step on the W=2 line"
 python3 - <<'PY' || fail "the ceiling file"
 import csv
 rows = list(csv.DictReader(open("ceil.csv")))
@@ -31,14 +35,29 @@ assert float(r["ratio_min"]) <= float(r["ratio_median"]) <= float(r["ratio_max"]
 assert r["metric"] == "wall_ms", r
 assert 0 <= float(r["steal_pct"]) <= 100, r
 assert float(r["together"]) > 0, r
+# each of 2 workers does half the copies' work: their wall time over 2
+assert 0.3 * float(r["together"]) < float(r["step_ms"]) < 1.5 * float(r["together"]), r
+assert 0 < float(r["step"]) <= 1.05, r
+PY
+# beside a busy neighbour on the second core, a step waits for that core's
+# turn (the scheduler's slices are longer than this step's quantum share)
+stress-ng --cpu 1 --taskset 1 --timeout 60s > /dev/null 2>&1 &
+sp=$!
+"$H" ceiling c.conf -o busy.csv --repeats 2 > busy.out 2> busy.err || { kill $sp; cat busy.out busy.err; fail "ceiling beside a busy core"; }
+kill $sp; wait $sp 2> /dev/null
+python3 - <<'PY' || { cat ceil.out busy.out; fail "the step beside a busy core"; }
+import csv
+quiet, busy = (float(next(csv.DictReader(open(f)))["step"]) for f in ("ceil.csv", "busy.csv"))
+assert busy < 0.8 and busy < quiet, (quiet, busy)
 PY
 "$H" run c.conf -o study.csv -q > /dev/null 2>&1 || fail "the study"
 fp=$(python3 -c 'import csv; print(next(csv.DictReader(open("study.csv")))["fingerprint"])')
 cp ceil.csv "ceiling-$fp.csv"   # found beside the CSV without --ceiling
 "$H" table study.csv > t.md || fail "table"
-grep -q "| awk T=2 | 3/3 | .* | [0-9.]* ([0-9.]* of [0-9.]*, pace [0-9.]*) |" t.md || { cat t.md; fail "no efficiency against the ceiling"; }
+grep -q "| awk T=2 | 3/3 | .* | [0-9.]* ([0-9.]* of [0-9.]*, pace [0-9.]* of [0-9.]*) |" t.md || { cat t.md; fail "no efficiency against the ceiling"; }
+tr '\n' ' ' < t.md | grep -q '"pace 0.74 of 0.83": W workers that each did their share' || { cat t.md; fail "the step not explained"; }
 tr '\n' ' ' < t.md | grep -q "Its copies ran with CPU steal of [0-9.]*% at 2 workers" || { cat t.md; fail "no steal of the ceiling's copies"; }
-"$H" table study.csv --format json | python3 -c 'import json,sys; d=json.load(sys.stdin); assert any(c["ceiling"] and c["ceiling_pace"] > 0 for c in d["configurations"] if c.get("ceiling"))' ||
+"$H" table study.csv --format json | python3 -c 'import json,sys; d=json.load(sys.stdin); assert any(c["ceiling"] and c["ceiling_pace"] > 0 and 0 < c["ceiling_step"] <= 1.05 for c in d["configurations"] if c.get("ceiling"))' ||
     fail "json: no ceiling"
 # A metric of the copies' own: n, how many copies were running at once
 # (each leaves a file while it runs), better higher. Alone 1, together 2:
@@ -52,7 +71,7 @@ threads: 1 2
 repeats: 1
 CONF
 "$H" ceiling n.conf -o n.csv --repeats 2 > n.out 2> n.err || { cat n.out n.err; fail "ceiling of a metric failed"; }
-grep -q '^W=2: each copy.s n at 2.000 of a copy alone (median of 4, 2.000 to 2.000; alone 1, together 2; CPU steal [0-9.]*%)' n.out ||
+grep -q '^W=2: each copy.s n at 2.000 of a copy alone (median of 4, 2.000 to 2.000; alone 1, together 2; CPU steal [0-9.]*%; a step of ' n.out ||
   { cat n.out n.err; fail "the copies were not measured by their metric n"; }
 python3 -c 'import csv; r = next(csv.DictReader(open("n.csv"))); assert r["metric"] == "n" and r["ratio_median"] == "2.0000", r' ||
   fail "n.csv: $(cat n.csv)"
@@ -67,13 +86,18 @@ cut -d, -f1-9 ceil.csv > old.csv
 "$H" table nstudy.csv --ceiling old.csv > ot.md 2> ot.err || fail "table with an old ceiling file"
 grep -q " of [0-9.]*) |" ot.md || { cat ot.md; fail "no efficiency against an old ceiling file"; }
 grep -q "pace" ot.md && { cat ot.md; fail "a pace without the copies' own values"; }
+# a file from before the step: the pace alone
+cut -d, -f1-13 ceil.csv > nostep.csv
+"$H" table study.csv --ceiling nostep.csv > ns.md 2> /dev/null || fail "table with a ceiling file without step"
+grep -q "| awk T=2 | 3/3 | .* | [0-9.]* ([0-9.]* of [0-9.]*, pace [0-9.]*) |" ns.md || { cat ns.md; fail "no pace without the step"; }
+grep -q "pace 0.74 of" ns.md && { cat ns.md; fail "a step explained that the file has not"; }
 grep -q "old.csv has no metric column: a ceiling of the copies' wall time, read against n" ot.err ||
   { cat ot.err; fail "an old ceiling file used without a word"; }
 "$H" table nstudy.csv --ceiling n.csv > nt2.md 2> /dev/null || fail "table of n with its ceiling"
 # the study's runs count themselves alone (n 1, at 1 and 2 threads): efficiency
 # 0.5, a quarter of the ceiling 2; and against the copies' own n together (2),
 # 1 / (2 x 2): the pace 0.25
-grep -q "| 0.500 (0.25 of 2.00, pace 0.25) |" nt2.md || { cat nt2.md; fail "no efficiency of n against its own ceiling"; }
+grep -q "| 0.500 (0.25 of 2.00, pace 0.25 of [0-9.]*) |" nt2.md || { cat nt2.md; fail "no efficiency of n against its own ceiling"; }
 # raytrace's copies: by render_ms, with how much their renders overlapped
 if [ -z "$RT" ]; then echo "raytrace not built here: its copies not checked"; else
 cat > rt.conf <<CONF
@@ -85,7 +109,7 @@ resolution: 160x120
 repeats: 1
 CONF
 "$H" ceiling rt.conf -o rt.csv --repeats 2 --raytrace "$RT" > rt.out 2> rt.err || { cat rt.out rt.err; fail "raytrace ceiling failed"; }
-grep -q "^W=2: each copy's render_ms at [0-9.]* of a copy alone (.*; renders overlapping [0-9.]*)" rt.out ||
+grep -q "^W=2: each copy's render_ms at [0-9.]* of a copy alone (.*; renders overlapping [0-9.]*; a step of [0-9.]* ms on 2 cores at once keeps [0-9.]* (CPU steal [0-9.]*%))$" rt.out ||
   { cat rt.out rt.err; fail "raytrace ceiling: no render_ms or overlap"; }
 python3 -c 'import csv; r = next(csv.DictReader(open("rt.csv"))); assert r["metric"] == "render_ms" and 0 <= float(r["overlap"]) <= 1, r' ||
   fail "rt.csv: $(cat rt.csv)"
