@@ -299,7 +299,7 @@ static int ceiling_opts(int argc, char **argv, CeilOpts *o)
                   "workload at once, pinned one per core where the study pins W workers, against one\n"
                   "copy alone: the speed each copy keeps is the machine's ceiling for W-worker\n"
                   "efficiency. Writes FILE (default results/ceiling-FINGERPRINT.csv), which `table`\n"
-                  "reads (docs/harness.md, \"Ceiling\").\n", stdout);
+                  "reads (docs/harness-noise.md, \"Ceiling\").\n", stdout);
             return 0;
         default: return 1;
         }
@@ -600,7 +600,7 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
         s->ceil_path = hx_strdup(cand[i]);
         /* a ceiling of another metric is no ceiling of this one; files
          * without the column are of the copies' wall time, used with a
-         * line that says so (docs/harness.md, "Ceiling") */
+         * line that says so (docs/harness-noise.md, "Ceiling") */
         const int has_metric = hx_csv_col(&c, "metric") >= 0, has_steal = hx_csv_col(&c, "steal_pct") >= 0,
                   has_together = hx_csv_col(&c, "together") >= 0, has_step = hx_csv_col(&c, "step") >= 0;
         size_t other = 0;

@@ -42,7 +42,7 @@ static void usage_compare(FILE *f)
           "  --metric COL  time column, or COL/calib (default: render_ms/calib where both\n"
           "                studies ran with --calibrate, else render_ms)\n"
           "  --min-ms MS   base medians below MS are too short to judge (default 0.5)\n"
-          "  --format F    text (default), json (schema: docs/harness.md) or md (a summary\n"
+          "  --format F    text (default), json (schema: docs/harness-table.md) or md (a summary\n"
           "                for a pull-request comment, one screen long)\n"
           "  --report URL  with md: a link to the full report\n"
           "  -h, --help    this text\n", f);
@@ -207,7 +207,7 @@ static int counters_changed(const HxStudy *nw, const HxStudy *base, const HxGrou
     return bad;
 }
 
-/* The noise-aware time rule for one configuration (docs/harness.md). */
+/* The noise-aware time rule for one configuration (docs/harness-verdicts.md). */
 /* The best sample: the fastest time, or the highest rate. */
 static double best_sample(const HxGroup *g, int higher)
 {
@@ -390,7 +390,7 @@ int hx_judge_samples(const char *label, double *nw, size_t nn, double *base, siz
     return bad;
 }
 
-/* --format json (schema: docs/harness.md, "JSON output") */
+/* --format json (schema: docs/harness-table.md, "JSON output") */
 static void print_json(const CmpVerdicts *vs, const CmpRule *rule, const char *new_csv, const char *base_csv,
                        const char *metric)
 {
@@ -555,7 +555,7 @@ static int compare_opts(int argc, char **argv, CompareOpts *o)
         {"format", required_argument, NULL, 'F'}, {"report", required_argument, NULL, 'r'},
         {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
     /* defaults from 20 reruns of unchanged code on the noisy 2-core machine
-     * (docs/harness.md, "False alarms"): calibrated times and 1.8 raised
+     * (docs/harness-verdicts.md, "False alarms"): calibrated times and 1.8 raised
      * none; plain render_ms at 1.5 raised 2 */
     *o = (CompareOpts){1.8, 0.05, 0.5, FMT_TEXT, NULL, NULL};
     int c;
@@ -622,7 +622,7 @@ static int compare_load(char **paths, const CompareOpts *o, HxStudy *nw, HxStudy
         metric = calibrated ? "render_ms/calib" : "render_ms";
         if (!calibrated)
             say_note(o->fmt, notes, "times are not calibrated (run the studies with extra_args: --calibrate): on a "
-                     "noisy machine expect a false alarm now and then (docs/harness.md, \"False alarms\")");
+                     "noisy machine expect a false alarm now and then (docs/harness-verdicts.md, \"False alarms\")");
     }
     if (metric && strstr(metric, "/calib") &&
         calib_refused(nw, base, paths, o->factor, o->metric != NULL, o->fmt, notes, &metric) != 0) {

@@ -11,7 +11,7 @@
  * Commits are ordered by their commit time where the repository knows them,
  * else by when they were first measured. A series is one configuration on
  * one machine (fingerprint): numbers from different machines never meet.
- * The step rule of `check` is stated in docs/harness.md, "History". */
+ * The step rule of `check` is stated in docs/harness-history.md, "History". */
 #include "history.h"
 
 #if HAVE_SQLITE
@@ -371,7 +371,7 @@ static void usage_history(FILE *f)
           "                             [--confirm CONFIG [--rounds N] [--builder B] [--build-dir D]]\n"
           "       harness history publish -o DIR [FILTERS] [--window N] [--alpha A] [--threshold T]\n"
           "                               [--db DB]\n"
-          "Performance across commits, in SQLite (docs/harness.md, \"History\").\n"
+          "Performance across commits, in SQLite (docs/harness-history.md, \"History\").\n"
           "  add      stores every row of each study CSV with its commit, machine fingerprint\n"
           "           and config hash; a CSV stored before is skipped; rows of a dirty tree\n"
           "           are refused unless --allow-dirty\n"

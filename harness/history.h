@@ -40,7 +40,7 @@ typedef struct {
     size_t n;
 } HxSeriesSet;
 
-/* check's step rule (docs/harness.md, "History"). */
+/* check's step rule (docs/harness-history.md, "History"). */
 typedef struct {
     int window;       /* commits on either side */
     double alpha;     /* Mann-Whitney two-sided */

@@ -1,4 +1,4 @@
-/* history_db.c: the history database (docs/harness.md, "History"): its
+/* history_db.c: the history database (docs/harness-history.md, "History"): its
  * schema, opening it, and `harness history add`, which stores study CSVs.
  *
  * Every CSV row becomes a run (its configuration, commit, machine

@@ -171,7 +171,7 @@ static void mpirun_launcher(const HxConfig *cfg, const HxTopo *topo, const HxRun
 static void cachegrind_prefix(const char *image, HxCommand *c)
 {
     /* cachegrind without its cache model: the exact instruction count
-     * (docs/harness.md, "CI and the baseline") */
+     * (docs/harness-verdicts.md, "CI and the baseline") */
     HxBuf f = {0};
     hx_buf_printf(&f, "--cachegrind-out-file=%s.cg", image);
     hx_strlist_push(&c->argv, "valgrind");

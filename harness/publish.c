@@ -660,7 +660,7 @@ static int index_page(const Pub *p)
             fputs("</tbody></table>\n", o);
         }
         studies_table(o, p);
-        fputs("<p>Written by <code>harness history publish</code> (docs/harness.md, \"Dashboard\").</p>\n", o);
+        fputs("<p>Written by <code>harness history publish</code> (docs/harness-history.md, \"Dashboard\").</p>\n", o);
     }
     int rc = hx_html_close(&pg, WHO, o != NULL);
     hx_buf_free(&path);

@@ -321,7 +321,7 @@ int hx_cmd_report(int argc, char **argv)
         fputs("<h1>raybench report</h1>\n", o);
         for (int i = first; i < argc && rc == 0; i++)
             rc = section(o, dir, argv[i], i - first + 1, metric, ceiling);
-        fputs("<p>Written by <code>harness report</code> (docs/harness.md, \"Reports\").</p>\n", o);
+        fputs("<p>Written by <code>harness report</code> (docs/harness-table.md, \"Reports\").</p>\n", o);
     }
     rc = hx_html_close(&pg, "harness report", rc == 0);
     if (rc == 0)

@@ -490,7 +490,7 @@ static int load_done(Study *st, char *err, size_t errlen)
 }
 
 /* The summary's first line: whether the rows can be trusted, and why not
- * (docs/harness.md, "Noise"). */
+ * (docs/harness-noise.md, "Noise"). */
 static void trust_line(const Study *st)
 {
     size_t rows = 0;
@@ -511,7 +511,7 @@ static void trust_line(const Study *st)
         hx_buf_printf(&b, "%s%zu with CPU steal (up to %.1f%%)", b.len ? ", " : "", st->nstolen, st->max_steal);
     if (st->npartial)
         hx_buf_printf(&b, "%s%zu ok rows whose pinning did not hold", b.len ? ", " : "", st->npartial);
-    fprintf(stderr, "harness: NOT trusted: %s; `harness table` marks them (docs/harness.md, \"Noise\")\n", b.s);
+    fprintf(stderr, "harness: NOT trusted: %s; `harness table` marks them (docs/harness-noise.md, \"Noise\")\n", b.s);
     hx_buf_free(&b);
 }
 
@@ -766,7 +766,7 @@ int hx_cmd_run(int argc, char **argv)
         }
     }
     study_close(&st);
-    /* the finished CSV into the history (docs/harness.md, "History") */
+    /* the finished CSV into the history (docs/harness-history.md, "History") */
     if (o.history && st.t0 > 0.0 && hx_history_add(o.history, (char **)&st.out_path, 1, 0) != 0)
         rc = 1;
     hx_buf_free(&defout);

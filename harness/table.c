@@ -129,7 +129,7 @@ static void usage_table(FILE *f)
           "Oversubscribed runs and runs whose pinning did not hold are marked and left\n"
           "out of the fits. A size (unit B, KiB ... GB, or maxrss_kib) has no speedup:\n"
           "it is shown as its ratio to one worker, with no fit. Schema of --format\n"
-          "json: docs/harness.md.\n"
+          "json: docs/harness-table.md.\n"
           "  --baseline KEY=VALUE  column=value selecting baseline (b)\n"
           "  --format md|csv|json  output format (default md)\n"
           "  --wide                every column (the default table fits 100 columns)\n"
@@ -161,7 +161,7 @@ static void scaling_stats(const HxStudy *s, const HxGroup *g, const char *baseli
      * once, so W workers sharing the work as well would take tog / W. The
      * one-worker time is measured alone, at another moment: on a VM whose
      * lone core ran 83 or 108 ms by the round, it moves the share by a
-     * quarter (docs/harness.md, "Ceiling"). */
+     * quarter (docs/harness-noise.md, "Ceiling"). */
     c->pace = isfinite(c->ceil) && isfinite(tog) && g->nt && g->median > 0
                   ? (s->higher ? g->median / tog : tog / g->median) / g->workers
                   : NAN;
@@ -239,7 +239,7 @@ void tab_config_stats(const HxStudy *s, const HxGroup *g, const char *baseline, 
         hx_buf_printf(&n, "%s%s %zu", n.len ? ", " : "", g->first_status, g->nerror);
     if (g->suspect)
         hx_buf_printf(&n, "%s%s", n.len ? ", " : "", g->suspect_why);
-    /* what should not be trusted as it stands (docs/harness.md, "Noise") */
+    /* what should not be trusted as it stands (docs/harness-noise.md, "Noise") */
     if (g->npartial)
         hx_buf_printf(&n, "%spinning partial %zu/%zu", n.len ? ", " : "", g->npartial, g->nrows);
     if (g->nbusy)
@@ -594,7 +594,7 @@ static void table_cross(Emit *e, const HxStudy *s)
     free(hdr);
 }
 
-/* ---- --format json (schema: docs/harness.md, "JSON output") ---- */
+/* ---- --format json (schema: docs/harness-table.md, "JSON output") ---- */
 
 static void json_scaling(FILE *o, const ConfigStats *c)
 {

@@ -1,5 +1,5 @@
 /* table_md.c: `harness table`'s default Markdown fits HX_MD_WIDTH columns
- * (docs/harness.md, "The default Markdown table"). A table that would be
+ * (docs/harness-table.md, "The default Markdown table"). A table that would be
  * wider gives up, in the order its columns' ranks say, one table per scene,
  * short forms, columns (--wide has them) and at last long names as codes,
  * and says under itself what it did; nothing is dropped silently. The cross

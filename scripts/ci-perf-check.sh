@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # ci-perf-check.sh [--base RAYTRACE] [--new RAYTRACE] [--rounds N] [--out DIR]
-# The CI performance check (docs/harness.md, "CI and the baseline"): the
+# The CI performance check (docs/harness-verdicts.md, "CI and the baseline"): the
 # baseline commit named in results/ci-baseline.txt, built here (a worktree in
 # build-base/, scripts/build-commit.sh), against this
 # build, on the same machine in the same run:
@@ -54,7 +54,7 @@ done
 # 2. times: harness ab runs each configuration with both builds, the first
 # of each pair alternating, so that a slow phase of the machine hits both
 # (factor 1.05, ab's default: 0 false regressions in 200 verdicts on unchanged
-# code, quiet and under stress-ng, docs/harness.md "Verdicts measured")
+# code, quiet and under stress-ng, docs/harness-verdicts.md "Verdicts measured")
 "$h" ab --config configs/ci.conf "$base" "$new" --rounds "$rounds" | tee "$out/ab.txt" || fail=1
 if [ $fail -eq 0 ]; then echo "ci-perf-check: ok"; else echo "ci-perf-check: REGRESSION"; fi
 exit $fail

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # ci-perf-eval.sh [N] [M] - does the CI performance check catch a 10%
-# slowdown, and does it stay quiet on unchanged code? (docs/harness.md, "CI
+# slowdown, and does it stay quiet on unchanged code? (docs/harness-verdicts.md, "CI
 # and the baseline"). Builds HEAD twice, once as it is and once with a
 # planted slowdown (-Dexperiments=true -Dplant_every=10: every tenth pixel
 # traced a second time, counters and image unchanged). Then runs scripts/ci-perf-check.sh N times with HEAD against HEAD

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # ci-refresh-baseline.sh - makes this commit the CI performance baseline
-# (results/ci-baseline.txt; docs/harness.md, "CI and the baseline"). Refuses
+# (results/ci-baseline.txt; docs/harness-verdicts.md, "CI and the baseline"). Refuses
 # a tree with uncommitted changes, so the baseline is always a commit that
 # exists. Commit the file afterwards:
 #   scripts/ci-refresh-baseline.sh && git commit -m "CI baseline: $(git rev-parse --short HEAD)" results/ci-baseline.txt

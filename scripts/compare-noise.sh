@@ -3,7 +3,7 @@
 # on unchanged code: runs the study CONFIG N+1 times with the same build,
 # then compares each of the last N runs with the first under several
 # settings and counts the runs flagged as regressions (false alarms) and as
-# improvements. Prints one table row per setting (docs/harness.md,
+# improvements. Prints one table row per setting (docs/harness-verdicts.md,
 # "compare"). The study should have 5 or more repeats (Mann-Whitney) and
 # `extra_args: --calibrate` for the calibrated metric.
 set -euo pipefail

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# device-ceiling.sh - docs/harness.md's "Ceiling" on a large machine: the
+# device-ceiling.sh - docs/harness-noise.md's "Ceiling" on a large machine: the
 # machine's own ceiling (`harness ceiling`) for the dragon at 1024x768, then
 # the OpenMP (tiles, pixels) and MPI (dynamic, rows) strong-scaling studies
 # there over 1..16 workers (1..32 where the machine has 32 cores), and their

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # gpu-ab.sh OLD.tar.gz COURSE_DIR [ROUNDS] - the CUDA backend of an older
 # commit against this checkout's, on one GPU, in one run: both trees built
-# side by side, then `harness ab --config` (docs/harness.md, "A/B") runs
+# side by side, then `harness ab --config` (docs/harness-verdicts.md, "A/B") runs
 # every case with both builds, interleaved with the first of each pair
 # alternating, ROUNDS (default 5) times each, and judges the new build
 # against the old one per case, with both images compared. Cases: the

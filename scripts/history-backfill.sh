@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # history-backfill.sh DB COMMIT... - measures past commits into the history
-# database DB (docs/harness.md, "History"): each COMMIT's renderer is built
+# database DB (docs/harness-history.md, "History"): each COMMIT's renderer is built
 # in a worktree (scripts/build-commit.sh) and runs configs/history.conf and
 # configs/ci-instructions.conf with this checkout's harness; the CSVs go to
 # DB's folder and into DB. Commits in the order given, oldest first.

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # history-campaign.sh [DIR] - does `history check --confirm` accuse only the
-# commit that made a step? (docs/harness.md, "Verdicts measured"). In a
+# commit that made a step? (docs/harness-verdicts.md, "Verdicts measured"). In a
 # clone of this repository (DIR, default /tmp/history-campaign), twenty
 # commits on top of HEAD: 6 empty (3, 6, 9, 12, 15, 18), one that plants a
 # slowdown in the build (14: every tenth pixel traced twice, 10%; with

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # verdict-campaign.sh [TRIALS] [CI_TRIALS] - how the harness's verdicts hold
 # on this machine, quiet and with stress-ng busy on every CPU
-# (docs/harness.md, "Verdicts measured"). Builds HEAD three times in
+# (docs/harness-verdicts.md, "Verdicts measured"). Builds HEAD three times in
 # worktrees: unchanged, with a planted 10% slowdown (-Dplant_every=10) and
 # with a planted 2.5x one (-Dplant_every=2 -Dplant_times=3). Then, per case
 # (build x neighbour):

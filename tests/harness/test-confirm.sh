@@ -13,7 +13,7 @@
 #   - a commit that cannot be built leaves the step unconfirmed, naming it;
 #     a config whose settings are not the series' is not used to confirm.
 # The builder here maps commits to builds (scripts/build-commit.sh builds
-# real commits: docs/harness.md, "History").
+# real commits: docs/harness-history.md, "History").
 # usage: test-confirm.sh HARNESS RAYTRACE SOURCE_ROOT
 set -u
 . "$(dirname "$0")/common.sh"

@@ -1,5 +1,5 @@
 #!/bin/bash
-# Noise measured per run (docs/harness.md, "Noise"): with stress-ng keeping
+# Noise measured per run (docs/harness-noise.md, "Noise"): with stress-ng keeping
 # every CPU busy, each row of a study is marked busy with the other work in
 # cores, the summary's first line says the rows are not to be trusted, and
 # the table notes it, with the largest steal of a series' runs.

@@ -1,5 +1,5 @@
 #!/bin/bash
-# harness plot draws what was swept (docs/harness.md, "Plots"):
+# harness plot draws what was swept (docs/harness-table.md, "Plots"):
 #   - a CUDA block sweep as one heatmap panel per scene and configuration,
 #     best cell framed, and no speedup plot (no worker count swept);
 #   - a swept size (a numeric param) against the metric on log-log axes;

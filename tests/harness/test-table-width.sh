@@ -1,5 +1,5 @@
 #!/bin/bash
-# `harness table`'s default Markdown fits 100 columns (docs/harness.md):
+# `harness table`'s default Markdown fits 100 columns (docs/harness-table.md):
 #   - every line, for every study CSV under results/, and for a ceiling, a
 #     size (maxrss_kib) and a scene name of 60 characters;
 #   - the notes' codes are explained under the table when used, and the
