@@ -53,6 +53,12 @@
 #   hybrid  the hybrid table (configs/hybrid-dragon.conf): every P x T <= N
 #           of powers of two, both resolutions, 3 repeats, `order: rounds`,
 #           against the ceiling (run ceil first)
+#   gap     where a rank's frame differs from a thread's: warm frames
+#           (--warmup 3 --runs 9) of OpenMP at N threads, MPI at N ranks
+#           from the node's one copy of the scene, MPI at N ranks from a
+#           copy each (raytrace-testhooks, RT_MPI_TEST_SHM_FAIL=0: rank 0
+#           makes no shared copy, so every rank keeps its own) and MPI at one
+#           rank of N threads, interleaved, RES, ROUNDS rounds (default 8)
 # RES limits ceil, tables and warm to one resolution; EXTRA gives their runs
 # raytrace arguments (extra_args), e.g. EXTRA="--warmup 3 --runs 9".
 # CEIL_S bounds each ceiling (default 100 s; 2048x1536 with that EXTRA
@@ -244,6 +250,23 @@ share)
     done; done
     [ "$(left)" -lt 60 ] && break
   done > "$O/share.txt" 2>&1; log share ;;
+gap)
+  g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|scene_copies|rank_work_ms|thread_work_ms)=' | tr '\n' ' '; echo; }
+  ninja -C /tmp/bh tests/cpu/raytrace-testhooks > /dev/null 2>&1
+  TH=/tmp/bh/tests/cpu/raytrace-testhooks
+  mkdir -m 700 -p /tmp/cc-head
+  W=(--warmup 3 --runs 9 -q --cache /tmp/cc-head)
+  for i in $(seq ${ROUNDS:-8}); do for res in ${RES:-512x384}; do
+    echo -n "round=$i res=$res run=openmp "
+    OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -r $res "${W[@]}" $dragon -o /tmp/k.png | g
+    echo -n "round=$i res=$res run=mpi-shared "
+    mpirun --bind-to core -np $N $RT -b mpi -r $res "${W[@]}" $dragon -o /tmp/k.png | g
+    echo -n "round=$i res=$res run=mpi-private "
+    mpirun --bind-to core -np $N -x RT_MPI_TEST_SHM_FAIL=0 $TH -b mpi -r $res "${W[@]}" $dragon -o /tmp/k.png | g
+    echo -n "round=$i res=$res run=mpi-1x$N "
+    mpirun --bind-to none -np 1 -x OMP_PLACES=cores -x OMP_PROC_BIND=close $RT -b mpi -t $N -r $res "${W[@]}" \
+      $dragon -o /tmp/k.png | g
+  done; [ "$(left)" -lt 40 ] && break; done > "$O/gap.txt" 2>&1; log gap ;;
 bigbuild)
   g() { tr ' ' '\n' | grep -E '^(parse_ms|build_ms|build_threads|sah_cost|huge_pages)=' | tr '\n' ' '; echo; }
   ninja -C /tmp/bh renderer/scenegen > /dev/null 2>&1
