@@ -57,8 +57,9 @@
 #           (--warmup 3 --runs 9) of OpenMP at N threads, MPI at N ranks
 #           from the node's one copy of the scene, MPI at N ranks from a
 #           copy each (raytrace-testhooks, RT_MPI_TEST_SHM_FAIL=0: rank 0
-#           makes no shared copy, so every rank keeps its own) and MPI at one
-#           rank of N threads, interleaved, RES, ROUNDS rounds (default 8)
+#           makes no shared copy, so every rank keeps its own), and MPI at
+#           one rank of N threads and two of N/2 by the older build and this
+#           one, interleaved, RES, ROUNDS rounds (default 8)
 # RES limits ceil, tables and warm to one resolution; EXTRA gives their runs
 # raytrace arguments (extra_args), e.g. EXTRA="--warmup 3 --runs 9".
 # CEIL_S bounds each ceiling (default 100 s; 2048x1536 with that EXTRA
@@ -263,9 +264,12 @@ gap)
     mpirun --bind-to core -np $N $RT -b mpi -r $res "${W[@]}" $dragon -o /tmp/k.png | g
     echo -n "round=$i res=$res run=mpi-private "
     mpirun --bind-to core -np $N -x RT_MPI_TEST_SHM_FAIL=0 $TH -b mpi -r $res "${W[@]}" $dragon -o /tmp/k.png | g
-    echo -n "round=$i res=$res run=mpi-1x$N "
-    mpirun --bind-to none -np 1 -x OMP_PLACES=cores -x OMP_PROC_BIND=close $RT -b mpi -t $N -r $res "${W[@]}" \
-      $dragon -o /tmp/k.png | g
+    for v in prev head; do for p in 1 2; do
+      x=$RT; [ $v = prev ] && x=$PR
+      echo -n "round=$i res=$res run=mpi-${p}x$((N / p)) version=$v "
+      mpirun --bind-to none -np $p -x OMP_PLACES=cores -x OMP_PROC_BIND=close $x -b mpi -t $((N / p)) -r $res \
+        "${W[@]}" $dragon -o /tmp/k.png | g
+    done; done
   done; [ "$(left)" -lt 40 ] && break; done > "$O/gap.txt" 2>&1; log gap ;;
 bigbuild)
   g() { tr ' ' '\n' | grep -E '^(parse_ms|build_ms|build_threads|sah_cost|huge_pages)=' | tr '\n' ' '; echo; }

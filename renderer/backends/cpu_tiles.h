@@ -204,7 +204,8 @@ static inline int64_t rt_board_words(int rw, int rh, int tw, int th)
 }
 
 /* What rt_cpu_render_tiles does: claim strips [first, first + count) of the
- * tw x th tiling of region [rx0,rx1) x [ry0,ry1), then back up strips
+ * tw x th tiling of region [rx0,rx1) x [ry0,ry1), or, with claim, whatever
+ * claim hands each thread until it returns 0; then back up strips
  * [0, scan_count) of the tiling (all claimed by then), each thread starting
  * its pass at its own place: thread t of a caller that is slot `scan_slot`
  * of `scan_slots` callers (MPI ranks). */
@@ -212,6 +213,12 @@ typedef struct RtTileRun {
     const RtSceneView *v;
     int rx0, ry0, rx1, ry1, tw, th;
     int64_t first, count;
+    /* each thread's next strips [*first, *first + n), n; 0: none left. A
+     * counter shared with other ranks (mpi.c) claims per thread, so the
+     * frame is one parallel region: no thread waits for the others at the
+     * end of a claim, held up by whichever of them the system stalled */
+    int64_t (*claim)(void *ctx, int64_t *first);
+    void *claim_ctx;
     int64_t scan_count;
     int scan_slot, scan_slots;
     float *rgb;           /* the whole image (stride = width) */
@@ -335,11 +342,17 @@ static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtTileRun *r)
         memset(&cnt, 0, sizeof cnt);
         slot->start_ns = rt_now_ns();
         rt_cpu_note(slot);
-        for (int64_t at; (at = __atomic_load_n(&next, __ATOMIC_RELAXED)) < end;) {
-            int64_t k = (end - at) / guide;
-            k = k < 1 ? 1 : k > r->th ? r->th : k;
-            const int64_t s0 = __atomic_fetch_add(&next, k, __ATOMIC_RELAXED);
-            k = s0 >= end ? 0 : end - s0 < k ? end - s0 : k;
+        for (int64_t at = 0; r->claim || (at = __atomic_load_n(&next, __ATOMIC_RELAXED)) < end;) {
+            int64_t s0, k;
+            if (r->claim) {
+                if ((k = r->claim(r->claim_ctx, &s0)) <= 0)
+                    break;
+            } else {
+                k = (end - at) / guide;
+                k = k < 1 ? 1 : k > r->th ? r->th : k;
+                s0 = __atomic_fetch_add(&next, k, __ATOMIC_RELAXED);
+                k = s0 >= end ? 0 : end - s0 < k ? end - s0 : k;
+            }
             rt_strips_done(r->board, rt_strips_render(r, s0, k, buf, &cnt));
             rt_cpu_note(slot);
             if (r->progress && k) {

@@ -149,12 +149,53 @@ static void put_strips(RtMpiImage *m, const float *rgb, int w, int h, int tw, in
     }
 }
 
-/* One rank's frame: claim, render, put, until no strip is left. On one node
- * (every rank in rank 0's shared memory) a claim is one CPU atomic and the
- * pixels go straight into rank 0's image; across nodes a claim is an
- * MPI_Fetch_and_op and each claim's tiles an MPI_Put each. The frame ends when every
- * rank's pixels are in rank 0's image; the copy into main's buffer after it
- * is not part of the frame. */
+/* A claim of one of the rank's threads from the counter in rank 0's
+ * memory (m->atomic: a CPU atomic), counted with the time it took. */
+typedef struct {
+    RtMpiImage *m;
+    int64_t total, claims, claim_ns; /* claims, claim_ns: over the rank's threads */
+    int claimers;
+} ThreadClaims;
+
+static int64_t thread_claim(void *ctx, int64_t *first)
+{
+    ThreadClaims *c = ctx;
+    const int64_t t = rt_now_ns(), n = rt_mpi_claim(c->m, c->total, 1, c->claimers, first);
+    __atomic_add_fetch(&c->claim_ns, rt_now_ns() - t, __ATOMIC_RELAXED);
+    if (n > 0)
+        __atomic_add_fetch(&c->claims, 1, __ATOMIC_RELAXED);
+    return n;
+}
+
+/* The claims across nodes: the rank's first thread claims (MPI_Fetch_and_op),
+ * the rank's threads render the claim, and its tiles go to rank 0 (one
+ * MPI_Put each), until no strip is left. */
+static void claims_with_puts(RtMpiImage *m, RtCpuPool *pool, RtTileRun *run, const float *rgb, int64_t nstrips,
+                             RankTimes *rt)
+{
+    const int w = run->v->cam.width, h = run->v->cam.height;
+    for (;;) {
+        double t = rt_now_ms();
+        run->count = rt_mpi_claim(m, nstrips, strips_per_claim(pool->nthreads), 1, &run->first);
+        rt->t[T_CLAIM_MS] += rt_now_ms() - t;
+        if (run->count <= 0)
+            break;
+        rt->t[T_CLAIMS]++;
+        rt_cpu_render_tiles(pool, run);
+        if (m->direct)
+            continue;
+        t = rt_now_ms();
+        put_strips(m, rgb, w, h, run->tw, run->th, run->first, run->count);
+        rt->t[T_PUT_MS] += rt_now_ms() - t;
+    }
+}
+
+/* One rank's frame. With the counter in shared memory (every rank on one
+ * node, or one rank) each of the rank's threads claims for itself, renders
+ * into rank 0's image and then backs up strips still unfinished, all in one
+ * parallel region; across nodes, claims_with_puts. The frame ends when
+ * every rank's pixels are in rank 0's image; the copy into main's buffer
+ * after it is not part of the frame. */
 static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int th, float *rgb, RankTimes *rt)
 {
     const RtSceneView *v = &job->view;
@@ -183,31 +224,26 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
     }
     RtTileRun run = {.v = v, .rx1 = w, .ry1 = h, .tw = tw, .th = th, .scan_slot = rt_mpi_rank,
                      .scan_slots = rt_mpi_size, .rgb = m.direct ? (float *)m.img0 : rgb, .board = &board};
+    ThreadClaims tc = {&m, nstrips, 0, 0, pool->nthreads};
     rt_mpi_frame_start(&m);
     rt->t0_ns = rt_now_ns();
     const double t0 = rt_now_ms(), f0 = minor_faults();
 
-    const int64_t min_claim = strips_per_claim(pool->nthreads);
-    /* Which rank renders a strip never changes the image. */
-    for (;;) {
-        double t = rt_now_ms();
-        run.count = rt_mpi_claim(&m, nstrips, min_claim, &run.first);
-        rt->t[T_CLAIM_MS] += rt_now_ms() - t;
-        if (run.count <= 0)
-            break;
-        rt->t[T_CLAIMS]++;
-        rt_cpu_render_tiles(pool, &run);
-        if (m.direct)
-            continue;
-        t = rt_now_ms();
-        put_strips(&m, rgb, w, h, tw, th, run.first, run.count);
-        rt->t[T_PUT_MS] += rt_now_ms() - t;
-    }
-    rt->t[T_WORK_MS] = rt_now_ms() - t0;
-    if (shared) { /* every strip is claimed: back up those still unfinished */
-        run.count = 0;
+    /* Which rank or thread renders a strip never changes the image. */
+    if (m.atomic && m.direct) {
+        run.claim = thread_claim;
+        run.claim_ctx = &tc;
         run.scan_count = nstrips;
         rt_cpu_render_tiles(pool, &run);
+        rt->t[T_CLAIMS] = (double)tc.claims;
+        rt->t[T_CLAIM_MS] = tc.claim_ns * 1e-6;
+        int64_t last = rt_cpu_slot(pool, 0)->end_ns;
+        for (int t = 1; t < pool->nthreads; t++)
+            last = rt_cpu_slot(pool, t)->end_ns > last ? rt_cpu_slot(pool, t)->end_ns : last;
+        rt->t[T_WORK_MS] = (last - rt->t0_ns) * 1e-6;
+    } else {
+        claims_with_puts(&m, pool, &run, rgb, nstrips, rt);
+        rt->t[T_WORK_MS] = rt_now_ms() - t0;
     }
     rt_mpi_frame_end(&m);
     rt->t[T_END_MS] = rt_now_ms() - t0;

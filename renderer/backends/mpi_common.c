@@ -545,6 +545,8 @@ void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared
         RT_MPI_CHECK(MPI_Win_shared_query(m->win, 0, &seg, &disp, &m->base));
         m->direct = 1;
         m->atomic = 1;
+    } else if (rt_mpi_size == 1) { /* the counter is this process's own memory */
+        m->atomic = 1;
         if (rt_mpi_rank != 0) /* rank 0 writes all of it below */
             map_now(m->base, m->img_off + bytes);
     }
@@ -607,13 +609,13 @@ static int64_t counter_add(RtMpiImage *m, int64_t n)
     return was;
 }
 
-int64_t rt_mpi_claim(RtMpiImage *m, int64_t total, int64_t min_claim, int64_t *first)
+int64_t rt_mpi_claim(RtMpiImage *m, int64_t total, int64_t min_claim, int claimers, int64_t *first)
 {
     /* The claim is sized from a look at the counter just before it is
      * added, never from this rank's last claim: a rank that last looked
      * early would otherwise take a large claim at the end of the frame and
      * finish last. */
-    int64_t now = counter_add(m, 0), claim = (total - now) / (4 * (int64_t)rt_mpi_size);
+    int64_t now = counter_add(m, 0), claim = (total - now) / (4 * (int64_t)rt_mpi_size * claimers);
     claim = claim < min_claim ? min_claim : claim;
     *first = now >= total ? now : counter_add(m, claim);
     if (*first >= total)

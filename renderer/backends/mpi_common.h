@@ -88,13 +88,15 @@ typedef struct RtMpiImage {
 void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared, size_t extra);
 /* Collective: the counter back to 0; returns when every rank may claim. */
 void rt_mpi_frame_start(RtMpiImage *m);
-/* Guided self-scheduling (Polychronopoulos & Kuck 1987) of `total` units:
- * claims 1/(4P) of what remains (a look at the counter just before the
- * claim is added to it), never less than min_claim. Early claims are large, so the counter on rank 0 is hit a few
- * dozen times rather than once per unit; the last are small, so the ranks
- * finish together. The claim's first unit in *first and its length
- * returned; 0 when nothing is left. */
-int64_t rt_mpi_claim(RtMpiImage *m, int64_t total, int64_t min_claim, int64_t *first);
+/* Guided self-scheduling (Polychronopoulos & Kuck 1987) of `total` units
+ * among the P ranks' `claimers` each: claims 1/(4 P claimers) of what
+ * remains (a look at the counter just before the claim is added to it),
+ * never less than min_claim. Early claims are large, so the counter on rank
+ * 0 is hit a few dozen times per claimer rather than once per unit; the
+ * last are small, so the claimers finish together. The claim's first unit
+ * in *first and its length returned; 0 when nothing is left. Thread-safe
+ * where m->atomic (one node). */
+int64_t rt_mpi_claim(RtMpiImage *m, int64_t total, int64_t min_claim, int claimers, int64_t *first);
 /* Puts `count` pieces of `width` bytes, `pitch` apart from byte `off` of
  * this rank's whole-image buffer src, into the same places of rank 0's
  * image (one MPI vector). */
