@@ -267,7 +267,8 @@ gap)
     for v in prev head; do for p in 1 2; do
       x=$RT; [ $v = prev ] && x=$PR
       echo -n "round=$i res=$res run=mpi-${p}x$((N / p)) version=$v "
-      mpirun --bind-to none -np $p -x OMP_PLACES=cores -x OMP_PROC_BIND=close $x -b mpi -t $((N / p)) -r $res \
+      b=(--bind-to none); [ $p -gt 1 ] && b=(--map-by slot:PE=$((N / p)) --bind-to core) # a rank's threads on its own cores
+      mpirun "${b[@]}" -np $p -x OMP_PLACES=cores -x OMP_PROC_BIND=close $x -b mpi -t $((N / p)) -r $res \
         "${W[@]}" $dragon -o /tmp/k.png | g
     done; done
   done; [ "$(left)" -lt 40 ] && break; done > "$O/gap.txt" 2>&1; log gap ;;
