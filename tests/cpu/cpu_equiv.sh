@@ -2,7 +2,7 @@
 # cpu_equiv.sh RAYTRACE MPIRUN SCENE RESOLUTION ACCELS
 # The CPU backends against the serial oracle on one scene: OpenMP (1, 2, 3
 # threads; 7x5 and 16x16 tiles; the pixels schedule; 12 threads of 4x4 tiles) and MPI (no mpirun, and
-# mpirun -np 1, 2, 3 with rows and dynamic; 2 ranks x 2 threads; every rank
+# mpirun -np 1, 2, 3 with rows and dynamic; 2 ranks x 2 threads; 1 rank x 12 threads; every rank
 # parsing the scene instead of the broadcast default) must give the serial image_fnv1a and every work
 # counter exactly. Every run uses --verify (the image is poisoned first and
 # any unwritten pixel fails). RESOLUTION should have a height that 2 and 3 do
@@ -80,6 +80,10 @@ for accel in $accels; do
         check "mpi hybrid 2x2 $s $accel" "$mpirun" --oversubscribe --bind-to none -np 2 "$rt" $common --backend mpi \
             --threads 2 --tile 7x5 --mpi-schedule $s "$scene"
     done
+    # a lone rank's threads claim for themselves, and back each other up
+    # when far more of them than cores lose theirs (mpi.c)
+    check "mpi 1 rank x 12 threads tile=4x4 $accel" "$mpirun" --oversubscribe --bind-to none -np 1 "$rt" $common \
+        --backend mpi --threads 12 --tile 4x4 "$scene"
     check "mpi np=3 every rank parses $accel" "$mpirun" --oversubscribe -np 3 "$rt" $common --backend mpi --mpi-scene every "$scene"
 done
 echo "$n runs, $fails failed"
