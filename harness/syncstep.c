@@ -72,6 +72,7 @@ typedef struct {
 typedef struct Probe {
     _Atomic int go;   /* the step released: its number, -1 to end */
     _Atomic int done; /* workers finished, over all steps */
+    _Atomic int ready; /* workers on their cores */
     uint64_t rounds;  /* of work per step */
     int64_t *start, *end;
     _Atomic uint64_t sink;
@@ -120,6 +121,7 @@ static void *worker_main(void *arg)
 {
     Arg *a = arg;
     bind_self(a->w.t, a->w.core);
+    atomic_fetch_add_explicit(&a->w.p->ready, 1, memory_order_release);
     steps_of(&a->w, a->nsteps, a->nworkers);
     return NULL;
 }
@@ -175,6 +177,7 @@ static int probe(const HxTopo *t, const int *cores, int w, double quantum_ms, in
     memset(&p, 0, sizeof p);
     atomic_init(&p.go, -1);
     atomic_init(&p.done, 0);
+    atomic_init(&p.ready, 0);
     atomic_init(&p.sink, 0);
     p.rounds = (uint64_t)(quantum_ms * rounds_per_ms()) + 1;
     p.start = hx_xmalloc((size_t)nsteps * (size_t)w * sizeof *p.start);
@@ -187,8 +190,11 @@ static int probe(const HxTopo *t, const int *cores, int w, double quantum_ms, in
         rc = pthread_create(&args[i].w.th, NULL, worker_main, &args[i]) != 0 ? -1 : 0;
     if (rc != 0)
         started--;
-    /* the main thread is worker 0: it releases each step once every worker
-     * ended the last (a short spin, then the step), and works it too */
+    /* the main thread is worker 0: it releases the first step once every
+     * worker is on its core, each next one once every worker ended the
+     * last, and works it too */
+    while (rc == 0 && atomic_load_explicit(&p.ready, memory_order_acquire) < w - 1)
+        relax();
     uint64_t x = 1;
     for (int s = 0; s < nsteps && rc == 0; s++) {
         while (atomic_load_explicit(&p.done, memory_order_acquire) < s * w)
