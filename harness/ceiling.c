@@ -369,8 +369,8 @@ static int build_copies(const HxConfig *cfg, const HxTopo *t, const HxRun *one, 
  * per step is what W workers sharing one copy's work would each do, the
  * copies' value together / W where the metric is a time, else their wall
  * time / W; as many steps as fill the copies' time (0.3 to 2 s), 5 to
- * 500. Its share into share[*n], the CPU steal over it into *stolen and
- * *ticks. */
+ * 500. Its share into share[*n] and its work per step into quantum[*n],
+ * the CPU steal over it into *stolen and *ticks. */
 static void step_after(const Copies *cp, const HxTopo *t, const int *cores, int w, const double *v, double wall,
                        double *share, int *n, double *quantum, unsigned long long *stolen, unsigned long long *ticks)
 {
@@ -383,8 +383,8 @@ static void step_after(const Copies *cp, const HxTopo *t, const int *cores, int 
     if (hx_sync_step(t, cores, w, q, steps, &st) != 0)
         return;
     hx_cpu_stat(&s1);
+    quantum[*n] = q;
     share[(*n)++] = st.share;
-    *quantum = q;
     if (s0.ok && s1.ok) {
         *stolen += s1.steal - s0.steal;
         *ticks += hx_cpu_ticks(&s0, &s1);
@@ -401,7 +401,8 @@ static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int 
         double *ratio = hx_xmalloc((size_t)(w * repeats) * sizeof *ratio), *v = hx_xmalloc((size_t)w * sizeof *v);
         double *ov = hx_xmalloc((size_t)w * sizeof *ov), *ovs = hx_xmalloc((size_t)(w * repeats) * sizeof *ovs);
         double *tog = hx_xmalloc((size_t)(w * repeats) * sizeof *tog);
-        double solo = 0, solos = 0, *sshare = hx_xmalloc((size_t)repeats * sizeof *sshare), quantum = NAN;
+        double solo = 0, solos = 0, *sshare = hx_xmalloc((size_t)repeats * sizeof *sshare),
+               *squant = hx_xmalloc((size_t)repeats * sizeof *squant);
         size_t nov = 0;
         int nstep = 0;
         /* the CPU time the hypervisor took while the copies ran together: a
@@ -417,9 +418,10 @@ static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int 
             const double wall = hx_now_ms() - t0;
             hx_cpu_stat(&s1);
             if (!bad)
-                step_after(cp, t, cores[k], w, v, wall, sshare, &nstep, &quantum, &sstolen, &sticks);
+                step_after(cp, t, cores[k], w, v, wall, sshare, &nstep, squant, &sstolen, &sticks);
             if (bad) {
                 free(sshare);
+                free(squant);
                 free(ratio);
                 free(v);
                 free(ov);
@@ -454,7 +456,8 @@ static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int 
             printf("; CPU steal %.1f%%", steal);
         if (overlap >= 0) /* below 1, the copies rendered partly alone and the ceiling reads high */
             printf("; renders overlapping %.2f", overlap);
-        const double step = nstep ? hx_median(sshare, (size_t)nstep) : NAN;
+        const double step = nstep ? hx_median(sshare, (size_t)nstep) : NAN,
+                     quantum = nstep ? hx_median(squant, (size_t)nstep) : NAN;
         if (nstep) /* the step: what a W-way split of that work keeps when all W must end */
             printf("; a step of %.4g ms on %d cores at once keeps %.3f (CPU steal %.1f%%)", quantum, w, step,
                    sticks ? 100.0 * (double)sstolen / (double)sticks : 0.0);
@@ -466,6 +469,7 @@ static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int 
         hx_csv_field(b, cp->m.name);
         hx_buf_printf(b, ",%.2f,%.3f,%.6g,%.4f,%.6g\n", steal, overlap, together, step, quantum);
         free(sshare);
+        free(squant);
         free(ratio);
         free(tog);
         free(v);

@@ -35,20 +35,23 @@ assert float(r["ratio_min"]) <= float(r["ratio_median"]) <= float(r["ratio_max"]
 assert r["metric"] == "wall_ms", r
 assert 0 <= float(r["steal_pct"]) <= 100, r
 assert float(r["together"]) > 0, r
-# each of 2 workers does half the copies' work: their wall time over 2
-assert 0.3 * float(r["together"]) < float(r["step_ms"]) < 1.5 * float(r["together"]), r
+# each of 2 workers does half the copies' work, their wall time over 2 (a
+# repeat's, where together is the median of all)
+assert 0.1 * float(r["together"]) < float(r["step_ms"]) < float(r["together"]), r
 assert 0 < float(r["step"]) <= 1.05, r
 PY
-# beside a busy neighbour on the second core, a step waits for that core's
-# turn (the scheduler's slices are longer than this step's quantum share)
-stress-ng --cpu 1 --taskset 1 --timeout 60s > /dev/null 2>&1 &
+# beside two busy neighbours on the second core, a step waits for that
+# core's turn: its worker gets a third of it (the scheduler's slices are
+# shorter than the step), the first core's all of its own or, on a machine
+# busy elsewhere too, a share like the copies'
+stress-ng --cpu 2 --taskset 1 --timeout 60s > /dev/null 2>&1 &
 sp=$!
 "$H" ceiling c.conf -o busy.csv --repeats 2 > busy.out 2> busy.err || { kill $sp; cat busy.out busy.err; fail "ceiling beside a busy core"; }
 kill $sp; wait $sp 2> /dev/null
 python3 - <<'PY' || { cat ceil.out busy.out; fail "the step beside a busy core"; }
 import csv
 quiet, busy = (float(next(csv.DictReader(open(f)))["step"]) for f in ("ceil.csv", "busy.csv"))
-assert busy < 0.8 and busy < quiet, (quiet, busy)
+assert busy < 0.6, (quiet, busy)
 PY
 "$H" run c.conf -o study.csv -q > /dev/null 2>&1 || fail "the study"
 fp=$(python3 -c 'import csv; print(next(csv.DictReader(open("study.csv")))["fingerprint"])')

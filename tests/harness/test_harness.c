@@ -423,6 +423,22 @@ static void test_noise(void)
     CHECK(n.stolen == 0);
 }
 
+/* The step's summary (syncstep.c): per step, the fastest worker's own time
+ * over the span from the first start to the last end; medians over steps. */
+static void test_sync_step(void)
+{
+    /* 3 steps of 2 workers (ns): equal and aligned; the second worker
+     * started 1 ms late; the second took twice as long */
+    const int64_t start[] = {0, 0, 10000000, 11000000, 20000000, 20000000};
+    const int64_t end[] = {2000000, 2000000, 12000000, 13000000, 22000000, 24000000};
+    HxSyncStep st;
+    hx_sync_summarise(start, end, 3, 2, &st);
+    CHECK(st.steps == 3);
+    CHECK_NEAR(st.share, 2.0 / 3.0, 1e-9); /* the median of 1, 2/3 and 1/2 */
+    CHECK_NEAR(st.worst, 0.5, 1e-9);
+    CHECK_NEAR(st.span_ms, 3.0, 1e-9);     /* of 2, 3 and 4 ms */
+}
+
 static void test_stats(void)
 {
     test_noise();
@@ -705,8 +721,10 @@ int main(int argc, char **argv)
         test_config();
     else if (strcmp(argv[1], "expand") == 0)
         test_expand();
-    else if (strcmp(argv[1], "stats") == 0)
+    else if (strcmp(argv[1], "stats") == 0) {
         test_stats();
+        test_sync_step();
+    }
     else if (strcmp(argv[1], "csv") == 0) {
         test_csv();
         test_csv_parse();
