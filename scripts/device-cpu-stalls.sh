@@ -55,7 +55,8 @@
 #           against the ceiling (run ceil first)
 #   gap     where a rank's frame differs from a thread's: warm frames
 #           (--warmup 3 --runs 9) of OpenMP at N threads, MPI at N ranks
-#           from the node's one copy of the scene, MPI at N ranks from a
+#           from the node's one copy of the scene (the older build and this
+#           one), MPI at N ranks from a
 #           copy each (raytrace-testhooks, RT_MPI_TEST_SHM_FAIL=0: rank 0
 #           makes no shared copy, so every rank keeps its own), and MPI at
 #           one rank of N threads and two of N/2 by the older build and this
@@ -260,8 +261,11 @@ gap)
   for i in $(seq ${ROUNDS:-8}); do for res in ${RES:-512x384}; do
     echo -n "round=$i res=$res run=openmp "
     OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -r $res "${W[@]}" $dragon -o /tmp/k.png | g
-    echo -n "round=$i res=$res run=mpi-shared "
-    mpirun --bind-to core -np $N $RT -b mpi -r $res "${W[@]}" $dragon -o /tmp/k.png | g
+    for v in prev head; do
+      x=$RT; [ $v = prev ] && x=$PR
+      echo -n "round=$i res=$res run=mpi-shared version=$v "
+      mpirun --bind-to core -np $N $x -b mpi -r $res "${W[@]}" $dragon -o /tmp/k.png | g
+    done
     echo -n "round=$i res=$res run=mpi-private "
     mpirun --bind-to core -np $N -x RT_MPI_TEST_SHM_FAIL=0 $TH -b mpi -r $res "${W[@]}" $dragon -o /tmp/k.png | g
     for v in prev head; do for p in 1 2; do
