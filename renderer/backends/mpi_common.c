@@ -509,22 +509,16 @@ const RtCollective rt_mpi_collective = {mpi_is_root, rt_mpi_agree, mpi_scene_loa
  * page: a fault per page, 400-5,200 per rank in a frame at 2 ranks (the
  * record's rank_faults), taken inside the frame. Taken here, they come
  * before the starting barrier. MADV_POPULATE_WRITE (Linux 5.14) maps
- * without writing; elsewhere an atomic add of zero per page does. Then a
- * read of each page puts its translation in this core's TLB: the segment
- * is new every frame, and each of P processes walks its own page tables
- * for it, through the host's on a VM. */
+ * without writing; elsewhere an atomic add of zero per page does. */
 static void map_now(void *p, size_t n)
 {
     const uintptr_t pg = (uintptr_t)sysconf(_SC_PAGESIZE), a = (uintptr_t)p & ~(pg - 1), end = (uintptr_t)p + n;
-    int mapped = 0;
 #ifdef MADV_POPULATE_WRITE
-    mapped = madvise((void *)a, end - a, MADV_POPULATE_WRITE) == 0;
+    if (madvise((void *)a, end - a, MADV_POPULATE_WRITE) == 0)
+        return;
 #endif
     for (uintptr_t q = (uintptr_t)p; q < end; q = (q & ~(pg - 1)) + pg)
-        if (mapped)
-            (void)*(volatile unsigned char *)q;
-        else
-            __atomic_fetch_add((unsigned char *)q, 0, __ATOMIC_RELAXED);
+        __atomic_fetch_add((unsigned char *)q, 0, __ATOMIC_RELAXED);
 }
 
 void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared, size_t extra)
