@@ -70,10 +70,10 @@ typedef struct {
 } Worker;
 
 typedef struct Probe {
-    _Atomic int go;   /* the step released: its number, -1 to end */
-    _Atomic int done; /* workers finished, over all steps */
+    _Atomic int go;    /* the step released: its number (-1: none yet) */
+    _Atomic int done;  /* workers finished, over all steps */
     _Atomic int ready; /* workers on their cores */
-    uint64_t rounds;  /* of work per step */
+    uint64_t rounds;   /* of work per step */
     int64_t *start, *end;
     _Atomic uint64_t sink;
 } Probe;
