@@ -341,11 +341,15 @@ void tab_speed_cells(const ConfigStats *c, SpeedCells *p)
     tab_fmt_num(p->sps, sizeof p->sps, "%.2f", c->spa);
     tab_fmt_num(p->efs, sizeof p->efs, "%.3f", c->efa);
     snprintf(p->ef, sizeof p->ef, "%s", p->efs);
+    snprintf(p->efb, sizeof p->efb, "%s", p->efs);
     if (isfinite(c->ceil) && isfinite(c->efa)) { /* against what this machine allows */
         char pace[40] = "";
         if (isfinite(c->pace)) /* and the pace the machine's steps allow */
-            snprintf(pace, sizeof pace, isfinite(c->step) ? ", pace %.2f of %.2f" : ", pace %.2f", c->pace, c->step);
-        snprintf(p->ef, sizeof p->ef, "%.3f (%.2f of %.2f%s)", c->efa, c->efa / c->ceil, c->ceil, pace);
+            snprintf(pace, sizeof pace, isfinite(c->step) ? "pace %.2f of %.2f" : "pace %.2f", c->pace, c->step);
+        snprintf(p->ef, sizeof p->ef, "%.3f (%.2f of %.2f%s%s)", c->efa, c->efa / c->ceil, c->ceil, *pace ? ", " : "",
+                 pace);
+        if (*pace) /* the pace needs no one-worker time: the part a narrow table keeps */
+            snprintf(p->efb, sizeof p->efb, "%.3f (%s)", c->efa, pace);
     }
     tab_fmt_num(p->kf, sizeof p->kf, "%.3f", c->kf);
     tab_fmt_ms(p->bt, sizeof p->bt, c->b ? c->b->median : NAN);

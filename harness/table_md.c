@@ -590,7 +590,7 @@ void hx_md_configs(FILE *o, const HxStudy *s, const char *baseline)
         {"scene", HX_MD_SCENE, 1, NULL, NULL, 'S'}, {"configuration", HX_MD_CODE, 5, NULL, NULL, 'C'},
         {"n", HX_MD_KEEP, 0, NULL, NULL, 0}, {h.med, HX_MD_KEEP, 0, NULL, NULL, 0},
         {"S(a) [CI]", HX_MD_SHORT, 2, "S(a)", "the CI of S(a)", 0},
-        {"E(a)", HX_MD_SHORT, 4, NULL, "E(a) against the ceiling", 0}, {"S(b)", HX_MD_OPT, 3, NULL, "S(b)", 0},
+        {"E(a)", HX_MD_SHORT, 4, NULL, "E(a)'s share of the ceiling", 0}, {"S(b)", HX_MD_OPT, 3, NULL, "S(b)", 0},
         {"notes", HX_MD_KEEP, 0, NULL, NULL, 0}};
     /* a size: its ratio to 1 worker in place of the speedup columns */
     const HxMdCol size_cols[6] = {cols[0], cols[1], cols[2], cols[3], {"x 1 worker", HX_MD_KEEP, 0, NULL, NULL, 0},
@@ -612,7 +612,7 @@ void hx_md_configs(FILE *o, const HxStudy *s, const char *baseline)
                             -1, -1, -1, -1, -1, -1};
         const char *sized[6] = {c.g->scene, lab, k.n, k.medc, r, notes};
         const char *cells[8] = {c.g->scene, lab, k.n, k.medc, p.spc, p.ef, p.sb, notes};
-        const char *brief[8] = {NULL, NULL, NULL, NULL, p.sps, p.efs, NULL, NULL};
+        const char *brief[8] = {NULL, NULL, NULL, NULL, p.sps, p.efb, NULL, NULL};
         hx_md_row(&t, s->size ? sized : cells, s->size ? NULL : brief, idx);
         used |= c.used;
         free(lab);

@@ -88,9 +88,10 @@ typedef struct {
 } Cells;
 
 /* A time's or rate's speedup cells: sp with its interval (spc compact, sps
- * none), ef with the ceiling (efs without). */
+ * none), ef with the ceiling (efs without; efb with the pace alone where
+ * known, else efs: the default Markdown's short form). */
 typedef struct {
-    char sp[112], spc[112], sps[32], ef[80], efs[32], kf[32], bt[32], sb[32], eb[32];
+    char sp[112], spc[112], sps[32], ef[80], efs[32], efb[48], kf[32], bt[32], sb[32], eb[32];
 } SpeedCells;
 
 /* One Amdahl fit over a series' samples (table.c's fit_series). */

@@ -117,6 +117,14 @@ grep -q "^W=2: each copy's render_ms at [0-9.]* of a copy alone (.*; renders ove
 python3 -c 'import csv; r = next(csv.DictReader(open("rt.csv"))); assert r["metric"] == "render_ms" and 0 <= float(r["overlap"]) <= 1, r' ||
   fail "rt.csv: $(cat rt.csv)"
 fi
+# a table too narrow for E(a)'s whole cell keeps its pace, and says what
+# it left out (a study of the 16-core host in results/)
+if [ -n "$SRC" ]; then
+  "$H" table "$SRC/results/stalls-AL-t1-bvh-2048x1536.csv" --ceiling "$SRC/results/stalls-AL-ceiling-2048x1536.csv" \
+    > al.md 2> /dev/null || fail "table of results/stalls-AL-t1-bvh-2048x1536.csv"
+  grep -q "| 12.63 | 0.789 (pace 1.03 of 0.97) |" al.md || { cat al.md; fail "the narrow E(a) without its pace"; }
+  tr '\n' ' ' < al.md | grep -q "E(a)'s share of the ceiling)" || { cat al.md; fail "the share left out unsaid"; }
+fi
 # SIGTERM (a job's time limit, `timeout`) ends the copies with the harness:
 # none is left to load the machine, and no ceiling is written
 printf 'command: sleep 37.5\nthreads: 1 2\nrepeats: 1\n' > slow.conf
