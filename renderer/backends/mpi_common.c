@@ -545,10 +545,10 @@ void rt_mpi_image_open(RtMpiImage *m, size_t bytes, const void *init, int shared
         RT_MPI_CHECK(MPI_Win_shared_query(m->win, 0, &seg, &disp, &m->base));
         m->direct = 1;
         m->atomic = 1;
-    } else if (rt_mpi_size == 1) { /* the counter is this process's own memory */
-        m->atomic = 1;
         if (rt_mpi_rank != 0) /* rank 0 writes all of it below */
             map_now(m->base, m->img_off + bytes);
+    } else if (rt_mpi_size == 1) { /* the counter is this process's own memory */
+        m->atomic = 1;
     }
     m->extra = (char *)m->base + RT_WIN_EXTRA;
     m->img0 = (char *)m->base + m->img_off;

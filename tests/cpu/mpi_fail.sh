@@ -162,6 +162,15 @@ for case in "0 --bind-to core -np 2" "3 --oversubscribe --bind-to none -np 3"; d
         { echo "FAIL: core sharing ($*): not the serial image"; fails=$((fails + 1)); }
 done
 
+# On one node every rank maps rank 0's image before the frame: the pages it
+# writes fault there, not inside the frame (rank_faults: the frame's own; a
+# rank writing half of a 512x384 image in the frame took hundreds)
+rec=$(timeout 60 "$mpirun" --quiet --oversubscribe -np 2 "$rt" -q --backend mpi -r 512x384 -o "$tmp/m.ppm" "$good" \
+      2> "$tmp/err") || { echo "FAIL: two ranks' faults: $(cat "$tmp/err")"; fails=$((fails + 1)); }
+echo "two ranks, 512x384: rank_faults=$(key "$rec" rank_faults)"
+[ "$(key "$rec" rank_faults | cut -d/ -f2)" -lt 50 ] 2> /dev/null ||
+    { echo "FAIL: rank 1 faulted on rank 0's image inside the frame"; fails=$((fails + 1)); }
+
 # A rank that claims no tile (3 ranks, one 8x8 tile) still names its core:
 # the harness's pinning check must not see a rank that ran nowhere.
 rec=$(timeout 60 "$mpirun" --quiet --oversubscribe -np 3 "$rt" -q --backend mpi -r 8x8 -o "$tmp/m.ppm" "$good" \
