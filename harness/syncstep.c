@@ -74,7 +74,8 @@ typedef struct Probe {
     _Atomic int done;  /* workers finished, over all steps */
     _Atomic int ready; /* workers on their cores */
     uint64_t rounds;   /* of work per step */
-    int64_t *start, *end;
+    int nsteps, nworkers;
+    int64_t *start, *end; /* per step, per worker (step-major) */
     _Atomic uint64_t sink;
 } Probe;
 
@@ -95,9 +96,10 @@ static int bind_self(const HxTopo *t, int core)
 }
 
 /* One worker's steps: spin until step s is released, work, record. */
-static void steps_of(Worker *w, int nsteps, int nworkers)
+static void steps_of(Worker *w)
 {
     Probe *p = w->p;
+    const int nsteps = p->nsteps, nworkers = p->nworkers;
     uint64_t x = 88172645463325252ull + (uint64_t)w->id;
     for (int s = 0; s < nsteps; s++) {
         while (atomic_load_explicit(&p->go, memory_order_acquire) < s)
@@ -112,17 +114,12 @@ static void steps_of(Worker *w, int nsteps, int nworkers)
     atomic_fetch_xor_explicit(&p->sink, x, memory_order_relaxed);
 }
 
-typedef struct {
-    Worker w;
-    int nsteps, nworkers;
-} Arg;
-
 static void *worker_main(void *arg)
 {
-    Arg *a = arg;
-    bind_self(a->w.t, a->w.core);
-    atomic_fetch_add_explicit(&a->w.p->ready, 1, memory_order_release);
-    steps_of(&a->w, a->nsteps, a->nworkers);
+    Worker *w = arg;
+    bind_self(w->t, w->core);
+    atomic_fetch_add_explicit(&w->p->ready, 1, memory_order_release);
+    steps_of(w);
     return NULL;
 }
 
@@ -182,12 +179,14 @@ static int probe(const HxTopo *t, const int *cores, int w, double quantum_ms, in
     p.rounds = (uint64_t)(quantum_ms * rounds_per_ms()) + 1;
     p.start = hx_xmalloc((size_t)nsteps * (size_t)w * sizeof *p.start);
     p.end = hx_xmalloc((size_t)nsteps * (size_t)w * sizeof *p.end);
-    Arg *args = hx_xmalloc((size_t)w * sizeof *args);
+    p.nsteps = nsteps;
+    p.nworkers = w;
+    Worker *args = hx_xmalloc((size_t)w * sizeof *args);
     int started = 1, rc = 0;
     for (int i = 0; i < w; i++)
-        args[i] = (Arg){{t, cores[i], i, &p, 0}, nsteps, w};
+        args[i] = (Worker){t, cores[i], i, &p, 0};
     for (int i = 1; i < w && rc == 0; i++, started++)
-        rc = pthread_create(&args[i].w.th, NULL, worker_main, &args[i]) != 0 ? -1 : 0;
+        rc = pthread_create(&args[i].th, NULL, worker_main, &args[i]) != 0 ? -1 : 0;
     if (rc != 0)
         started--;
     /* the main thread is worker 0: it releases the first step once every
@@ -210,7 +209,7 @@ static int probe(const HxTopo *t, const int *cores, int w, double quantum_ms, in
     if (rc != 0) /* the threads that started: let them run out their steps */
         atomic_store_explicit(&p.go, nsteps, memory_order_release);
     for (int i = 1; i < started; i++)
-        pthread_join(args[i].w.th, NULL);
+        pthread_join(args[i].th, NULL);
     if (rc == 0)
         hx_sync_summarise(p.start, p.end, nsteps, w, out);
     out->quantum_ms = quantum_ms;
