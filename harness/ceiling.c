@@ -38,14 +38,8 @@ static CeilMetric ceil_metric(const HxConfig *cfg)
     if (!cfg->prog)
         return (CeilMetric){"render_ms", 0, 1};
     const HxMetric *m = cfg->prog->nmetrics > 0 ? &cfg->prog->metrics[0] : NULL;
-    if (m && !hx_metric_is_size(m->name, m->unit)) {
-        static const char *const unit[] = {"ns", "us", "ms", "s"};
-        static const double scale[] = {1e-6, 1e-3, 1, 1e3};
-        double ms = 0;
-        for (int i = 0; i < 4 && !m->higher && m->unit; i++)
-            ms = strcmp(m->unit, unit[i]) == 0 ? scale[i] : ms;
-        return (CeilMetric){m->name, m->higher, ms};
-    }
+    if (m && !hx_metric_is_size(m->name, m->unit))
+        return (CeilMetric){m->name, m->higher, m->higher ? 0 : hx_unit_ms(m->unit)};
     return (CeilMetric){"wall_ms", 0, 1};
 }
 

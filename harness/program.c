@@ -344,6 +344,14 @@ int hx_unit_direction(const char *u)
     return strcmp(u, "1") == 0 || strcmp(u, "%") == 0 ? -1 : -2;
 }
 
+double hx_unit_ms(const char *u)
+{
+    static const char *const times[] = {"ns", "us", "ms", "s", "min", NULL};
+    static const double ms[] = {1e-6, 1e-3, 1, 1e3, 6e4};
+    const int i = u ? key_index(times, u, strlen(u)) : -1;
+    return i >= 0 ? ms[i] : 0;
+}
+
 int hx_subst(const char *t, const HxVars *vars, HxBuf *out, char *bad, size_t n)
 {
     hx_buf_put(out, "");

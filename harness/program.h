@@ -89,6 +89,8 @@ int hx_program_setup(const HxConfig *cfg, const char *workdir, char *why, size_t
 /* The direction of a unit: 1 higher is better, 0 lower, -1 none (must be
  * given), -2 not a unit. */
 int hx_unit_direction(const char *unit);
+/* Milliseconds in one of a time unit (ns us ms s min), 0 for any other. */
+double hx_unit_ms(const char *unit);
 
 /* ---- folders and verdicts (workdir.c) ---- */
 /* rm -rf path, never following a link. */
