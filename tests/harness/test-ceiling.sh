@@ -5,8 +5,8 @@
 # efficiency against it (and not against a ceiling of another metric), and
 # a machine (or a run) with one allowed core, or a study with no parallel
 # run, refused in one line. The step: W pinned threads doing their share
-# of the copies' work at once, released together, keep all of it on a
-# quiet machine and far less beside a busy neighbour on one of the cores.
+# of the copies' work at once, released together; beside two busy
+# neighbours on one of the cores they keep well under 0.6 of it.
 # usage: test-ceiling.sh HARNESS [RAYTRACE SOURCE_ROOT]
 set -u
 . "$(dirname "$0")/common.sh"
