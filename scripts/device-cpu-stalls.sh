@@ -42,6 +42,15 @@
 #           IDLE_MODES picks the modes (default "cold spun warm"); "active"
 #           is cold with OMP_WAIT_POLICY=active for OpenMP (its threads spin
 #           between regions instead of sleeping)
+#   pixcost where a rank's pixels cost more than a thread's: warm frames
+#           (--warmup 3 --runs 9) of OpenMP at N threads, MPI at N ranks
+#           dynamic (the shared image, board and counter) and with block
+#           rows (each rank its own image, no claims), and one rank of N
+#           threads with block rows, of the dragon and of scenes/glass.txt
+#           (a few primitives: no memory but the image), interleaved, RES
+#           (default 512x384 2048x1536), ROUNDS rounds (default 4); each
+#           worker's own time (thread_work_ms, rank_work_ms), whose sum is
+#           the frame's CPU time in pixels
 #   bigbuild the BVH build of a 3.6M-triangle sphere field (large-4m) on
 #           16, N/2 and N threads (BUILD_THREADS), the older build and this
 #           one interleaved, ROUNDS rounds (default 3)
@@ -276,6 +285,20 @@ gap)
         "${W[@]}" $dragon -o /tmp/k.png | g
     done; done
   done; [ "$(left)" -lt 40 ] && break; done > "$O/gap.txt" 2>&1; log gap ;;
+pixcost)
+  g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|thread_work_ms|rank_work_ms)=' | tr '\n' ' '; echo; }
+  mkdir -m 700 -p /tmp/cc-head
+  W=(--warmup 3 --runs 9 -q --cache /tmp/cc-head)
+  for i in $(seq ${ROUNDS:-4}); do for sc in dragon glass; do for res in ${RES:-512x384 2048x1536}; do
+    f=$dragon; [ $sc = glass ] && f=$R/scenes/glass.txt
+    p="round=$i scene=$sc res=$res"
+    echo -n "$p run=openmp "; OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -r $res "${W[@]}" $f -o /tmp/k.png | g
+    for m in dynamic rows; do
+      echo -n "$p run=mpi-$m "; mpirun --bind-to core -np $N $RT -b mpi --mpi-schedule $m -r $res "${W[@]}" $f -o /tmp/k.png | g
+    done
+    echo -n "$p run=mpi-1x$N-rows "; mpirun --bind-to none -np 1 -x OMP_PLACES=cores -x OMP_PROC_BIND=close $RT -b mpi \
+      --mpi-schedule rows -t $N -r $res "${W[@]}" $f -o /tmp/k.png | g
+  done; done; [ "$(left)" -lt 40 ] && break; done > "$O/pixcost.txt" 2>&1; log pixcost ;;
 bigbuild)
   g() { tr ' ' '\n' | grep -E '^(parse_ms|build_ms|build_threads|sah_cost|huge_pages)=' | tr '\n' ' '; echo; }
   ninja -C /tmp/bh renderer/scenegen > /dev/null 2>&1
