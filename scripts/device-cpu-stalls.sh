@@ -17,6 +17,11 @@
 #   diag    6 rounds of OpenMP (pinned, this build and the older one) and MPI
 #           at N workers: fork_ms, thread_start_ms, backups, rank_work_ms
 #   none    brute force at N workers, 3 repeats each
+#   bruteceil brute force against its own ceiling: `harness ceiling` of
+#           brute-force copies at N (RES, default 512x384; 1 repeat, CEIL_S
+#           default 100 s), then table 1's OpenMP tiles with brute force at 1
+#           and N threads, 2 repeats, `order: rounds`, and its table against
+#           that ceiling
 #   one     serial, OpenMP at one thread and MPI at one rank, interleaved
 #           (`order: rounds`, 10 repeats), both resolutions: the baselines
 #           of tables 1 and 2 on the same core at the same time
@@ -146,6 +151,13 @@ none)
   timeout $(( $(left) - 10 )) $H run configs/report-table1-openmp.conf "${S[@]}" --set threads="$N" --set backend=openmp --set schedule=tiles -q -o "$O/t1-none-512x384.csv" > /dev/null 2>&1 || log "none rc $?"
   timeout $(( $(left) - 10 )) $H run configs/report-table2-mpi.conf "${S[@]}" --set ranks="$N" --set backend=mpi --set mpi_schedule=dynamic -q -o "$O/t2-none-512x384.csv" > /dev/null 2>&1 || log "none mpi rc $?"
   log none ;;
+bruteceil)
+  res=${RES:-512x384}
+  timeout ${CEIL_S:-100} $H ceiling configs/openmp-scaling-bvh.conf --set scene_dir=$course --set resolution=$res --set accel=none --set threads=$N --set schedule=tiles --repeats 1 -o "$O/ceiling-none-$res.csv" > "$O/ceiling-none-$res.log" 2>&1 || log "ceiling none rc $?"
+  tail -3 "$O/ceiling-none-$res.log"
+  timeout $(( $(left) - 10 )) $H run configs/report-table1-openmp.conf --set scene_dir=$course --set resolution=$res --set accel=none --set repeats=2 --set order=rounds --set threads="1 $N" --set backend=openmp --set schedule=tiles -q -o "$O/t1-none-$res.csv" > /dev/null 2>&1 || log "t1 none rc $?"
+  $H table "$O/t1-none-$res.csv" --ceiling "$O/ceiling-none-$res.csv" > "$O/t1-none-$res-table.md" 2>&1
+  log bruteceil ;;
 one)
   for res in 512x384 2048x1536; do
     printf 'study: one-worker\nscene_dir: %s\nscenes: dragon\nbackend: serial openmp mpi\naccel: bvh\nresolution: %s\nschedule: tiles\nmpi_schedule: dynamic\nthreads: 1\nranks: 1\npin: close\norder: rounds\nrepeats: 10\ntimeout: 60\n' $course $res > /tmp/one.conf
