@@ -362,9 +362,10 @@ static int build_copies(const HxConfig *cfg, const HxTopo *t, const HxRun *one, 
 /* The step probe (syncstep.c) after W copies ran together: each worker's work
  * per step is what W workers sharing one copy's work would each do, the
  * copies' value together / W where the metric is a time, else their wall
- * time / W; as many steps as fill the copies' time (0.3 to 2 s), 5 to
- * 500. Its share into share[*n] and its work per step into quantum[*n],
- * the CPU steal over it into *stolen and *ticks. */
+ * time / W; as many steps as fill the copies' time held to 0.3 to 2 s,
+ * but 5 at least (longer where each step is) and 500 at most. Its share
+ * into share[*n] and its work per step into quantum[*n], the CPU steal
+ * over it into *stolen and *ticks. */
 static void step_after(const Copies *cp, const HxTopo *t, const int *cores, int w, const double *v, double wall,
                        double *share, int *n, double *quantum, unsigned long long *stolen, unsigned long long *ticks)
 {
@@ -374,8 +375,11 @@ static void step_after(const Copies *cp, const HxTopo *t, const int *cores, int 
     HxCpuStat s0, s1;
     HxSyncStep st;
     hx_cpu_stat(&s0);
-    if (hx_sync_step(t, cores, w, q, steps, &st) != 0)
+    if (hx_sync_step(t, cores, w, q, steps, &st) != 0) {
+        fprintf(stderr, "harness ceiling: W=%d: no step this repeat (a worker could not be bound to its core, a "
+                        "step did not end within %.0f s, or a signal came)\n", w, (10000 + 20 * q) / 1000);
         return;
+    }
     hx_cpu_stat(&s1);
     quantum[*n] = q;
     share[(*n)++] = st.share;

@@ -24,6 +24,7 @@
 #include "run.h"
 
 #include <pthread.h>
+#include <sched.h>
 #include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -70,9 +71,11 @@ typedef struct {
 } Worker;
 
 typedef struct Probe {
-    _Atomic int go;    /* the step released: its number (-1: none yet) */
-    _Atomic int done;  /* workers finished, over all steps */
-    _Atomic int ready; /* workers on their cores */
+    _Atomic int go;      /* the step released: its number (-1: none yet) */
+    _Atomic int done;    /* workers finished, over all steps */
+    _Atomic int ready;   /* workers that tried to bind to their cores */
+    _Atomic int unbound; /* ... of whom the binding failed */
+    _Atomic int stop;    /* the probe given up: workers leave before their next step */
     uint64_t rounds;   /* of work per step */
     int nsteps, nworkers;
     int64_t *start, *end; /* per step, per worker (step-major) */
@@ -102,8 +105,10 @@ static void steps_of(Worker *w)
     const int nsteps = p->nsteps, nworkers = p->nworkers;
     uint64_t x = 88172645463325252ull + (uint64_t)w->id;
     for (int s = 0; s < nsteps; s++) {
-        while (atomic_load_explicit(&p->go, memory_order_acquire) < s)
+        while (atomic_load_explicit(&p->go, memory_order_acquire) < s && !atomic_load_explicit(&p->stop, memory_order_relaxed))
             relax();
+        if (atomic_load_explicit(&p->stop, memory_order_acquire))
+            break;
         const int64_t a = now_ns();
         x = work(p->rounds, x);
         const int64_t b = now_ns();
@@ -117,7 +122,8 @@ static void steps_of(Worker *w)
 static void *worker_main(void *arg)
 {
     Worker *w = arg;
-    bind_self(w->t, w->core);
+    if (bind_self(w->t, w->core) != 0) /* a step with two workers on one core measures nothing */
+        atomic_fetch_add_explicit(&w->p->unbound, 1, memory_order_relaxed);
     atomic_fetch_add_explicit(&w->p->ready, 1, memory_order_release);
     steps_of(w);
     return NULL;
@@ -148,23 +154,40 @@ static int probe(const HxTopo *t, const int *cores, int w, double quantum_ms, in
 int hx_sync_step(const HxTopo *t, const int *cores, int w, double quantum_ms, int nsteps, HxSyncStep *out)
 {
     memset(out, 0, sizeof *out);
-#if HAVE_HWLOC /* the main thread's binding, restored after */
+    if (w < 1 || nsteps < 1 || !(quantum_ms > 0))
+        return -1;
+#if HAVE_HWLOC /* the main thread's binding, restored after (the probe binds it to cores[0]) */
     hwloc_bitmap_t was = t->have_hwloc ? hwloc_bitmap_alloc() : NULL;
-    if (was && hwloc_get_cpubind((hwloc_topology_t)t->topo, was, HWLOC_CPUBIND_THREAD) != 0) {
+    if (!was || hwloc_get_cpubind((hwloc_topology_t)t->topo, was, HWLOC_CPUBIND_THREAD) != 0) {
         hwloc_bitmap_free(was);
-        was = NULL;
+        return -1;
     }
-#endif
-    int rc = w < 1 || nsteps < 1 || !(quantum_ms > 0) || bind_self(t, cores[0]) != 0 ? -1 : 0;
-    if (rc == 0)
-        rc = probe(t, cores, w, quantum_ms, nsteps, out);
-#if HAVE_HWLOC
-    if (was) {
-        hwloc_set_cpubind((hwloc_topology_t)t->topo, was, HWLOC_CPUBIND_THREAD);
-        hwloc_bitmap_free(was);
-    }
-#endif
+    const int rc = probe(t, cores, w, quantum_ms, nsteps, out);
+    hwloc_set_cpubind((hwloc_topology_t)t->topo, was, HWLOC_CPUBIND_THREAD);
+    hwloc_bitmap_free(was);
     return rc;
+#else
+    (void)cores;
+    (void)probe;
+    return -1; /* no binding: no step */
+#endif
+}
+
+/* Waits until *v reaches n: spinning (the step's waits, timed) or yielding
+ * (the start, not timed), for at most limit_ms, while no stop signal came.
+ * 0, or -1 when it gave up. */
+static int wait_for(_Atomic int *v, int n, double limit_ms, int yield)
+{
+    const int64_t until = now_ns() + (int64_t)(limit_ms * 1e6);
+    for (unsigned i = 0; atomic_load_explicit(v, memory_order_acquire) < n; i++) {
+        if (yield)
+            sched_yield();
+        else
+            relax();
+        if ((i & 1023) == 0 && (now_ns() > until || hx_stop_signal()))
+            return -1;
+    }
+    return 0;
 }
 
 /* hx_sync_step's probe, the main thread already on cores[0]. */
@@ -175,6 +198,8 @@ static int probe(const HxTopo *t, const int *cores, int w, double quantum_ms, in
     atomic_init(&p.go, -1);
     atomic_init(&p.done, 0);
     atomic_init(&p.ready, 0);
+    atomic_init(&p.unbound, 0);
+    atomic_init(&p.stop, 0);
     atomic_init(&p.sink, 0);
     p.rounds = (uint64_t)(quantum_ms * rounds_per_ms()) + 1;
     p.start = hx_xmalloc((size_t)nsteps * (size_t)w * sizeof *p.start);
@@ -185,19 +210,25 @@ static int probe(const HxTopo *t, const int *cores, int w, double quantum_ms, in
     int started = 1, rc = 0;
     for (int i = 0; i < w; i++)
         args[i] = (Worker){t, cores[i], i, &p, 0};
+    /* The workers start where the main thread may run, bind themselves, and
+     * only then is the main thread bound to cores[0]: a worker that began
+     * on the core where the main thread spins would wait for it forever
+     * under a real-time policy. */
     for (int i = 1; i < w && rc == 0; i++, started++)
         rc = pthread_create(&args[i].th, NULL, worker_main, &args[i]) != 0 ? -1 : 0;
     if (rc != 0)
         started--;
+    if (rc == 0 && (wait_for(&p.ready, w - 1, 10000, 1) != 0 || atomic_load(&p.unbound) > 0 || bind_self(t, cores[0]) != 0))
+        rc = -1;
     /* the main thread is worker 0: it releases the first step once every
      * worker is on its core, each next one once every worker ended the
      * last, and works it too */
-    while (rc == 0 && atomic_load_explicit(&p.ready, memory_order_acquire) < w - 1)
-        relax();
     uint64_t x = 1;
     for (int s = 0; s < nsteps && rc == 0; s++) {
-        while (atomic_load_explicit(&p.done, memory_order_acquire) < s * w)
-            relax();
+        if (wait_for(&p.done, s * w, 10000 + 20 * quantum_ms, 0) != 0) {
+            rc = -1;
+            break;
+        }
         atomic_store_explicit(&p.go, s, memory_order_release);
         const int64_t a = now_ns();
         x = work(p.rounds, x);
@@ -206,8 +237,8 @@ static int probe(const HxTopo *t, const int *cores, int w, double quantum_ms, in
         p.end[(size_t)s * (size_t)w] = b;
         atomic_fetch_add_explicit(&p.done, 1, memory_order_acq_rel);
     }
-    if (rc != 0) /* the threads that started: let them run out their steps */
-        atomic_store_explicit(&p.go, nsteps, memory_order_release);
+    if (rc != 0) /* the threads that started leave before their next step */
+        atomic_store_explicit(&p.stop, 1, memory_order_release);
     for (int i = 1; i < started; i++)
         pthread_join(args[i].th, NULL);
     if (rc == 0)

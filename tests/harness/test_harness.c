@@ -437,6 +437,21 @@ static void test_sync_step(void)
     CHECK_NEAR(st.share, 2.0 / 3.0, 1e-9); /* the median of 1, 2/3 and 1/2 */
     CHECK_NEAR(st.worst, 0.5, 1e-9);
     CHECK_NEAR(st.span_ms, 3.0, 1e-9);     /* of 2, 3 and 4 ms */
+    /* The probe itself: one worker keeps all of its step; a worker that
+     * cannot be bound to its core (no such core) fails the probe rather
+     * than share another's core and report that as the machine's noise. */
+    HxTopo t;
+    hx_topo_load(&t);
+    int one[] = {0}, bad[] = {0, 1 << 20}, two[] = {0, 1};
+    const int want = t.have_hwloc ? 0 : -1; /* (without hwloc nothing is bound: no step) */
+    CHECK(hx_sync_step(&t, one, 1, 0.5, 5, &st) == want);
+    CHECK(!t.have_hwloc || (st.steps == 5 && st.share == 1));
+    CHECK(hx_sync_step(&t, bad, 2, 0.5, 5, &st) == -1);
+    if (t.ncores >= 2) {
+        CHECK(hx_sync_step(&t, two, 2, 0.5, 20, &st) == want);
+        CHECK(!t.have_hwloc || (st.steps == 20 && st.share > 0 && st.share <= 1));
+    }
+    hx_topo_free(&t);
 }
 
 static void test_stats(void)
