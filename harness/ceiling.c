@@ -377,7 +377,7 @@ static void step_after(const Copies *cp, const HxTopo *t, const int *cores, int 
     hx_cpu_stat(&s0);
     if (hx_sync_step(t, cores, w, q, steps, &st) != 0) {
         fprintf(stderr, "harness ceiling: W=%d: no step this repeat (a worker could not be bound to its core, a "
-                        "step did not end within %.0f s, or a signal came)\n", w, (10000 + 20 * q) / 1000);
+                        "step did not end within %.0f s, or a signal came)\n", w, hx_sync_wait_ms(q) / 1000);
         return;
     }
     hx_cpu_stat(&s1);

@@ -101,8 +101,12 @@ typedef struct {
 } HxSyncStep;
 /* nsteps steps of w threads pinned one per core of cores (the calling
  * thread on cores[0], its binding restored after), each doing quantum_ms of
- * fixed work per step. 0, or -1 when a thread or the binding failed. */
+ * fixed work per step. 0, or -1 when a thread or a binding failed, a wait
+ * passed hx_sync_wait_ms or a stop signal came. */
 int hx_sync_step(const HxTopo *t, const int *cores, int w, double quantum_ms, int nsteps, HxSyncStep *out);
+/* How long hx_sync_step waits for its workers to start, or for a step of
+ * quantum_ms to end, before it gives up. */
+double hx_sync_wait_ms(double quantum_ms);
 /* The shares of nsteps steps of w workers from their start and end times
  * (ns, step-major). */
 void hx_sync_summarise(const int64_t *start, const int64_t *end, int nsteps, int w, HxSyncStep *out);

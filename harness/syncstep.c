@@ -173,6 +173,11 @@ int hx_sync_step(const HxTopo *t, const int *cores, int w, double quantum_ms, in
 #endif
 }
 
+double hx_sync_wait_ms(double quantum_ms)
+{
+    return 10000 + 20 * quantum_ms;
+}
+
 /* Waits until *v reaches n: spinning (the step's waits, timed) or yielding
  * (the start, not timed), for at most limit_ms, while no stop signal came.
  * 0, or -1 when it gave up. */
@@ -190,7 +195,8 @@ static int wait_for(_Atomic int *v, int n, double limit_ms, int yield)
     return 0;
 }
 
-/* hx_sync_step's probe, the main thread already on cores[0]. */
+/* hx_sync_step's probe; it binds the main thread to cores[0] once the
+ * workers are bound. */
 static int probe(const HxTopo *t, const int *cores, int w, double quantum_ms, int nsteps, HxSyncStep *out)
 {
     Probe p;
@@ -218,14 +224,14 @@ static int probe(const HxTopo *t, const int *cores, int w, double quantum_ms, in
         rc = pthread_create(&args[i].th, NULL, worker_main, &args[i]) != 0 ? -1 : 0;
     if (rc != 0)
         started--;
-    if (rc == 0 && (wait_for(&p.ready, w - 1, 10000, 1) != 0 || atomic_load(&p.unbound) > 0 || bind_self(t, cores[0]) != 0))
+    if (rc == 0 && (wait_for(&p.ready, w - 1, hx_sync_wait_ms(0), 1) != 0 || atomic_load(&p.unbound) > 0 || bind_self(t, cores[0]) != 0))
         rc = -1;
     /* the main thread is worker 0: it releases the first step once every
      * worker is on its core, each next one once every worker ended the
      * last, and works it too */
     uint64_t x = 1;
     for (int s = 0; s < nsteps && rc == 0; s++) {
-        if (wait_for(&p.done, s * w, 10000 + 20 * quantum_ms, 0) != 0) {
+        if (wait_for(&p.done, s * w, hx_sync_wait_ms(quantum_ms), 0) != 0) {
             rc = -1;
             break;
         }

@@ -452,6 +452,16 @@ static inline int64_t rt_cpu_pool_start(const RtCpuPool *p)
     return start;
 }
 
+/* When the last thread ran out of claims (its tile loop's end). */
+static inline int64_t rt_cpu_pool_end(const RtCpuPool *p)
+{
+    int64_t end = rt_cpu_slot(p, 0)->end_ns;
+    for (int t = 1; t < p->nthreads; t++)
+        if (rt_cpu_slot(p, t)->end_ns > end)
+            end = rt_cpu_slot(p, t)->end_ns;
+    return end;
+}
+
 /* Second renders started and won, over the pool's threads (the record's
  * backups= key). */
 static inline void rt_cpu_pool_backups(const RtCpuPool *p, uint64_t *runs, uint64_t *won)

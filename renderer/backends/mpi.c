@@ -237,10 +237,7 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
         rt_cpu_render_tiles(pool, &run);
         rt->t[T_CLAIMS] = (double)tc.claims;
         rt->t[T_CLAIM_MS] = tc.claim_ns * 1e-6;
-        int64_t last = rt_cpu_slot(pool, 0)->end_ns;
-        for (int t = 1; t < pool->nthreads; t++)
-            last = rt_cpu_slot(pool, t)->end_ns > last ? rt_cpu_slot(pool, t)->end_ns : last;
-        rt->t[T_WORK_MS] = (last - rt->t0_ns) * 1e-6;
+        rt->t[T_WORK_MS] = (rt_cpu_pool_end(pool) - rt->t0_ns) * 1e-6;
     } else {
         claims_with_puts(&m, pool, &run, rgb, nstrips, rt);
         rt->t[T_WORK_MS] = rt_now_ms() - t0;
