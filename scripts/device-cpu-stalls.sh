@@ -69,12 +69,14 @@
 #           against the ceiling (run ceil first)
 #   gap     where a rank's frame differs from a thread's: warm frames
 #           (--warmup 3 --runs 9) of OpenMP at N threads, MPI at N ranks
-#           from the node's one copy of the scene (the older build and this
-#           one), MPI at N ranks from a
+#           from the node's one copy of the scene (the older build, the
+#           build of .devcarry/mid.tar.gz where carried, and this one), MPI
+#           at N ranks from a
 #           copy each (raytrace-testhooks, RT_MPI_TEST_SHM_FAIL=0: rank 0
 #           makes no shared copy, so every rank keeps its own), and MPI at
 #           one rank of N threads and two of N/2 by the older build and this
-#           one, interleaved, RES, ROUNDS rounds (default 8)
+#           one, interleaved, RES, ROUNDS rounds (default 8); with the
+#           backup and claim keys
 # RES limits ceil, tables and warm to one resolution; EXTRA gives their runs
 # raytrace arguments (extra_args), e.g. EXTRA="--warmup 3 --runs 9".
 # CEIL_S bounds each ceiling (default 100 s; 2048x1536 with that EXTRA
@@ -274,7 +276,8 @@ share)
     [ "$(left)" -lt 60 ] && break
   done > "$O/share.txt" 2>&1; log share ;;
 gap)
-  g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|scene_copies|rank_work_ms|thread_work_ms)=' | tr '\n' ' '; echo; }
+  g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|scene_copies|rank_work_ms|thread_work_ms|backups|backups_won|rank_claims|fork_ms)=' | tr '\n' ' '; echo; }
+  V=(prev head); [ -x /tmp/bm/renderer/raytrace ] && V=(prev mid head)
   ninja -C /tmp/bh tests/cpu/raytrace-testhooks > /dev/null 2>&1
   TH=/tmp/bh/tests/cpu/raytrace-testhooks
   mkdir -m 700 -p /tmp/cc-head
@@ -282,8 +285,8 @@ gap)
   for i in $(seq ${ROUNDS:-8}); do for res in ${RES:-512x384}; do
     echo -n "round=$i res=$res run=openmp "
     OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -r $res "${W[@]}" $dragon -o /tmp/k.png | g
-    for v in prev head; do
-      x=$RT; [ $v = prev ] && x=$PR
+    for v in "${V[@]}"; do
+      x=$RT; [ $v = prev ] && x=$PR; [ $v = mid ] && x=/tmp/bm/renderer/raytrace
       echo -n "round=$i res=$res run=mpi-shared version=$v "
       mpirun --bind-to core -np $N $x -b mpi -r $res "${W[@]}" $dragon -o /tmp/k.png | g
     done
