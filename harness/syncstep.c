@@ -258,10 +258,10 @@ static int probe(const HxTopo *t, const int *cores, int w, double quantum_ms, in
 }
 
 /* Each step's share (the fastest worker's own time over the span from the
- * first start to the last end) and span; their medians into out. */
+ * first start to the last end); their median into out. */
 void hx_sync_summarise(const int64_t *start, const int64_t *end, int nsteps, int w, HxSyncStep *out)
 {
-    double *share = hx_xmalloc((size_t)nsteps * sizeof *share), *span = hx_xmalloc((size_t)nsteps * sizeof *span);
+    double *share = hx_xmalloc((size_t)nsteps * sizeof *share);
     for (int s = 0; s < nsteps; s++) {
         const int64_t *a = start + (size_t)s * (size_t)w, *b = end + (size_t)s * (size_t)w;
         int64_t first = a[0], last = b[0], own = b[0] - a[0];
@@ -270,13 +270,9 @@ void hx_sync_summarise(const int64_t *start, const int64_t *end, int nsteps, int
             last = b[i] > last ? b[i] : last;
             own = b[i] - a[i] < own ? b[i] - a[i] : own;
         }
-        span[s] = (double)(last - first) * 1e-6;
-        share[s] = last > first ? (double)own * 1e-6 / span[s] : 1;
+        share[s] = last > first ? (double)own / (double)(last - first) : 1;
     }
     out->share = hx_median(share, (size_t)nsteps);
-    out->span_ms = hx_median(span, (size_t)nsteps);
-    out->worst = hx_min(share, (size_t)nsteps);
     out->steps = nsteps;
     free(share);
-    free(span);
 }

@@ -435,8 +435,6 @@ static void test_sync_step(void)
     hx_sync_summarise(start, end, 3, 2, &st);
     CHECK(st.steps == 3);
     CHECK_NEAR(st.share, 2.0 / 3.0, 1e-9); /* the median of 1, 2/3 and 1/2 */
-    CHECK_NEAR(st.worst, 0.5, 1e-9);
-    CHECK_NEAR(st.span_ms, 3.0, 1e-9);     /* of 2, 3 and 4 ms */
     /* The probe itself: one worker keeps all of its step; a worker that
      * cannot be bound to its core (no such core) fails the probe rather
      * than share another's core and report that as the machine's noise. */
