@@ -20,6 +20,15 @@
 # noisy neighbour of the noise tests; chromium opens `harness report`'s
 # pages in the report test, headless.
 set -euo pipefail
+# Open MPI's launcher and ranks look up this host's own name: where neither
+# /etc/hosts nor a quick DNS server has it (a bare chroot has no /etc/hosts),
+# every mpirun waits seconds on the resolver, and the MPI tests run out of
+# time. Said once here rather than found in a test's timeout.
+host=$(uname -n)
+if ! getent -s files hosts "$host" > /dev/null 2>&1; then
+  echo "install-deps: warning: this host's name ($host) is not in /etc/hosts; each mpirun may wait on DNS" \
+       "for it (a line such as '127.0.1.1 $host' in /etc/hosts avoids that)" >&2
+fi
 pkgs=(meson ninja-build gcc pkg-config libpng-dev libhwloc-dev hwloc
       libopenmpi-dev openmpi-bin gnuplot-nox libxxhash-dev libassimp-dev assimp-testmodels
       libembree-dev slurm-wlm slurm-client munge libpmix2 libsqlite3-dev valgrind
