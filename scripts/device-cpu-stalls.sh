@@ -66,7 +66,11 @@
 #           scene_copies and the starts
 #   hybrid  the hybrid table (configs/hybrid-dragon.conf): every P x T <= N
 #           of powers of two, both resolutions, 3 repeats, `order: rounds`,
-#           against the ceiling (run ceil first)
+#           against the ceiling (run ceil first), HYB_S seconds each (default 200)
+#   layouts OpenMP at N threads and every P ranks x N/P threads (powers of
+#           two), cold (--warmup 0 --runs 1) and warm (--warmup 3 --runs 9),
+#           interleaved, RES (default 512x384), ROUNDS rounds (default 5):
+#           the backup, per-rank and per-thread keys
 #   gap     where a rank's frame differs from a thread's: warm frames
 #           (--warmup 3 --runs 9) of OpenMP at N threads, MPI at N ranks
 #           from the node's one copy of the scene (the older build, the
@@ -169,7 +173,7 @@ one)
 hybrid)
   P=""; for ((p = 1; p <= N; p *= 2)); do P="$P $p"; done
   for res in 512x384 2048x1536; do
-    timeout 200 $H run configs/hybrid-dragon.conf --set scene_dir=$course --set resolution=$res --set ranks="$P" --set threads="$P" --set repeats=3 --set order=rounds -q -o "$O/hybrid-$res.csv" > /dev/null 2>&1 || log "hybrid $res rc $?"
+    timeout ${HYB_S:-200} $H run configs/hybrid-dragon.conf --set scene_dir=$course --set resolution=$res --set ranks="$P" --set threads="$P" --set repeats=3 --set order=rounds -q -o "$O/hybrid-$res.csv" > /dev/null 2>&1 || log "hybrid $res rc $?"
     $H table "$O/hybrid-$res.csv" --ceiling "$O/ceiling-$res.csv" > "$O/hybrid-$res-table.md" 2>&1
   done; log hybrid ;;
 diag)
@@ -275,6 +279,21 @@ share)
     done; done
     [ "$(left)" -lt 60 ] && break
   done > "$O/share.txt" 2>&1; log share ;;
+layouts)
+  g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|backups|backups_won|fork_ms|thread_start_ms|rank_work_ms|rank_faults)=' | tr '\n' ' '; echo; }
+  mkdir -m 700 -p /tmp/cc-head
+  for i in $(seq ${ROUNDS:-5}); do for w in "0 1" "3 9"; do
+    set -- $w
+    echo -n "round=$i warmup=$1 run=openmp-$N "
+    OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -q -r ${RES:-512x384} --warmup $1 --runs $2 \
+      --cache /tmp/cc-head $dragon -o /tmp/k.png | g
+    for ((p = 1; p <= N; p *= 2)); do
+      b=(--bind-to none); [ $p -gt 1 ] && b=(--map-by slot:PE=$((N / p)) --bind-to core) # a rank's threads on its own cores
+      echo -n "round=$i warmup=$1 run=mpi-${p}x$((N / p)) "
+      mpirun "${b[@]}" -np $p -x OMP_PLACES=cores -x OMP_PROC_BIND=close $RT -b mpi -t $((N / p)) -q -r ${RES:-512x384} \
+        --warmup $1 --runs $2 --cache /tmp/cc-head $dragon -o /tmp/k.png | g
+    done
+  done; [ "$(left)" -lt 40 ] && break; done > "$O/layouts.txt" 2>&1; log layouts ;;
 gap)
   g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|scene_copies|rank_work_ms|thread_work_ms|backups|backups_won|rank_claims|fork_ms)=' | tr '\n' ' '; echo; }
   V=(prev head); [ -x /tmp/bm/renderer/raytrace ] && V=(prev mid head)
