@@ -110,7 +110,12 @@ if [ ! -x /tmp/bh/harness/harness ]; then
 fi
 [ -x /tmp/bh/renderer/raytrace ] && [ -x /tmp/bp/renderer/raytrace ] || { log "build failed"; tail -20 "$O"/*.log; exit 1; }
 log built
-H=/tmp/bh/harness/harness RT=/tmp/bh/renderer/raytrace PR=/tmp/bp/renderer/raytrace
+H=/tmp/bh/harness/harness RT=/tmp/bh/renderer/raytrace PR=/tmp/bp/renderer/raytrace MID=/tmp/bm/renderer/raytrace
+# the builds compared by share and gap (mid only where carried), and each one's renderer
+VERS=(prev head); [ -x $MID ] && VERS=(prev mid head)
+bin() { case $1 in prev) echo $PR ;; mid) echo $MID ;; *) echo $RT ;; esac; }
+# mpirun's placement for P ranks of N/P threads: a rank's threads on its own cores
+layout() { if [ $1 -gt 1 ]; then echo --map-by slot:PE=$((N / $1)) --bind-to core; else echo --bind-to none; fi; }
 N=$(nproc)
 X=(); [ -n "${EXTRA:-}" ] && X=(--set "extra_args=$EXTRA")
 dragon=$(find $course -name dragon.txt | head -1)
@@ -191,7 +196,7 @@ lean)
   mkdir -m 700 -p /tmp/cc-prev /tmp/cc-head
   for i in $(seq ${ROUNDS:-20}); do
     for res in 512x384 2048x1536; do for v in prev head; do
-      x=$RT; [ $v = prev ] && x=$PR
+      x=$(bin $v)
       echo -n "round=$i version=$v res=$res "
       mpirun --bind-to core -np $N $x -b mpi -q -r $res --cache /tmp/cc-$v $dragon -o /tmp/k.png | g
     done; done
@@ -222,7 +227,7 @@ build)
   for i in $(seq ${ROUNDS:-7}); do for busy in 0 1; do
     bp=; [ $busy = 1 ] && bp=$(spin)
     for sc in scenes/demo.txt $dragon $big; do for v in prev head; do
-      x=$RT; [ $v = prev ] && x=$PR
+      x=$(bin $v)
       echo -n "round=$i busy=$busy version=$v scene=$(basename $sc .txt) "
       $x -q -b serial -r 8x8 $sc -o /tmp/k.png | g
     done; done
@@ -230,7 +235,7 @@ build)
   done; done > "$O/build.txt" 2>&1; log build
   bp=$(spin)
   for i in $(seq 3); do for sc in scenes/demo.txt $dragon; do for v in prev head; do
-    x=$RT; [ $v = prev ] && x=$PR
+    x=$(bin $v)
     echo -n "round=$i ranks=$N version=$v scene=$(basename $sc .txt) "
     timeout 60 mpirun --bind-to core -np $N $x -b mpi -q -r 64x48 --mpi-scene every $sc -o /tmp/k.png | g
   done; done; done > "$O/build-mpi.txt" 2>&1
@@ -265,12 +270,11 @@ idle)
   done > "$O/idle.txt" 2>&1; log idle ;;
 share)
   g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|scene_copies|fork_ms|thread_start_ms|rank_claims|rank_start_ms|rank_work_ms)=' | tr '\n' ' '; echo; }
-  V="prev head"; [ -x /tmp/bm/renderer/raytrace ] && V="prev mid head"
   mkdir -m 700 -p /tmp/cc-head
   for i in $(seq ${ROUNDS:-10}); do
     for res in ${RES:-512x384 2048x1536}; do for w in ${WORKERS:-$N}; do
-      for v in $V; do
-        x=$RT; [ $v = prev ] && x=$PR; [ $v = mid ] && x=/tmp/bm/renderer/raytrace
+      for v in "${VERS[@]}"; do
+        x=$(bin $v)
         echo -n "round=$i res=$res backend=mpi workers=$w version=$v "
         timeout 60 mpirun --bind-to core -np $w $x -b mpi -q -r $res --cache /tmp/cc-head $dragon -o /tmp/k.png | g
       done
@@ -288,15 +292,13 @@ layouts)
     OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -q -r ${RES:-512x384} --warmup $1 --runs $2 \
       --cache /tmp/cc-head $dragon -o /tmp/k.png | g
     for ((p = 1; p <= N; p *= 2)); do
-      b=(--bind-to none); [ $p -gt 1 ] && b=(--map-by slot:PE=$((N / p)) --bind-to core) # a rank's threads on its own cores
       echo -n "round=$i warmup=$1 run=mpi-${p}x$((N / p)) "
-      mpirun "${b[@]}" -np $p -x OMP_PLACES=cores -x OMP_PROC_BIND=close $RT -b mpi -t $((N / p)) -q -r ${RES:-512x384} \
+      mpirun $(layout $p) -np $p -x OMP_PLACES=cores -x OMP_PROC_BIND=close $RT -b mpi -t $((N / p)) -q -r ${RES:-512x384} \
         --warmup $1 --runs $2 --cache /tmp/cc-head $dragon -o /tmp/k.png | g
     done
   done; [ "$(left)" -lt 40 ] && break; done > "$O/layouts.txt" 2>&1; log layouts ;;
 gap)
   g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|scene_copies|rank_work_ms|thread_work_ms|backups|backups_won|rank_claims|fork_ms)=' | tr '\n' ' '; echo; }
-  V=(prev head); [ -x /tmp/bm/renderer/raytrace ] && V=(prev mid head)
   ninja -C /tmp/bh tests/cpu/raytrace-testhooks > /dev/null 2>&1
   TH=/tmp/bh/tests/cpu/raytrace-testhooks
   mkdir -m 700 -p /tmp/cc-head
@@ -304,18 +306,17 @@ gap)
   for i in $(seq ${ROUNDS:-8}); do for res in ${RES:-512x384}; do
     echo -n "round=$i res=$res run=openmp "
     OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -r $res "${W[@]}" $dragon -o /tmp/k.png | g
-    for v in "${V[@]}"; do
-      x=$RT; [ $v = prev ] && x=$PR; [ $v = mid ] && x=/tmp/bm/renderer/raytrace
+    for v in "${VERS[@]}"; do
+      x=$(bin $v)
       echo -n "round=$i res=$res run=mpi-shared version=$v "
       mpirun --bind-to core -np $N $x -b mpi -r $res "${W[@]}" $dragon -o /tmp/k.png | g
     done
     echo -n "round=$i res=$res run=mpi-private "
     mpirun --bind-to core -np $N -x RT_MPI_TEST_SHM_FAIL=0 $TH -b mpi -r $res "${W[@]}" $dragon -o /tmp/k.png | g
     for v in prev head; do for p in 1 2; do
-      x=$RT; [ $v = prev ] && x=$PR
+      x=$(bin $v)
       echo -n "round=$i res=$res run=mpi-${p}x$((N / p)) version=$v "
-      b=(--bind-to none); [ $p -gt 1 ] && b=(--map-by slot:PE=$((N / p)) --bind-to core) # a rank's threads on its own cores
-      mpirun "${b[@]}" -np $p -x OMP_PLACES=cores -x OMP_PROC_BIND=close $x -b mpi -t $((N / p)) -r $res \
+      mpirun $(layout $p) -np $p -x OMP_PLACES=cores -x OMP_PROC_BIND=close $x -b mpi -t $((N / p)) -r $res \
         "${W[@]}" $dragon -o /tmp/k.png | g
     done; done
   done; [ "$(left)" -lt 40 ] && break; done > "$O/gap.txt" 2>&1; log gap ;;
@@ -339,7 +340,7 @@ bigbuild)
   big=/tmp/large-4m.txt
   [ -s $big ] || /tmp/bh/renderer/scenegen --kind spheres --triangles 4000000 --seed 1 --resolution 1920x1080 -o $big
   for i in $(seq ${ROUNDS:-3}); do for t in ${BUILD_THREADS:-16 $((N / 2)) $N}; do for v in prev head; do
-    x=$RT; [ $v = prev ] && x=$PR
+    x=$(bin $v)
     echo -n "round=$i threads=$t version=$v "
     $x -q -b serial -r 8x8 --build-threads $t $big -o /tmp/k.png | g
   done; done; done > "$O/bigbuild.txt" 2>&1; log bigbuild ;;
