@@ -93,7 +93,6 @@ void hx_noise(const HxCpuStat *a, const HxCpuStat *b, double wall_ms, double own
 /* ---- the machine's floor for one synchronised step (syncstep.c) ---- */
 typedef struct {
     double share;      /* median over steps: the fastest worker's own time over the step */
-    double quantum_ms; /* each worker's work per step, alone */
     int steps;
     uint64_t sink;     /* the work's result, kept so that it is done */
 } HxSyncStep;

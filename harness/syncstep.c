@@ -249,7 +249,6 @@ static int probe(const HxTopo *t, const int *cores, int w, double quantum_ms, in
         pthread_join(args[i].th, NULL);
     if (rc == 0)
         hx_sync_summarise(p.start, p.end, nsteps, w, out);
-    out->quantum_ms = quantum_ms;
     out->sink = x ^ atomic_load(&p.sink);
     free(p.start);
     free(p.end);
