@@ -537,5 +537,7 @@ int rt_stream_threads(void);
 /* Appends the CPU the calling thread runs on to a sorted, unique list. */
 void rt_cores_note(char *list, size_t size, int cpu);
 int rt_current_cpu(void);
+/* The CPUs this process may run on (its affinity mask). */
+int rt_own_cpus(void);
 
 #endif

@@ -144,6 +144,15 @@ int rt_current_cpu(void)
     return sched_getcpu();
 }
 
+int rt_own_cpus(void)
+{
+    cpu_set_t set;
+    if (sched_getaffinity(0, sizeof set, &set) == 0)
+        return CPU_COUNT(&set);
+    const long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n > 0 ? (int)n : 1;
+}
+
 void rt_cores_note(char *list, size_t size, int cpu)
 {
     if (cpu < 0)

@@ -10,7 +10,7 @@
 #   ceilprev the same with the older build's harness (its ceiling's own
 #           measure: before e.g. render_ms, the copies' wall time)
 #   tables  the report's tables 1 and 2 (BVH, tiles, dynamic) at 1, N/2 and
-#           N workers (WORKERS), 5 repeats, `order: rounds`; tables against
+#           N workers (WORKERS), TREP repeats (default 5), `order: rounds`; tables against
 #           the ceiling
 #   keys    5 unpinned runs of each at N workers (or at each of
 #           KEYS_WORKERS), their timing keys
@@ -142,7 +142,7 @@ ceilprev)
 tables)
   W=${WORKERS:-1 $((N / 2)) $N}
   for res in ${RES:-512x384 2048x1536}; do
-    S=(--set scene_dir=$course --set resolution=$res --set repeats=5 --set accel=bvh "${X[@]}")
+    S=(--set scene_dir=$course --set resolution=$res --set repeats=${TREP:-5} --set accel=bvh "${X[@]}")
     timeout 120 $H run configs/report-table1-openmp.conf "${S[@]}" --set order=rounds --set threads="$W" --set backend=openmp --set schedule=tiles -q -o "$O/t1-bvh-$res.csv" > /dev/null 2>&1 || log "t1 $res rc $?"
     $H table "$O/t1-bvh-$res.csv" --ceiling "$O/ceiling-$res.csv" > "$O/t1-bvh-$res-table.md" 2>&1
     timeout 120 $H run configs/report-table2-mpi.conf "${S[@]}" --set order=rounds --set ranks="$W" --set backend=mpi --set mpi_schedule=dynamic -q -o "$O/t2-bvh-$res.csv" > /dev/null 2>&1 || log "t2 $res rc $?"

@@ -74,6 +74,11 @@ static int test_separate(void)
 #endif
 }
 
+/* Whether each of this rank's threads has a core of its own: no other rank
+ * of the node may run on its CPUs, and it has a CPU per thread (the tile
+ * loop's rescue pass, cpu_tiles.h). */
+static int own_cores(const RtCpuPool *pool) { return !rt_mpi_shares_core && pool->nthreads <= rt_own_cpus(); }
+
 /* ---------------------------------------------------------------- rows */
 
 static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th, float *rgb, RankTimes *rt)
@@ -100,7 +105,8 @@ static void render_rows(const RtRenderJob *job, RtCpuPool *pool, int tw, int th,
     int64_t done = 0, end_ns = 0;
     RtTileBoard board = {state, &done, &end_ns, y1 > y0 ? rt_strip_total(w, y1 - y0, tw) : 0};
     RtTileRun run = {.v = v, .ry0 = y0, .rx1 = w, .ry1 = y1, .tw = tw, .th = th, .count = nstrips,
-                     .scan_count = nstrips, .scan_slots = 1, .rgb = rgb, .board = &board};
+                     .scan_count = nstrips, .scan_slots = 1, .rgb = rgb, .board = &board,
+                     .rescue = own_cores(pool)};
     RT_MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD));
     rt->t0_ns = rt_now_ns();
     const double t0 = rt_now_ms(), f0 = minor_faults();
@@ -223,7 +229,8 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
         board.state = (uint32_t *)(void *)((char *)m.extra + 128);
     }
     RtTileRun run = {.v = v, .rx1 = w, .ry1 = h, .tw = tw, .th = th, .scan_slot = rt_mpi_rank,
-                     .scan_slots = rt_mpi_size, .rgb = m.direct ? (float *)m.img0 : rgb, .board = &board};
+                     .scan_slots = rt_mpi_size, .rgb = m.direct ? (float *)m.img0 : rgb, .board = &board,
+                     .rescue = own_cores(pool)};
     ThreadClaims tc = {&m, nstrips, 0, 0, pool->nthreads};
     rt_mpi_frame_start(&m);
     rt->t0_ns = rt_now_ns();

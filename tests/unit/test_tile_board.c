@@ -4,8 +4,9 @@
  * and the counters are the serial ones, every strip is in the image once,
  * and the board's count and end time say so. The races themselves are
  * forced here: a strip published twice, a frame rendered by backups alone,
- * strips that the board already calls done, and strips whose backup has
- * started before their owner reaches them. */
+ * strips that the board already calls done, strips whose backup has
+ * started before their owner reaches them, and strips whose owner and
+ * backup are both stalled (the rescue pass). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -136,6 +137,36 @@ static void check_frame(const RtSceneView *v, Frame *f)
                 CHECK(!px || (mark == 1 ? isnan(*px) && strip_state(&run, s) == 1 : strip_state(&run, s) == 3),
                       "%s: strip %lld: state %u", what, (long long)s, strip_state(&run, s));
             }
+            rt_cpu_pool_free(&p);
+        }
+
+        /* owners stalled (nobody claims) and a third of the strips backed
+         * up elsewhere, by backups stalled too: the backups' pass leaves
+         * those out; the rescue pass renders them */
+        for (int rescue = 0; rescue <= 1; rescue++) {
+            CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, f->w, f->h, &e) == 0, "pool: %s", e.msg);
+            frame_reset(f);
+            int64_t held = 0;
+            for (int64_t s = 0; s < f->nstrips; s += 3)
+                if (strip_pixel(f, &run, s)) {
+                    int x0, x1, yw, i;
+                    *rt_strip_at(&run, s, &x0, &x1, &yw, &i) |= RT_STRIP_BACKUP(i);
+                    held++;
+                }
+            run.count = 0;
+            run.rescue = rescue;
+            rt_cpu_render_tiles(&p, &run);
+            snprintf(what, sizeof what, "%d threads, owners and a third's backups stalled, %s", threads[k],
+                     rescue ? "rescue" : "no rescue");
+            if (rescue) {
+                frame_check(f, &p, &run, what, 0);
+                rt_cpu_pool_backups(&p, &runs, &won);
+                CHECK(won == (uint64_t)f->total, "%s: %llu renders won, %lld strips", what, (unsigned long long)won,
+                      (long long)f->total);
+            } else {
+                frame_check(f, &p, &run, what, held);
+            }
+            run.rescue = 0;
             rt_cpu_pool_free(&p);
         }
     }
