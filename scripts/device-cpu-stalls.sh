@@ -56,6 +56,10 @@
 #           (default 512x384 2048x1536), ROUNDS rounds (default 4); each
 #           worker's own time (thread_work_ms, rank_work_ms), whose sum is
 #           the frame's CPU time in pixels
+#   cache   whether the scene cache moves a frame: `harness ab` of MPI at N
+#           ranks, and of OpenMP at N threads, with the scene loaded from
+#           the cache (A) and built in the process (B), RES (default
+#           512x384), ROUNDS rounds (default 16)
 #   bigbuild the BVH build of a 3.6M-triangle sphere field (large-4m) on
 #           16, N/2 and N threads (BUILD_THREADS), the older build and this
 #           one interleaved, ROUNDS rounds (default 3)
@@ -334,6 +338,15 @@ pixcost)
     echo -n "$p run=mpi-1x$N-rows "; mpirun --bind-to none -np 1 -x OMP_PLACES=cores -x OMP_PROC_BIND=close $RT -b mpi \
       --mpi-schedule rows -t $N -r $res "${W[@]}" $f -o /tmp/k.png | g
   done; done; [ "$(left)" -lt 40 ] && break; done > "$O/pixcost.txt" 2>&1; log pixcost ;;
+cache)
+  mkdir -m 700 -p /tmp/cc-head
+  res=${RES:-512x384}
+  $RT -q -b serial -r 8x8 --cache /tmp/cc-head $dragon -o /tmp/k.png > /dev/null
+  M="mpirun --bind-to core -np $N $RT -b mpi -q -r $res" P="env OMP_PLACES=cores OMP_PROC_BIND=close $RT -b openmp -t $N -q -r $res"
+  for run in "$M" "$P"; do
+    timeout 200 $H ab "$run --cache /tmp/cc-head -o /tmp/a.png $dragon" "$run -o /tmp/b.png $dragon" \
+      --metric 'render_ms=([0-9.]+)' --rounds ${ROUNDS:-16} >> "$O/cache.txt" 2>&1
+  done; log cache ;;
 bigbuild)
   g() { tr ' ' '\n' | grep -E '^(parse_ms|build_ms|build_threads|sah_cost|huge_pages)=' | tr '\n' ' '; echo; }
   ninja -C /tmp/bh renderer/scenegen > /dev/null 2>&1
