@@ -60,6 +60,11 @@
 #           ranks, and of OpenMP at N threads, with the scene loaded from
 #           the cache (A) and built in the process (B), RES (default
 #           512x384), ROUNDS rounds (default 16)
+#   order   MPI at N ranks, the scene from the scene cache or built in
+#           every rank, each alone or right after a one-rank run (as
+#           `order: rounds` runs a table), interleaved, RES (default
+#           512x384), ROUNDS rounds (default 12): render_ms, each rank's
+#           work and the host's steal over the run
 #   bigbuild the BVH build of a 3.6M-triangle sphere field (large-4m) on
 #           16, N/2 and N threads (BUILD_THREADS), the older build and this
 #           one interleaved, ROUNDS rounds (default 3)
@@ -288,7 +293,7 @@ share)
     [ "$(left)" -lt 60 ] && break
   done > "$O/share.txt" 2>&1; log share ;;
 layouts)
-  g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|backups|backups_won|fork_ms|thread_start_ms|rank_work_ms|rank_faults)=' | tr '\n' ' '; echo; }
+  g() { tr ' ' '\n' | grep -E '^(render_ms|render_ms_min|backups|backups_won|fork_ms|rank_fork_ms|thread_start_ms|rank_work_ms|rank_faults)=' | tr '\n' ' '; echo; }
   mkdir -m 700 -p /tmp/cc-head
   for i in $(seq ${ROUNDS:-5}); do for w in "0 1" "3 9"; do
     set -- $w
@@ -347,6 +352,19 @@ cache)
     timeout 200 $H ab "$run --cache /tmp/cc-head -o /tmp/a.png $dragon" "$run -o /tmp/b.png $dragon" \
       --metric 'render_ms=([0-9.]+)' --rounds ${ROUNDS:-16} >> "$O/cache.txt" 2>&1
   done; log cache ;;
+order)
+  g() { tr ' ' '\n' | grep -E '^(render_ms|parse_ms|build_ms|rank_work_ms)=' | tr '\n' ' '; }
+  ticks() { awk '/^cpu /{t = 0; for (i = 2; i <= 9; i++) t += $i; print $9, t}' /proc/stat; }
+  mkdir -m 700 -p /tmp/cc-head
+  res=${RES:-512x384}
+  $RT -q -b serial -r 8x8 --cache /tmp/cc-head $dragon -o /tmp/k.png > /dev/null
+  for i in $(seq ${ROUNDS:-12}); do for v in cached built cached-after-one built-after-one; do
+    c=(); [ ${v%%-*} = cached ] && c=(--cache /tmp/cc-head)
+    [ $v != ${v%-after-one} ] && mpirun --bind-to core -np 1 $RT -b mpi -q -r $res "${c[@]}" $dragon -o /tmp/k.png > /dev/null
+    a=$(ticks); echo -n "round=$i run=$v "
+    mpirun --bind-to core -np $N $RT -b mpi -q -r $res "${c[@]}" $dragon -o /tmp/k.png | g
+    b=$(ticks); echo "$a $b" | awk '{printf "steal_pct=%.2f\n", 100 * ($3 - $1) / ($4 - $2 + 1)}'
+  done; [ "$(left)" -lt 40 ] && break; done > "$O/order.txt" 2>&1; log order ;;
 bigbuild)
   g() { tr ' ' '\n' | grep -E '^(parse_ms|build_ms|build_threads|sah_cost|huge_pages)=' | tr '\n' ' '; echo; }
   ninja -C /tmp/bh renderer/scenegen > /dev/null 2>&1

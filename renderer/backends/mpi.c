@@ -44,13 +44,15 @@ enum {
     T_PUT_MS,   /* in puts (dynamic, across nodes) */
     T_WORK_MS,  /* to the end of its last tile */
     T_END_MS,   /* to the image complete on rank 0: the frame's end (dynamic) or the gather (rows) */
-    T_START_MS, /* left the starting barrier after the first rank did */
+    T_START_MS, /* started after the first rank did */
     T_FAULTS,   /* page faults (minor) from the start to the end of the frame */
+    T_FORK_MS,  /* from the barrier to its team's first thread in the tile loop (dynamic, one node) */
     T_N
 };
 typedef struct RankTimes {
     double t[T_N];
-    int64_t t0_ns;      /* when this rank left the starting barrier */
+    int64_t t0_ns;      /* when this rank started: left the starting barrier, or (dynamic, one node) its
+                         * team's first thread entered the tile loop */
     int64_t end_ns;     /* when the last tile reached rank 0's image (shared board), else 0 */
     uint64_t backups[2]; /* second renders started, won */
 } RankTimes;
@@ -234,7 +236,8 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
     ThreadClaims tc = {&m, nstrips, 0, 0, pool->nthreads};
     rt_mpi_frame_start(&m);
     rt->t0_ns = rt_now_ns();
-    const double t0 = rt_now_ms(), f0 = minor_faults();
+    double t0 = rt_now_ms();
+    const double f0 = minor_faults();
 
     /* Which rank or thread renders a strip never changes the image. */
     if (m.atomic && m.direct) {
@@ -242,9 +245,17 @@ static void render_dynamic(const RtRenderJob *job, RtCpuPool *pool, int tw, int 
         run.claim_ctx = &tc;
         run.scan_count = nstrips;
         rt_cpu_render_tiles(pool, &run);
+        /* The rank starts when its team's first thread does, as an OpenMP
+         * frame starts (openmp.c): libgomp starts a team only once every
+         * thread of the last one is back in its dock, so one thread the
+         * host held delays the whole team by milliseconds (rank_fork_ms). */
+        const int64_t start = rt_cpu_pool_start(pool);
+        rt->t[T_FORK_MS] = (start - rt->t0_ns) * 1e-6;
+        t0 += rt->t[T_FORK_MS];
+        rt->t0_ns = start;
         rt->t[T_CLAIMS] = (double)tc.claims;
         rt->t[T_CLAIM_MS] = tc.claim_ns * 1e-6;
-        rt->t[T_WORK_MS] = (rt_cpu_pool_end(pool) - rt->t0_ns) * 1e-6;
+        rt->t[T_WORK_MS] = (rt_cpu_pool_end(pool) - start) * 1e-6;
     } else {
         claims_with_puts(&m, pool, &run, rgb, nstrips, rt);
         rt->t[T_WORK_MS] = rt_now_ms() - t0;
@@ -287,6 +298,7 @@ static void rank_keys(const RankTimes *mine, int dynamic, char *e, size_t size)
         len = rank_key(e, size, len, "rank_claims", all, T_CLAIMS, "%.0f");
         len = rank_key(e, size, len, "rank_claim_ms", all, T_CLAIM_MS, "%.3f");
         len = rank_key(e, size, len, "rank_put_ms", all, T_PUT_MS, "%.3f");
+        len = rank_key(e, size, len, "rank_fork_ms", all, T_FORK_MS, "%.3f");
     }
     len = rank_key(e, size, len, "rank_start_ms", all, T_START_MS, "%.3f");
     len = rank_key(e, size, len, "rank_work_ms", all, T_WORK_MS, "%.3f");

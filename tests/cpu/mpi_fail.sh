@@ -119,6 +119,10 @@ for sep in 1 0; do
     puts=$(key "$rec" rank_put_ms | tr '/' '\n' | awk '$1 > 0' | wc -l)
     if [ $sep = 1 ] && [ "$puts" = 0 ]; then echo "FAIL: separate: no time in puts"; fails=$((fails + 1)); fi
     if [ $sep = 0 ] && [ "$puts" != 0 ]; then echo "FAIL: shared: time in puts"; fails=$((fails + 1)); fi
+    # (shared: each rank's frame starts at its team's first thread; the wait for the team is apart)
+    if [ $sep = 0 ] && ! key "$rec" rank_fork_ms | grep -Eq '^[0-9]+\.[0-9]{3}/[0-9]+\.[0-9]{3}/[0-9]+\.[0-9]{3}$'; then
+        echo "FAIL: shared: rank_fork_ms '$(key "$rec" rank_fork_ms)'"; fails=$((fails + 1))
+    fi
 done
 
 # One copy of the scene for the three ranks (unbound: one per node), by
