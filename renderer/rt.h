@@ -537,7 +537,13 @@ int rt_stream_threads(void);
 /* Appends the CPU the calling thread runs on to a sorted, unique list. */
 void rt_cores_note(char *list, size_t size, int cpu);
 int rt_current_cpu(void);
-/* The CPUs this process may run on (its affinity mask). */
-int rt_own_cpus(void);
+/* The calling thread's CPUs (its affinity mask): a cpu_set_t of *size bytes
+ * (CPU_ALLOC_SIZE) for every CPU the system may have, *ncpu of them, empty
+ * and *known 0 where the kernel does not say; NULL without memory. Free
+ * with free(). */
+void *rt_thread_cpu_mask(size_t *size, int *ncpu, int *known);
+/* The CPUs that a team of nthreads OpenMP threads may run on: the union of
+ * its threads' masks; 0 where any is unknown. */
+int rt_team_cpus(int nthreads);
 
 #endif

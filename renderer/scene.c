@@ -144,13 +144,52 @@ int rt_current_cpu(void)
     return sched_getcpu();
 }
 
-int rt_own_cpus(void)
+void *rt_thread_cpu_mask(size_t *size, int *ncpu, int *known)
 {
-    cpu_set_t set;
-    if (sched_getaffinity(0, sizeof set, &set) == 0)
-        return CPU_COUNT(&set);
-    const long n = sysconf(_SC_NPROCESSORS_ONLN);
-    return n > 0 ? (int)n : 1;
+    const long conf = sysconf(_SC_NPROCESSORS_CONF);
+    *ncpu = conf > CPU_SETSIZE ? (int)conf : CPU_SETSIZE;
+    *size = CPU_ALLOC_SIZE(*ncpu);
+    cpu_set_t *set = CPU_ALLOC(*ncpu);
+    *known = 0;
+    if (!set)
+        return NULL;
+    CPU_ZERO_S(*size, set);
+    *known = sched_getaffinity(0, *size, set) == 0;
+    if (!*known)
+        CPU_ZERO_S(*size, set);
+    return set;
+}
+
+int rt_team_cpus(int nthreads)
+{
+    size_t size;
+    int ncpu, known, n = 0, failed = 0;
+    cpu_set_t *all = rt_thread_cpu_mask(&size, &ncpu, &known);
+#ifndef _OPENMP
+    (void)nthreads;
+#endif
+    if (!all)
+        return 0;
+    CPU_ZERO_S(size, all);
+    /* (each thread's own mask: libgomp binds each one, the caller too,
+     * where OMP_PROC_BIND asks it to) */
+#pragma omp parallel num_threads(nthreads) reduction(| : failed)
+    {
+        size_t sz;
+        int nc, kn;
+        cpu_set_t *mine = rt_thread_cpu_mask(&sz, &nc, &kn);
+        if (mine && kn && sz == size) {
+#pragma omp critical(rt_team_cpus)
+            CPU_OR_S(size, all, all, mine);
+        } else {
+            failed = 1;
+        }
+        CPU_FREE(mine);
+    }
+    if (!failed)
+        n = CPU_COUNT_S(size, all);
+    CPU_FREE(all);
+    return n;
 }
 
 void rt_cores_note(char *list, size_t size, int cpu)

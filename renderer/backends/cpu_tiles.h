@@ -41,6 +41,7 @@ typedef struct RtCpuSlot {
 
 typedef struct RtCpuPool {
     int nthreads;
+    int cpus;        /* the CPUs the team may run on (rt_team_cpus) */
     size_t stride;   /* bytes between slots: sizeof(RtCpuSlot) rounded up to 128 */
     unsigned char *mem;
     size_t tile_floats; /* each thread's tile buffer (rt_cpu_render_tiles) */
@@ -103,6 +104,7 @@ static inline int rt_cpu_pool_init(RtCpuPool *p, int nthreads, int tw, int th, i
         rt_cpu_slot(p, omp_get_thread_num())->cnt.primary_rays = 0;
     }
 #endif
+    p->cpus = rt_team_cpus(nthreads);
     return 0;
 }
 
@@ -169,7 +171,7 @@ static inline void rt_region_tile(int rx0, int ry0, int rx1, int ry1, int tw, in
  * The host holds several virtual CPUs at once, so a backup is at times
  * held with the owner it backs up: at 64 ranks on a 512x384 frame, the
  * frame then ended when the owner woke, 1-3 ms late, with 30-80 backups
- * run. Where every thread has a core of its own (RtTileRun.rescue), a
+ * run. Where every thread has a CPU of its own (RtTileRun.rescue), a
  * thread done with its backups' pass therefore renders, in a second pass,
  * every strip still not in the image, backed up or not, and stops once
  * the image is complete: the frame waits for a strip only while every one
@@ -233,7 +235,7 @@ typedef struct RtTileRun {
     int scan_slot, scan_slots;
     float *rgb;           /* the whole image (stride = width) */
     RtTileBoard *board;
-    int rescue;           /* every thread has a core of its own: the second pass */
+    int rescue;           /* every thread has a CPU of its own: the rescue pass */
     RtProgressFn progress;
     void *progress_ctx;
 } RtTileRun;
@@ -262,6 +264,13 @@ static inline uint32_t *rt_strip_at(const RtTileRun *r, int64_t s, int *x0, int 
     *yw = y0 + row / 16 * 16;
     *i = row % 16;
     return &r->board->state[t * rt_strip_words(r->th) + row / 16];
+}
+
+/* n more strips are in the image; the last one stamps the frame's end. */
+static inline void rt_strips_done(RtTileBoard *b, int64_t n)
+{
+    if (n && __atomic_add_fetch(b->done, n, __ATOMIC_ACQ_REL) == b->total)
+        __atomic_store_n(b->end_ns, rt_now_ns(), __ATOMIC_RELEASE);
 }
 
 /* Publishes the rendered strips `mine` of one word: row i of buf (counters
@@ -298,11 +307,13 @@ static inline int rt_strip_render(const RtTileRun *r, int64_t s, float *buf, RtC
 
 /* The owner's render of claimed strips [s0, s0 + k): those not yet in the
  * image, published a word at a time, or row by row when the claim is a
- * quarter of a tile or less (the frame's end, when backups run). */
-static inline int64_t rt_strips_render(const RtTileRun *r, int64_t s0, int64_t k, float *buf, RtCounters *cnt)
+ * quarter of a tile or less (the frame's end, when backups run). Each
+ * publication is counted on the board at once: counted at the claim's end,
+ * a word published before the owner was held would hold the frame's end
+ * stamp until it woke, whoever rendered the rest. */
+static inline void rt_strips_render(const RtTileRun *r, int64_t s0, int64_t k, float *buf, RtCounters *cnt)
 {
     const int per_row = 4 * k <= r->th;
-    int64_t won = 0;
     for (int64_t s = s0; s < s0 + k;) {
         int x0, x1, yw, i;
         uint32_t *word = rt_strip_at(r, s, &x0, &x1, &yw, &i);
@@ -320,21 +331,13 @@ static inline int64_t rt_strips_render(const RtTileRun *r, int64_t s0, int64_t k
             memset(&rc[i], 0, sizeof rc[i]);
             rt_cpu_render_tile(r->v, x0, yw + i, x1, yw + i + 1, buf + (size_t)i * cw, cw, &rc[i]);
             if (per_row)
-                won += rt_strips_publish(r, word, RT_STRIP_DONE(i), x0, x1, yw, buf, rc, cnt);
+                rt_strips_done(r->board, rt_strips_publish(r, word, RT_STRIP_DONE(i), x0, x1, yw, buf, rc, cnt));
             else
                 mine |= RT_STRIP_DONE(i);
         }
         if (mine)
-            won += rt_strips_publish(r, word, mine, x0, x1, yw, buf, rc, cnt);
+            rt_strips_done(r->board, rt_strips_publish(r, word, mine, x0, x1, yw, buf, rc, cnt));
     }
-    return won;
-}
-
-/* n more strips are in the image; the last one stamps the frame's end. */
-static inline void rt_strips_done(RtTileBoard *b, int64_t n)
-{
-    if (n && __atomic_add_fetch(b->done, n, __ATOMIC_ACQ_REL) == b->total)
-        __atomic_store_n(b->end_ns, rt_now_ns(), __ATOMIC_RELEASE);
 }
 
 /* The strips of state word st that a pass may render: not in the image,
@@ -404,7 +407,7 @@ static inline void rt_cpu_render_tiles(RtCpuPool *p, const RtTileRun *r)
                 s0 = __atomic_fetch_add(&next, k, __ATOMIC_RELAXED);
                 k = s0 >= end ? 0 : end - s0 < k ? end - s0 : k;
             }
-            rt_strips_done(r->board, rt_strips_render(r, s0, k, buf, &cnt));
+            rt_strips_render(r, s0, k, buf, &cnt);
             rt_cpu_note(slot);
             if (r->progress && k) {
                 /* only thread 0 prints: no thread ever waits for the terminal */
@@ -476,14 +479,15 @@ static inline void rt_cpu_pool_times(const RtCpuPool *p, int end, int64_t t0_ns,
     }
 }
 
-/* When the first thread entered its last tile loop. */
+/* When the first thread entered its last tile loop (of those that ran:
+ * a runtime may start fewer, e.g. under OMP_THREAD_LIMIT). */
 static inline int64_t rt_cpu_pool_start(const RtCpuPool *p)
 {
-    int64_t start = rt_cpu_slot(p, 0)->start_ns;
-    for (int t = 1; t < p->nthreads; t++)
-        if (rt_cpu_slot(p, t)->start_ns < start)
+    int64_t start = INT64_MAX;
+    for (int t = 0; t < p->nthreads; t++)
+        if (rt_cpu_slot(p, t)->start_ns > 0 && rt_cpu_slot(p, t)->start_ns < start)
             start = rt_cpu_slot(p, t)->start_ns;
-    return start;
+    return start == INT64_MAX ? 0 : start;
 }
 
 /* When the last thread ran out of claims (its tile loop's end). */

@@ -76,10 +76,10 @@ static int test_separate(void)
 #endif
 }
 
-/* Whether each of this rank's threads has a core of its own: no other rank
- * of the node may run on its CPUs, and it has a CPU per thread (the tile
- * loop's rescue pass, cpu_tiles.h). */
-static int own_cores(const RtCpuPool *pool) { return !rt_mpi_shares_core && pool->nthreads <= rt_own_cpus(); }
+/* Whether each of this rank's threads has a CPU of its own: no other rank
+ * of the node may run on its CPUs, and its team has a CPU per thread (the
+ * tile loop's rescue pass, cpu_tiles.h). */
+static int own_cores(const RtCpuPool *pool) { return !rt_mpi_shares_core && pool->nthreads <= pool->cpus; }
 
 /* ---------------------------------------------------------------- rows */
 

@@ -60,16 +60,9 @@ void rt_mpi_die(const char *file, int line, const char *call, int code)
  * does not say. Free with CPU_FREE. */
 static cpu_set_t *own_cpus(size_t *size, int *ncpu, int *known)
 {
-    const long conf = sysconf(_SC_NPROCESSORS_CONF);
-    *ncpu = conf > CPU_SETSIZE ? (int)conf : CPU_SETSIZE;
-    *size = CPU_ALLOC_SIZE(*ncpu);
-    cpu_set_t *set = CPU_ALLOC(*ncpu);
+    cpu_set_t *set = rt_thread_cpu_mask(size, ncpu, known);
     if (!set)
         rt_mpi_die(__FILE__, __LINE__, "malloc", MPI_ERR_NO_MEM);
-    CPU_ZERO_S(*size, set);
-    *known = sched_getaffinity(0, *size, set) == 0;
-    if (!*known)
-        CPU_ZERO_S(*size, set);
     return set;
 }
 

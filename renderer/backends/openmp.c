@@ -35,7 +35,7 @@ static int render_openmp(const RtRenderJob *job, RtRenderOut *out, RtError *err)
     RtTileBoard board = {state, &done, &end_ns, rt_strip_total(w, h, tw)};
     RtTileRun run = {.v = v, .rx1 = w, .ry1 = h, .tw = tw, .th = th, .count = nstrips, .scan_count = nstrips,
                      .scan_slots = 1, .rgb = out->rgb, .board = &board, .progress = job->progress,
-                     .progress_ctx = job->progress_ctx, .rescue = pool.nthreads <= rt_own_cpus()};
+                     .progress_ctx = job->progress_ctx, .rescue = pool.nthreads <= pool.cpus};
 
     const int64_t t0 = rt_now_ns();
     if (pixels)

@@ -163,6 +163,9 @@ static void check_frame(const RtSceneView *v, Frame *f)
                 rt_cpu_pool_backups(&p, &runs, &won);
                 CHECK(won == (uint64_t)f->total, "%s: %llu renders won, %lld strips", what, (unsigned long long)won,
                       (long long)f->total);
+                /* one thread: each strip once, by one pass or the other */
+                CHECK(threads[k] > 1 || runs == (uint64_t)f->total, "%s: %llu renders, %lld strips", what,
+                      (unsigned long long)runs, (long long)f->total);
             } else {
                 frame_check(f, &p, &run, what, held);
             }
@@ -189,6 +192,19 @@ static void check_twice(const RtSceneView *v, Frame *f)
           (unsigned long long)b.primary_rays);
     rt_strips_done(&f->board, 1);
     CHECK(f->done == 1 && f->end_ns == 0, "one strip done (%lld), frame not complete", (long long)f->done);
+    /* an owner's claim of two tiles counts each word as it publishes it
+     * (here all but strip 1, already in): an owner held between two words
+     * leaves none of its published strips uncounted */
+    RtCounters c;
+    memset(&c, 0, sizeof c);
+    float *tiles = malloc(sizeof(float) * 3 * (size_t)f->tw * 16);
+    rt_strips_render(&run, 0, 2 * (int64_t)f->th, tiles, &c);
+    int64_t in = 0;
+    for (int64_t s = 0; s < 2 * (int64_t)f->th; s++)
+        in += strip_pixel(f, &run, s) != NULL;
+    CHECK(f->done == in, "a claim of two tiles: %lld strips counted, %lld in the image", (long long)f->done,
+          (long long)in);
+    free(tiles);
     /* the bottom tiles' strips past the image's edge are empty */
     const int64_t last = f->nstrips - 1;
     CHECK(f->h % f->th != 0 && rt_strip_render(&run, last, buf, &a) == 0 && strip_state(&run, last) == 0,
