@@ -80,6 +80,21 @@ static void frame_check(Frame *f, RtCpuPool *p, const RtTileRun *r, const char *
     }
 }
 
+/* Marks every third strip that exists as done (done) or backed up
+ * elsewhere; how many. */
+static int64_t mark_third(const Frame *f, const RtTileRun *r, int done)
+{
+    int64_t n = 0;
+    for (int64_t s = 0; s < f->nstrips; s += 3)
+        if (strip_pixel(f, r, s)) {
+            int x0, x1, yw, i;
+            uint32_t *word = rt_strip_at(r, s, &x0, &x1, &yw, &i); /* sets i */
+            *word |= done ? RT_STRIP_DONE(i) : RT_STRIP_BACKUP(i);
+            n++;
+        }
+    return n;
+}
+
 static void check_frame(const RtSceneView *v, Frame *f)
 {
     const int threads[] = {1, 2, 7};
@@ -119,14 +134,7 @@ static void check_frame(const RtSceneView *v, Frame *f)
         for (unsigned mark = 1; mark <= 2; mark <<= 1) {
             CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, f->w, f->h, &e) == 0, "pool: %s", e.msg);
             frame_reset(f);
-            int64_t skipped = 0;
-            for (int64_t s = 0; s < f->nstrips; s += 3)
-                if (strip_pixel(f, &run, s)) {
-                    int x0, x1, yw, i;
-                    uint32_t *word = rt_strip_at(&run, s, &x0, &x1, &yw, &i); /* sets i */
-                    *word |= mark == 1 ? RT_STRIP_DONE(i) : RT_STRIP_BACKUP(i);
-                    skipped += mark == 1;
-                }
+            const int64_t marked = mark_third(f, &run, mark == 1), skipped = mark == 1 ? marked : 0;
             run.count = f->nstrips;
             rt_cpu_render_tiles(&p, &run);
             snprintf(what, sizeof what, "%d threads, a third %s elsewhere", threads[k],
@@ -146,13 +154,7 @@ static void check_frame(const RtSceneView *v, Frame *f)
         for (int rescue = 0; rescue <= 1; rescue++) {
             CHECK(rt_cpu_pool_init(&p, threads[k], f->tw, f->th, f->w, f->h, &e) == 0, "pool: %s", e.msg);
             frame_reset(f);
-            int64_t held = 0;
-            for (int64_t s = 0; s < f->nstrips; s += 3)
-                if (strip_pixel(f, &run, s)) {
-                    int x0, x1, yw, i;
-                    *rt_strip_at(&run, s, &x0, &x1, &yw, &i) |= RT_STRIP_BACKUP(i);
-                    held++;
-                }
+            const int64_t held = mark_third(f, &run, 0);
             run.count = 0;
             run.rescue = rescue;
             rt_cpu_render_tiles(&p, &run);
