@@ -97,13 +97,10 @@ static inline int rt_cpu_pool_init(RtCpuPool *p, int nthreads, int tw, int th, i
     /* The team size is exactly what was asked for, never trimmed by the
      * runtime under load: a scaling study must run T threads when it says T. */
     omp_set_dynamic(0);
-    /* Start the team now so that thread creation is not timed as pixel work
-     * (libgomp keeps the threads for the next parallel region). */
-#pragma omp parallel num_threads(nthreads)
-    {
-        rt_cpu_slot(p, omp_get_thread_num())->cnt.primary_rays = 0;
-    }
 #endif
+    /* The team's CPUs, read in a region of its own threads, which also
+     * starts the team now, so that thread creation is not timed as pixel
+     * work (libgomp keeps the threads for the next parallel region). */
     p->cpus = rt_team_cpus(nthreads);
     return 0;
 }
