@@ -389,97 +389,226 @@ static void step_after(const Copies *cp, const HxTopo *t, const int *cores, int 
     }
 }
 
-/* Measures every worker count; one line each on stdout, one CSV row each
- * into b. 0, or -1 when a copy failed. */
-static int measure(Copies *cp, const HxTopo *t, const int *ws, int **cores, int nw, int repeats,
-                   const HxFingerprint *fp, const char *config, HxBuf *b)
+#define CEIL_HEADER                                                                                              \
+    "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone,config,metric,steal_pct,overlap,"      \
+    "together,step,step_ms,round\n"
+
+/* The W= line's figures of one worker count, and its CSV row. */
+static void ceil_report(const Copies *cp, int w, int repeats, int round, const double *ratio, const double *tog,
+                        int n, double solos, double steal, double overlap, double step, double quantum,
+                        double ssteal, const HxFingerprint *fp, const char *config, FILE *say, HxBuf *b)
 {
-    for (int k = 0; k < nw; k++) {
-        int w = ws[k], n = 0;
-        double *ratio = hx_xmalloc((size_t)(w * repeats) * sizeof *ratio), *v = hx_xmalloc((size_t)w * sizeof *v);
-        double *ov = hx_xmalloc((size_t)w * sizeof *ov), *ovs = hx_xmalloc((size_t)(w * repeats) * sizeof *ovs);
-        double *tog = hx_xmalloc((size_t)(w * repeats) * sizeof *tog);
-        double solo = 0, solos = 0, *sshare = hx_xmalloc((size_t)repeats * sizeof *sshare),
-               *squant = hx_xmalloc((size_t)repeats * sizeof *squant);
-        size_t nov = 0;
-        int nstep = 0;
-        /* the CPU time the hypervisor took while the copies ran together: a
-         * study's runs with more steal than this lose more than the ceiling */
-        unsigned long long stolen = 0, ticks = 0, sstolen = 0, sticks = 0;
-        for (int r = 0; r < repeats; r++) {
-            /* alone, then all at once: a slow phase of the machine hits both */
-            HxCpuStat s0, s1;
-            int bad = run_copies(cp, t, cores[k], 1, &solo, NULL) != 0;
-            hx_cpu_stat(&s0);
-            const double t0 = hx_now_ms();
-            bad = bad || run_copies(cp, t, cores[k], w, v, ov) != 0;
-            const double wall = hx_now_ms() - t0;
-            hx_cpu_stat(&s1);
-            if (!bad)
-                step_after(cp, t, cores[k], w, v, wall, sshare, &nstep, squant, &sstolen, &sticks);
-            if (bad) {
-                free(sshare);
-                free(squant);
-                free(ratio);
-                free(v);
-                free(ov);
-                free(ovs);
-                free(tog);
-                return -1;
-            }
-            for (int i = 0; i < w; i++)
-                if (ov[i] >= 0)
-                    ovs[nov++] = ov[i];
-            if (s0.ok && s1.ok) {
-                stolen += s1.steal - s0.steal;
-                ticks += hx_cpu_ticks(&s0, &s1);
-            }
-            solos += solo;
-            for (int i = 0; i < w; i++) {
-                tog[n] = v[i];
-                ratio[n++] = cp->m.higher ? v[i] / solo : solo / v[i];
-            }
-        }
-        /* each copy's own value together: table's pace compares a W-worker
-         * run with it directly, without the one-worker time */
-        const double together = hx_median(tog, (size_t)n);
-        double med = hx_median(ratio, (size_t)n), lo = hx_min(ratio, (size_t)n), hi = lo;
-        for (int i = 0; i < n; i++)
-            hi = ratio[i] > hi ? ratio[i] : hi;
-        const double steal = ticks ? 100.0 * (double)stolen / (double)ticks : -1;
-        const double overlap = nov ? hx_median(ovs, nov) : -1;
-        printf("W=%d: each copy's %s at %.3f of a copy alone (median of %d, %.3f to %.3f; alone %.4g, together %.4g", w,
-               cp->m.name, med, n, lo, hi, solos / repeats, together);
+    const double together = hx_median(tog, (size_t)n); /* table's pace compares a run with it directly */
+    double med = hx_median(ratio, (size_t)n), lo = hx_min(ratio, (size_t)n), hi = lo;
+    for (int i = 0; i < n; i++)
+        hi = ratio[i] > hi ? ratio[i] : hi;
+    if (say) {
+        fprintf(say, "%sW=%d: each copy's %s at %.3f of a copy alone (median of %d, %.3f to %.3f; alone %.4g, "
+                "together %.4g", round >= 0 ? "ceiling: " : "", w, cp->m.name, med, n, lo, hi, solos / repeats,
+                together);
         if (steal >= 0)
-            printf("; CPU steal %.1f%%", steal);
+            fprintf(say, "; CPU steal %.1f%%", steal);
         if (overlap >= 0) /* below 1, the copies rendered partly alone and the ceiling reads high */
-            printf("; renders overlapping %.2f", overlap);
-        const double step = nstep ? hx_median(sshare, (size_t)nstep) : NAN,
-                     quantum = nstep ? hx_median(squant, (size_t)nstep) : NAN;
-        if (nstep) /* the step: what a W-way split of that work keeps when all W must end */
-            printf("; a step of %.4g ms on %d cores at once keeps %.3f (CPU steal %.1f%%)", quantum, w, step,
-                   sticks ? 100.0 * (double)sstolen / (double)sticks : 0.0);
-        printf(")\n");
-        hx_buf_printf(b, "%s,%s,%d,%d,%.4f,%.4f,%.4f,%.6g,", fp->fingerprint, fp->host, w, repeats, med, lo, hi,
-                      solos / repeats);
-        hx_csv_field(b, config);
-        hx_buf_put(b, ",");
-        hx_csv_field(b, cp->m.name);
-        hx_buf_printf(b, ",%.2f,%.3f,%.6g,%.4f,%.6g\n", steal, overlap, together, step, quantum);
-        free(sshare);
-        free(squant);
-        free(ratio);
-        free(tog);
-        free(v);
-        free(ov);
-        free(ovs);
-        fflush(stdout);
+            fprintf(say, "; renders overlapping %.2f", overlap);
+        if (isfinite(step)) /* the step: what a W-way split of that work keeps when all W must end */
+            fprintf(say, "; a step of %.4g ms on %d cores at once keeps %.3f (CPU steal %.1f%%)", quantum, w, step,
+                    ssteal);
+        fprintf(say, ")\n");
+        fflush(say);
     }
-    return 0;
+    hx_buf_printf(b, "%s,%s,%d,%d,%.4f,%.4f,%.4f,%.6g,", fp->fingerprint, fp->host, w, repeats, med, lo, hi,
+                  solos / repeats);
+    hx_csv_field(b, config);
+    hx_buf_put(b, ",");
+    hx_csv_field(b, cp->m.name);
+    hx_buf_printf(b, ",%.2f,%.3f,%.6g,%.4f,%.6g,", steal, overlap, together, step, quantum);
+    if (round >= 0)
+        hx_buf_printf(b, "%d", round);
+    hx_buf_put(b, "\n");
+}
+
+/* Measures w copies on cores, repeats times: one line on say (unless NULL),
+ * one CSV row into b, its round column round (none where < 0). 0, or -1
+ * when a copy failed. */
+static int measure_w(Copies *cp, const HxTopo *t, int w, const int *cores, int repeats, int round,
+                     const HxFingerprint *fp, const char *config, FILE *say, HxBuf *b)
+{
+    int n = 0, nstep = 0, bad = 0;
+    double *ratio = hx_xmalloc((size_t)(w * repeats) * sizeof *ratio), *v = hx_xmalloc((size_t)w * sizeof *v);
+    double *ov = hx_xmalloc((size_t)w * sizeof *ov), *ovs = hx_xmalloc((size_t)(w * repeats) * sizeof *ovs);
+    double *tog = hx_xmalloc((size_t)(w * repeats) * sizeof *tog);
+    double solo = 0, solos = 0, *sshare = hx_xmalloc((size_t)repeats * sizeof *sshare),
+           *squant = hx_xmalloc((size_t)repeats * sizeof *squant);
+    size_t nov = 0;
+    /* the CPU time the hypervisor took while the copies ran together: a
+     * study's runs with more steal than this lose more than the ceiling */
+    unsigned long long stolen = 0, ticks = 0, sstolen = 0, sticks = 0;
+    for (int r = 0; r < repeats && !bad; r++) {
+        /* alone, then all at once: a slow phase of the machine hits both */
+        HxCpuStat s0, s1;
+        bad = run_copies(cp, t, cores, 1, &solo, NULL) != 0;
+        hx_cpu_stat(&s0);
+        const double t0 = hx_now_ms();
+        bad = bad || run_copies(cp, t, cores, w, v, ov) != 0;
+        const double wall = hx_now_ms() - t0;
+        hx_cpu_stat(&s1);
+        if (bad)
+            break;
+        step_after(cp, t, cores, w, v, wall, sshare, &nstep, squant, &sstolen, &sticks);
+        for (int i = 0; i < w; i++)
+            if (ov[i] >= 0)
+                ovs[nov++] = ov[i];
+        if (s0.ok && s1.ok) {
+            stolen += s1.steal - s0.steal;
+            ticks += hx_cpu_ticks(&s0, &s1);
+        }
+        solos += solo;
+        for (int i = 0; i < w; i++) {
+            tog[n] = v[i];
+            ratio[n++] = cp->m.higher ? v[i] / solo : solo / v[i];
+        }
+    }
+    if (!bad)
+        ceil_report(cp, w, repeats, round, ratio, tog, n, solos, ticks ? 100.0 * (double)stolen / (double)ticks : -1,
+                    nov ? hx_median(ovs, nov) : -1, nstep ? hx_median(sshare, (size_t)nstep) : NAN,
+                    nstep ? hx_median(squant, (size_t)nstep) : NAN,
+                    sticks ? 100.0 * (double)sstolen / (double)sticks : 0.0, fp, config, say, b);
+    free(sshare);
+    free(squant);
+    free(ratio);
+    free(tog);
+    free(v);
+    free(ov);
+    free(ovs);
+    return bad ? -1 : 0;
 }
 
 /* Only wakes sigsuspend in run_copies: the default would discard it. */
 static void on_child(int sig) { (void)sig; }
+
+/* The copies of a plan's pinned worker counts, ready to run. */
+struct HxCeilRounds {
+    const HxConfig *cfg;
+    const HxTopo *t;
+    const HxFingerprint *fp;
+    Copies cp;
+    char tmp[32];
+    int made; /* tmp exists */
+    int ws[64], *cores[64], nw, wmax;
+    char *path; /* ceiling: rounds: the file its rows go to */
+};
+
+/* Plans c's worker counts and builds their copies' commands (the scene
+ * cache resolved before). 0, or -1 with a line on stderr. */
+static int ceil_open(HxCeilRounds *c, const HxConfig *cfg, const HxPlan *plan, const HxTopo *t, const char *rt,
+                     const char *who)
+{
+    memset(c, 0, sizeof *c);
+    c->cfg = cfg, c->t = t;
+    c->nw = worker_counts(plan, c->ws, c->cores, 64), c->wmax = 1;
+    for (int k = 0; k < c->nw; k++)
+        c->wmax = c->ws[k] > c->wmax ? c->ws[k] : c->wmax;
+    snprintf(c->tmp, sizeof c->tmp, "/tmp/harness-ceiling-XXXXXX");
+    if (t->ncores < 2 || !t->have_hwloc) {
+        fprintf(stderr, "%s: %s: one copy per core needs two cores or more and hwloc to pin them\n", who,
+                t->ncores < 2 ? "only one core is allowed here" : "built without hwloc");
+        return -1;
+    }
+    if (c->nw == 0) {
+        fprintf(stderr, "%s: %s plans no pinned run of 2 to %d workers: no ceiling to measure\n", who, cfg->path,
+                t->ncores);
+        return -1;
+    }
+    if (!mkdtemp(c->tmp)) {
+        fprintf(stderr, "%s: /tmp: %s\n", who, strerror(errno));
+        return -1;
+    }
+    c->made = 1;
+    HxRun one;
+    one_worker(cfg, &plan->runs[0], &one);
+    c->cp = (Copies){cfg, hx_xmalloc((size_t)c->wmax * sizeof *c->cp.c), NULL, c->tmp, ceil_metric(cfg), 0};
+    memset(c->cp.c, 0, (size_t)c->wmax * sizeof *c->cp.c);
+    return build_copies(cfg, t, &one, rt, c->wmax, &c->cp);
+}
+
+static void ceil_close(HxCeilRounds *c)
+{
+    for (int i = 0; c->cp.c && i < c->wmax; i++) {
+        hx_command_free(&c->cp.c[i]);
+        if (c->cp.dir)
+            free(c->cp.dir[i]);
+    }
+    free(c->cp.c);
+    free(c->cp.dir);
+    if (c->made)
+        hx_rmtree(c->tmp);
+    free(c->path);
+}
+
+char *hx_ceiling_rounds_path(const char *csv_path)
+{
+    const size_t n = strlen(csv_path), cut = n >= 4 && strcmp(csv_path + n - 4, ".csv") == 0 ? n - 4 : n;
+    HxBuf b = {0};
+    hx_buf_printf(&b, "%.*s-ceiling.csv", (int)cut, csv_path);
+    return b.s;
+}
+
+HxCeilRounds *hx_ceiling_rounds_open(const HxConfig *cfg, const HxPlan *plan, const HxTopo *t,
+                                     const HxFingerprint *fp, const char *raytrace, const char *path, int keep)
+{
+    HxCeilRounds *c = hx_xmalloc(sizeof *c);
+    if (ceil_open(c, cfg, plan, t, raytrace, "harness run: ceiling: rounds") != 0) {
+        ceil_close(c);
+        free(c);
+        return NULL;
+    }
+    c->fp = fp;
+    c->path = hx_strdup(path);
+    /* the file belongs to the study's CSV: a new study starts it again */
+    const int fd = open(path, O_WRONLY | O_CREAT | O_CLOEXEC | (keep ? O_APPEND : O_TRUNC), 0644);
+    struct stat st;
+    const int fresh = fd >= 0 && fstat(fd, &st) == 0 && st.st_size == 0;
+    if (fd < 0 || (fresh && write(fd, CEIL_HEADER, strlen(CEIL_HEADER)) != (ssize_t)strlen(CEIL_HEADER)) ||
+        close(fd) != 0) {
+        fprintf(stderr, "harness run: ceiling: rounds: %s: %s\n", path, strerror(errno));
+        hx_ceiling_rounds_close(c);
+        return NULL;
+    }
+    return c;
+}
+
+int hx_ceiling_rounds_measure(HxCeilRounds *c, int round, int quiet)
+{
+    struct sigaction sa, old;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_child;
+    sa.sa_flags = SA_RESTART;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGCHLD, &sa, &old);
+    HxBuf b = {0};
+    int rc = 0;
+    for (int k = 0; k < c->nw && rc == 0 && !hx_stop_signal(); k++)
+        rc = measure_w(&c->cp, c->t, c->ws[k], c->cores[k], 1, round, c->fp, c->cfg->path, quiet ? NULL : stderr,
+                       &b);
+    sigaction(SIGCHLD, &old, NULL);
+    rc = rc || hx_stop_signal() ? -1 : 0;
+    /* whole rows only, appended after the round's copies all ended */
+    const int fd = rc ? -1 : open(c->path, O_WRONLY | O_APPEND | O_CLOEXEC);
+    if (!rc && (fd < 0 || write(fd, b.s, b.len) != (ssize_t)b.len || close(fd) != 0)) {
+        fprintf(stderr, "harness run: ceiling: rounds: %s: %s\n", c->path, strerror(errno));
+        rc = -1;
+    }
+    hx_buf_free(&b);
+    return rc;
+}
+
+void hx_ceiling_rounds_close(HxCeilRounds *c)
+{
+    if (!c)
+        return;
+    ceil_close(c);
+    free(c);
+}
 
 int hx_cmd_ceiling(int argc, char **argv)
 {
@@ -502,51 +631,29 @@ int hx_cmd_ceiling(int argc, char **argv)
     hx_expand(&cfg, &plan);
     hx_topo_load(&t);
     hx_plan_cores(&t, &cfg, &plan);
-    int ws[64], *cores[64], nw = worker_counts(&plan, ws, cores, 64), wmax = 1;
-    for (int k = 0; k < nw; k++)
-        wmax = ws[k] > wmax ? ws[k] : wmax;
-    char tmp[] = "/tmp/harness-ceiling-XXXXXX";
     HxFingerprint fp;
     HxBuf b = {0}, out = {0};
     char *rt = hx_find_raytrace(&cfg, o.rt_opt);
-    if (t.ncores < 2 || !t.have_hwloc) {
-        fprintf(stderr, "harness ceiling: %s: one copy per core needs two cores or more and hwloc to pin them\n",
-                t.ncores < 2 ? "only one core is allowed here" : "built without hwloc");
-        rc = 1;
-    } else if (nw == 0) {
-        fprintf(stderr, "harness ceiling: %s plans no pinned run of 2 to %d workers: nothing to measure\n", cfg.path,
-                t.ncores);
-        rc = 1;
-    } else if (!mkdtemp(tmp)) {
-        fprintf(stderr, "harness ceiling: /tmp: %s\n", strerror(errno));
+    HxCeilRounds c;
+    if (!cfg.prog)
+        hx_resolve_scene_cache(&cfg, NULL);
+    if (ceil_open(&c, &cfg, &plan, &t, rt, "harness ceiling") != 0) {
         rc = 1;
     } else {
-        HxRun one;
-        one_worker(&cfg, &plan.runs[0], &one);
-        if (!cfg.prog)
-            hx_resolve_scene_cache(&cfg, NULL);
-        Copies cp = {&cfg, hx_xmalloc((size_t)wmax * sizeof *cp.c), NULL, tmp, ceil_metric(&cfg), 0};
+        rc = 0;
         hx_fingerprint_get(&fp, &t, 0, cfg.prog ? NULL : rt, NULL, NULL);
-        hx_buf_put(&b, "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone,config,metric,steal_pct,"
-                       "overlap,together,step,step_ms\n");
+        hx_buf_put(&b, CEIL_HEADER);
         fprintf(stderr, "harness ceiling: %s on %s: %d worker count(s), %d repeat(s) each, copies measured by %s\n",
-                cfg.path, fp.host, nw, o.repeats, cp.m.name);
-        rc = build_copies(&cfg, &t, &one, rt, wmax, &cp) != 0 ||
-             measure(&cp, &t, ws, cores, nw, o.repeats, &fp, cfg.path, &b) != 0;
-        for (int i = 0; i < wmax; i++) {
-            hx_command_free(&cp.c[i]);
-            if (cp.dir)
-                free(cp.dir[i]);
-        }
-        free(cp.c);
-        free(cp.dir);
-        hx_rmtree(tmp);
+                cfg.path, fp.host, c.nw, o.repeats, c.cp.m.name);
+        for (int k = 0; k < c.nw && !rc; k++)
+            rc = measure_w(&c.cp, &t, c.ws[k], c.cores[k], o.repeats, -1, &fp, cfg.path, stdout, &b) != 0;
         if (hx_stop_signal()) {
             fprintf(stderr, "harness ceiling: stopped by %s: its copies ended, no ceiling written\n",
                     hx_signal_name(hx_stop_signal()));
             rc = 128 + hx_stop_signal();
         }
     }
+    ceil_close(&c);
     if (rc == 0) {
         if (o.out)
             hx_buf_put(&out, o.out);
@@ -567,126 +674,4 @@ int hx_cmd_ceiling(int argc, char **argv)
     hx_plan_free(&plan);
     hx_config_free(&cfg);
     return rc;
-}
-
-int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *csv_path)
-{
-    const char *fp = s->csv.nrows ? hx_csv_get(&s->csv, 0, "fingerprint") : "";
-    HxBuf name = {0};
-    hx_buf_printf(&name, "ceiling-%s.csv", fp);
-    char *dir = hx_dirname(csv_path);
-    const char *cand[3] = {file, NULL, NULL};
-    char *beside = hx_path_join(dir, name.s), *inres = hx_path_join("results", name.s);
-    if (!file) {
-        cand[1] = beside;
-        cand[2] = inres;
-    }
-    HxCsv c;
-    char err[512];
-    int rc = 0, found = 0;
-    for (int i = 0; i < 3 && !found && rc == 0; i++) {
-        if (!cand[i] || (!file && !hx_file_exists(cand[i])))
-            continue;
-        if (hx_csv_read(cand[i], &c, err, sizeof err) != 0) {
-            fprintf(stderr, "%s: --ceiling: %s\n", who, err);
-            rc = -1;
-            break;
-        }
-        if (hx_csv_col(&c, "ratio_median") < 0) {
-            fprintf(stderr, "%s: --ceiling: %s: not a ceiling file (no ratio_median column)\n", who, cand[i]);
-            hx_csv_free(&c);
-            rc = -1;
-            break;
-        }
-        found = 1;
-        s->ceil_path = hx_strdup(cand[i]);
-        /* a ceiling of another metric is no ceiling of this one; files
-         * without the column are of the copies' wall time, used with a
-         * line that says so (docs/harness-noise.md, "Ceiling") */
-        const int has_metric = hx_csv_col(&c, "metric") >= 0, has_steal = hx_csv_col(&c, "steal_pct") >= 0,
-                  has_together = hx_csv_col(&c, "together") >= 0, has_step = hx_csv_col(&c, "step") >= 0;
-        size_t other = 0;
-        if (!has_metric && strcmp(s->metric, "wall_ms") != 0)
-            fprintf(stderr, "%s: --ceiling: %s has no metric column: a ceiling of the copies' wall time, read "
-                            "against %s\n", who, cand[i], s->metric);
-        for (size_t r = 0; r < c.nrows; r++) {
-            long w;
-            double v;
-            if (strcmp(hx_csv_get(&c, r, "fingerprint"), fp) != 0 || hx_parse_int(hx_csv_get(&c, r, "workers"), 2, 1 << 20, &w) ||
-                hx_parse_double(hx_csv_get(&c, r, "ratio_median"), &v) || !(v > 0))
-                continue;
-            if (has_metric && strcmp(hx_csv_get(&c, r, "metric"), s->metric) != 0) {
-                if (!other++)
-                    fprintf(stderr, "%s: --ceiling: %s measures %s, this table reads %s: not used\n", who, cand[i],
-                            hx_csv_get(&c, r, "metric"), s->metric);
-                continue;
-            }
-            s->ceil_w = hx_xrealloc(s->ceil_w, (size_t)(s->nceil + 1) * sizeof *s->ceil_w);
-            s->ceil_r = hx_xrealloc(s->ceil_r, (size_t)(s->nceil + 1) * sizeof *s->ceil_r);
-            s->ceil_steal = hx_xrealloc(s->ceil_steal, (size_t)(s->nceil + 1) * sizeof *s->ceil_steal);
-            s->ceil_t = hx_xrealloc(s->ceil_t, (size_t)(s->nceil + 1) * sizeof *s->ceil_t);
-            s->ceil_s = hx_xrealloc(s->ceil_s, (size_t)(s->nceil + 1) * sizeof *s->ceil_s);
-            double st, tg, sh;
-            s->ceil_s[s->nceil] = has_step && hx_parse_double(hx_csv_get(&c, r, "step"), &sh) == 0 && sh > 0 && sh <= 1.5
-                                      ? sh
-                                      : NAN;
-            s->ceil_t[s->nceil] =
-                has_together && hx_parse_double(hx_csv_get(&c, r, "together"), &tg) == 0 && tg > 0 ? tg : NAN;
-            s->ceil_steal[s->nceil] =
-                has_steal && hx_parse_double(hx_csv_get(&c, r, "steal_pct"), &st) == 0 && st >= 0
-                    ? st
-                    : -1;
-            s->ceil_w[s->nceil] = (int)w;
-            s->ceil_r[s->nceil++] = v;
-        }
-        hx_csv_free(&c);
-        if (!s->nceil) { /* nothing of it applies: no ceiling named in the table */
-            free(s->ceil_path);
-            s->ceil_path = NULL;
-        }
-    }
-    free(dir);
-    free(beside);
-    free(inres);
-    hx_buf_free(&name);
-    return rc;
-}
-
-double hx_ceiling_at(const HxStudy *s, int workers, double *together, double *step)
-{
-    int i = 0;
-    while (i < s->nceil && s->ceil_w[i] != workers)
-        i++;
-    if (together)
-        *together = i < s->nceil ? s->ceil_t[i] : NAN;
-    if (step)
-        *step = i < s->nceil ? s->ceil_s[i] : NAN;
-    return i < s->nceil ? s->ceil_r[i] : NAN;
-}
-
-void hx_ceiling_para(const HxStudy *s, HxBuf *b)
-{
-    hx_buf_printf(b, "Efficiency (a) also against this machine's ceiling from %s: \"0.750 (1.07 of 0.70)\" is "
-                  "1.07 of the 0.70 that independent copies keep at that many workers.", s->ceil_path);
-    /* a study's runs with more steal than the copies had lose more than
-     * the ceiling says: the user compares the two */
-    int steals = 0, paced = 0, stepped = 0;
-    for (int i = 0; i < s->nceil; i++)
-        if (s->ceil_steal[i] >= 0)
-            hx_buf_printf(b, "%s%.1f%% at %d", steals++ ? ", " : " Its copies ran with CPU steal of ", s->ceil_steal[i],
-                          s->ceil_w[i]);
-    if (steals)
-        hx_buf_put(b, " workers (the runs' own: the column steal_pct).");
-    for (int i = 0; i < s->nceil; i++) {
-        paced |= isfinite(s->ceil_t[i]);
-        stepped |= isfinite(s->ceil_s[i]);
-    }
-    if (paced)
-        hx_buf_put(b, " \"pace 1.04\": the run is 1.04 times as fast as W workers that split the work perfectly at "
-                      "the speed each of W copies at once kept: the same share without the one-worker time, which was "
-                      "measured alone and at another moment.");
-    if (stepped)
-        hx_buf_put(b, " \"pace 0.74 of 0.83\": W workers that each did their share of that work at once, released "
-                      "together, kept 0.83 of it from the first's start to the last's end on this machine: the pace "
-                      "that its noise leaves a run whose workers must all end.");
 }

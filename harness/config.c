@@ -211,7 +211,7 @@ static int dim_of_key(const char *key)
 
 static const char *const scalar_keys[] = {
     "study", "scene_dir", "repeats", "warmup", "timeout", "oversubscribe",
-    "baseline", "raytrace", "mpirun", "launcher", "scene_cache", "instructions", "order", NULL};
+    "baseline", "raytrace", "mpirun", "launcher", "scene_cache", "instructions", "order", "ceiling", NULL};
 
 int hx_launcher_parse(const char *name, HxLauncher *out)
 {
@@ -347,6 +347,12 @@ static int parse_scalar(int lineno, const char *key, const char *v, HxConfig *cf
             cfg->order_rounds = strcmp(v, "rounds") == 0;
         else
             rc = set_err(err, errlen, cfg, lineno, "order: expected nested|rounds, got '%s'", v);
+    } else if (strcmp(key, "ceiling") == 0) {
+        if (strcmp(v, "rounds") == 0 || strcmp(v, "off") == 0)
+            cfg->ceiling_rounds = strcmp(v, "rounds") == 0;
+        else
+            rc = set_err(err, errlen, cfg, lineno, "ceiling: expected off|rounds, got '%s'", v);
+        cfg->ceiling_line = lineno;
     } else if (strcmp(key, "instructions") == 0) {
         if (strcmp(v, "on") == 0 || strcmp(v, "off") == 0)
             cfg->instructions = strcmp(v, "on") == 0;
@@ -565,6 +571,9 @@ static int config_finish(const char *path, int lineno, const int *seen_scalar, H
     }
     if (!cfg->mpirun)
         cfg->mpirun = hx_strdup("mpirun");
+    if (cfg->ceiling_rounds && !cfg->order_rounds) /* its rounds are the study's */
+        return set_err(err, errlen, cfg, cfg->ceiling_line,
+                       "ceiling: rounds measures the ceiling before each round of the study: it needs order: rounds");
     if (cfg->prog) {
         rc = finish_command(seen_scalar, cfg, err, errlen);
         fill_default_dims(cfg);

@@ -163,6 +163,8 @@ typedef struct {
     char *scene_dir;
     int repeats, warmup;
     int order_rounds;           /* order: rounds: each round runs every configuration once */
+    int ceiling_rounds;         /* ceiling: rounds: harness ceiling's copies before each round */
+    int ceiling_line;
     double timeout_s;
     int oversubscribe_allow;
     char *baseline;             /* KEY=VALUE for `table`'s baseline (b) */
@@ -531,6 +533,7 @@ typedef struct {
     double *ceil_t;      /* each copy's own metric while they ran, NAN unknown */
     double *ceil_s;      /* the share a step of W workers kept (syncstep.c), NAN unknown */
     char *ceil_path;
+    int ceil_rounds;     /* the most rows pooled for one worker count (ceiling: rounds), else 1 */
 } HxStudy;
 
 /* ---- plots of a study (plot.c, plot_sweep.c) ---- */

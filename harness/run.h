@@ -182,6 +182,24 @@ void hx_ref_free(HxRefTable *t);
 /* "scene_path|resolution|max_depth", malloc'd. */
 char *hx_image_key(const char *scene_path, const char *res, const char *depth);
 
+/* ---- the ceiling between a study's rounds (ceiling.c, `ceiling: rounds`) ---- */
+
+typedef struct HxCeilRounds HxCeilRounds;
+/* Where `harness run` writes the ceiling of its rounds: the CSV's path
+ * with "-ceiling.csv" for its ".csv" (malloc'd). */
+char *hx_ceiling_rounds_path(const char *csv_path);
+/* The copies of plan's pinned worker counts, their rows appended to path
+ * (kept where keep, as --resume does, else started again; its header
+ * written when it is new). NULL with a line on stderr when this
+ * machine or plan cannot have them. */
+HxCeilRounds *hx_ceiling_rounds_open(const HxConfig *cfg, const HxPlan *plan, const HxTopo *t,
+                                     const HxFingerprint *fp, const char *raytrace, const char *path, int keep);
+/* One repeat of the ceiling at every worker count, as round `round`: one
+ * row each, a line each on stderr unless quiet. 0, or -1 (a copy failed, a
+ * stop signal, or the file could not be written). */
+int hx_ceiling_rounds_measure(HxCeilRounds *c, int round, int quiet);
+void hx_ceiling_rounds_close(HxCeilRounds *c);
+
 /* ---- what --resume accepts (resume.c) ---- */
 
 /* The config_hash of a study's rows: what a run means beyond its run_id,

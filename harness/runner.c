@@ -149,6 +149,9 @@ typedef struct {
     double max_others, max_steal;
     double t0, child_ms;
     size_t executed, skipped, attempted, nstat[6];
+    HxCeilRounds *ceil; /* ceiling: rounds */
+    int ceil_round;     /* the round whose ceiling was measured last, -1 none */
+    double ceil_ms;     /* spent measuring it, not the harness's overhead */
 } Study;
 
 static const char *const stat_names[6] = {"ok", "wrong-image", "timeout", "crash", "error", "refused"};
@@ -413,6 +416,22 @@ static int run_plan(Study *st)
         }
         if (r->warmup && !warmup_needed(st, i))
             continue;
+        if (st->ceil && !r->warmup && r->repeat != st->ceil_round) {
+            /* the copies between the rounds: a drift of the machine reaches
+             * the ceiling as it reaches the runs (docs/harness-noise.md) */
+            st->ceil_round = r->repeat;
+            const double c0 = hx_now_ms();
+            const int bad = hx_ceiling_rounds_measure(st->ceil, r->repeat, st->quiet) != 0;
+            st->ceil_ms += hx_now_ms() - c0;
+            if (bad && !hx_stop_signal()) {
+                fprintf(stderr, "harness run: ceiling: rounds: no ceiling from round %d on; the study goes on\n",
+                        r->repeat);
+                hx_ceiling_rounds_close(st->ceil);
+                st->ceil = NULL;
+            }
+            if (hx_stop_signal())
+                return 0;
+        }
         char **vals = row_head(st, r);
         char *detail = NULL;
         const char *status = run_one(st, r, vals, &detail);
@@ -528,7 +547,7 @@ static int summary(const Study *st, int rc)
                         "--resume\n", st->lost);
     }
     const size_t *n = st->nstat;
-    double total = hx_now_ms() - st->t0;
+    double total = hx_now_ms() - st->t0 - st->ceil_ms;
     trust_line(st);
     fprintf(stderr, "harness: %s: %zu rows (ok %zu, wrong-image %zu, timeout %zu, crash %zu, error %zu, "
                     "refused %zu), %zu skipped (resume)\n", st->out_path,
@@ -555,6 +574,8 @@ static void print_dry_run(const Study *st)
 {
     printf("study %s: %zu runs (%d warm-up + %d repeats per configuration), %d cores\n", st->cfg.study,
            st->plan.n, st->cfg.warmup, st->cfg.repeats, st->topo.ncores);
+    if (st->cfg.ceiling_rounds)
+        printf("ceiling: rounds: one repeat of `harness ceiling` at each pinned worker count before each round\n");
     for (size_t i = 0; i < st->cfg.set.n; i++) /* the config as run, not as the file says */
         printf("override: --set '%s'\n", st->cfg.set.v[i]);
     for (size_t i = 0; i < st->plan.n; i++) {
@@ -645,8 +666,23 @@ static int study_open(Study *st, int resume, int overwrite)
     return st->cfg.prog ? program_open(st) : 0;
 }
 
+/* ceiling: rounds: the copies ready, their file beside the CSV. 0 or -1. */
+static int ceiling_open(Study *st, int resume)
+{
+    st->ceil_round = -1;
+    if (!st->cfg.ceiling_rounds)
+        return 0;
+    char *path = hx_ceiling_rounds_path(st->out_path);
+    st->ceil = hx_ceiling_rounds_open(&st->cfg, &st->plan, &st->topo, &st->fp, st->raytrace, path, resume);
+    if (st->ceil && !st->quiet)
+        fprintf(stderr, "harness run: ceiling: rounds: the copies before each round, into %s\n", path);
+    free(path);
+    return st->ceil ? 0 : -1;
+}
+
 static void study_close(Study *st)
 {
+    hx_ceiling_rounds_close(st->ceil);
     if (st->fd >= 0)
         close(st->fd);
     /* everything in it: a killed renderer may have left IMAGE.tmp.XXXXXX,
@@ -758,7 +794,7 @@ int hx_cmd_run(int argc, char **argv)
         if (!o.out_path)
             hx_buf_printf(&defout, "%s%s.csv", hx_is_dir("results") ? "results/" : "", st.cfg.study);
         st.out_path = o.out_path ? o.out_path : defout.s;
-        if (study_open(&st, o.resume, o.overwrite) != 0) {
+        if (study_open(&st, o.resume, o.overwrite) != 0 || ceiling_open(&st, o.resume) != 0) {
             rc = 1;
         } else {
             st.t0 = hx_now_ms();

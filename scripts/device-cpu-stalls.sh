@@ -22,6 +22,19 @@
 #           default 100 s), then table 1's OpenMP tiles with brute force at 1
 #           and N threads, 2 repeats, `order: rounds`, and its table against
 #           that ceiling
+#   brute2k brute force at 2048x1536: table 1's OpenMP tiles at N threads,
+#           REP2K repeats (default 3); its pace comes from bruteceil's
+#           512x384 copies, scaled by the two frames' prim_tests (one
+#           thread's 2048x1536 frame outlasts a device call)
+#   paired  ROUNDS rounds (default 12), each `harness ceiling` (1 repeat) at N
+#           and tables 1 and 2 (BVH) at 1 and N workers, 1 repeat, RES
+#           (default 512x384), into paired/: each round's pace against the
+#           ceiling measured beside it, so a drift of the host between the
+#           ceiling and the tables stays out of the ratio
+#   rounds  tables 2 and 1 (BVH) at 1 and N workers (WORKERS) with `ceiling:
+#           rounds`: the ceiling's copies before each of TREP rounds
+#           (default 9), RES (default 512x384), each table against its own
+#           rounds (t2-rounds-RES-ceiling.csv beside t2-rounds-RES.csv)
 #   one     serial, OpenMP at one thread and MPI at one rank, interleaved
 #           (`order: rounds`, 10 repeats), both resolutions: the baselines
 #           of tables 1 and 2 on the same core at the same time
@@ -178,6 +191,29 @@ bruteceil)
   timeout $(( $(left) - 10 )) $H run configs/report-table1-openmp.conf --set scene_dir=$course --set resolution=$res --set accel=none --set repeats=2 --set order=rounds --set threads="1 $N" --set backend=openmp --set schedule=tiles -q -o "$O/t1-none-$res.csv" > /dev/null 2>&1 || log "t1 none rc $?"
   $H table "$O/t1-none-$res.csv" --ceiling "$O/ceiling-none-$res.csv" > "$O/t1-none-$res-table.md" 2>&1
   log bruteceil ;;
+brute2k)
+  timeout $(( $(left) - 10 )) $H run configs/report-table1-openmp.conf --set scene_dir=$course --set resolution=2048x1536 --set accel=none --set repeats=${REP2K:-3} --set threads=$N --set backend=openmp --set schedule=tiles -q -o "$O/t1-none-2048x1536.csv" > /dev/null 2>&1 || log "brute2k rc $?"
+  log brute2k ;;
+paired)
+  mkdir -p "$O/paired"; res=${RES:-512x384}
+  S=(--set scene_dir=$course --set resolution=$res --set repeats=1 --set accel=bvh)
+  for i in $(seq ${ROUNDS:-12}); do
+    [ "$(left)" -lt 30 ] && break
+    timeout 60 $H ceiling configs/openmp-scaling-bvh.conf --set scene_dir=$course --set resolution=$res --set threads=$N --set schedule=tiles --repeats 1 -o "$O/paired/ceil-$i.csv" > "$O/paired/ceil-$i.log" 2>&1 || log "paired ceiling $i rc $?"
+    timeout 60 $H run configs/report-table2-mpi.conf "${S[@]}" --set ranks="1 $N" --set backend=mpi --set mpi_schedule=dynamic -q -o "$O/paired/t2-$i.csv" > /dev/null 2>&1 || log "paired t2 $i rc $?"
+    timeout 60 $H run configs/report-table1-openmp.conf "${S[@]}" --set threads="1 $N" --set backend=openmp --set schedule=tiles -q -o "$O/paired/t1-$i.csv" > /dev/null 2>&1 || log "paired t1 $i rc $?"
+    for t in t1 t2; do $H table "$O/paired/$t-$i.csv" --ceiling "$O/paired/ceil-$i.csv" --format json > "$O/paired/$t-$i.json" 2>&1; done
+  done; log paired ;;
+rounds)
+  W=${WORKERS:-1 $N}
+  for res in ${RES:-512x384}; do
+    S=(--set scene_dir=$course --set resolution=$res --set repeats=${TREP:-9} --set accel=bvh --set order=rounds --set ceiling=rounds "${X[@]}")
+    timeout $(( $(left) - 10 )) $H run configs/report-table2-mpi.conf "${S[@]}" --set ranks="$W" --set backend=mpi --set mpi_schedule=dynamic -q -o "$O/t2-rounds-$res.csv" > "$O/t2-rounds-$res.log" 2>&1 || log "t2 rounds $res rc $?"
+    $H table "$O/t2-rounds-$res.csv" > "$O/t2-rounds-$res-table.md" 2>&1
+    timeout $(( $(left) - 10 )) $H run configs/report-table1-openmp.conf "${S[@]}" --set threads="$W" --set backend=openmp --set schedule=tiles -q -o "$O/t1-rounds-$res.csv" > "$O/t1-rounds-$res.log" 2>&1 || log "t1 rounds $res rc $?"
+    $H table "$O/t1-rounds-$res.csv" > "$O/t1-rounds-$res-table.md" 2>&1
+    log "rounds $res"
+  done ;;
 one)
   for res in 512x384 2048x1536; do
     printf 'study: one-worker\nscene_dir: %s\nscenes: dragon\nbackend: serial openmp mpi\naccel: bvh\nresolution: %s\nschedule: tiles\nmpi_schedule: dynamic\nthreads: 1\nranks: 1\npin: close\norder: rounds\nrepeats: 10\ntimeout: 60\n' $course $res > /tmp/one.conf

@@ -1,0 +1,182 @@
+/* ceiling_read.c: the machine's ceiling as `table`, `plot` and `report`
+ * read it (docs/harness-noise.md, "Ceiling"): a file of `harness ceiling`,
+ * or the one `harness run` writes beside its CSV with `ceiling: rounds`,
+ * whose rows of one worker count (one per round) are pooled. */
+#include "run.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* The median of the finite (or, with nonneg, the non-negative) values of
+ * v[0..n-1]; NAN (or -1) where none is. */
+static double median_of(const double *v, int n, int nonneg)
+{
+    double *k = hx_xmalloc((size_t)(n ? n : 1) * sizeof *k);
+    size_t m = 0;
+    for (int i = 0; i < n; i++)
+        if (nonneg ? v[i] >= 0 : isfinite(v[i]))
+            k[m++] = v[i];
+    const double r = m ? hx_median(k, m) : nonneg ? -1 : NAN;
+    free(k);
+    return r;
+}
+
+/* Several rows of one worker count (`harness run` with `ceiling: rounds`
+ * writes one per round) become one: the median of each figure over the
+ * rounds, which sampled the same minutes as the study's runs. */
+static void pool_rounds(HxStudy *s)
+{
+    int n = 0;
+    double *buf = hx_xmalloc((size_t)(s->nceil ? s->nceil : 1) * sizeof *buf);
+    s->ceil_rounds = 1;
+    for (int i = 0; i < s->nceil; i++) {
+        int w = s->ceil_w[i], k = 0, seen = 0;
+        for (int j = 0; j < n; j++)
+            seen |= s->ceil_w[j] == w;
+        if (seen)
+            continue;
+        double *fields[4] = {s->ceil_r, s->ceil_t, s->ceil_s, s->ceil_steal}, out[4];
+        for (int f = 0; f < 4; f++) {
+            k = 0;
+            for (int j = i; j < s->nceil; j++)
+                if (s->ceil_w[j] == w)
+                    buf[k++] = fields[f][j];
+            out[f] = median_of(buf, k, f == 3);
+        }
+        s->ceil_rounds = k > s->ceil_rounds ? k : s->ceil_rounds;
+        s->ceil_w[n] = w; /* n <= i: rows not yet read are past it */
+        s->ceil_r[n] = out[0], s->ceil_t[n] = out[1], s->ceil_s[n] = out[2], s->ceil_steal[n] = out[3];
+        n++;
+    }
+    s->nceil = n;
+    free(buf);
+}
+
+int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *csv_path)
+{
+    const char *fp = s->csv.nrows ? hx_csv_get(&s->csv, 0, "fingerprint") : "";
+    HxBuf name = {0};
+    hx_buf_printf(&name, "ceiling-%s.csv", fp);
+    char *dir = hx_dirname(csv_path), *own = hx_ceiling_rounds_path(csv_path);
+    const char *cand[4] = {file, NULL, NULL, NULL};
+    char *beside = hx_path_join(dir, name.s), *inres = hx_path_join("results", name.s);
+    if (!file) { /* the study's own rounds (ceiling: rounds) first */
+        cand[1] = own;
+        cand[2] = beside;
+        cand[3] = inres;
+    }
+    HxCsv c;
+    char err[512];
+    int rc = 0, found = 0;
+    for (int i = 0; i < 4 && !found && rc == 0; i++) {
+        if (!cand[i] || (!file && !hx_file_exists(cand[i])))
+            continue;
+        if (hx_csv_read(cand[i], &c, err, sizeof err) != 0) {
+            fprintf(stderr, "%s: --ceiling: %s\n", who, err);
+            rc = -1;
+            break;
+        }
+        if (hx_csv_col(&c, "ratio_median") < 0) {
+            fprintf(stderr, "%s: --ceiling: %s: not a ceiling file (no ratio_median column)\n", who, cand[i]);
+            hx_csv_free(&c);
+            rc = -1;
+            break;
+        }
+        found = 1;
+        s->ceil_path = hx_strdup(cand[i]);
+        /* a ceiling of another metric is no ceiling of this one; files
+         * without the column are of the copies' wall time, used with a
+         * line that says so (docs/harness-noise.md, "Ceiling") */
+        const int has_metric = hx_csv_col(&c, "metric") >= 0, has_steal = hx_csv_col(&c, "steal_pct") >= 0,
+                  has_together = hx_csv_col(&c, "together") >= 0, has_step = hx_csv_col(&c, "step") >= 0;
+        size_t other = 0;
+        if (!has_metric && strcmp(s->metric, "wall_ms") != 0)
+            fprintf(stderr, "%s: --ceiling: %s has no metric column: a ceiling of the copies' wall time, read "
+                            "against %s\n", who, cand[i], s->metric);
+        for (size_t r = 0; r < c.nrows; r++) {
+            long w;
+            double v;
+            if (strcmp(hx_csv_get(&c, r, "fingerprint"), fp) != 0 || hx_parse_int(hx_csv_get(&c, r, "workers"), 2, 1 << 20, &w) ||
+                hx_parse_double(hx_csv_get(&c, r, "ratio_median"), &v) || !(v > 0))
+                continue;
+            if (has_metric && strcmp(hx_csv_get(&c, r, "metric"), s->metric) != 0) {
+                if (!other++)
+                    fprintf(stderr, "%s: --ceiling: %s measures %s, this table reads %s: not used\n", who, cand[i],
+                            hx_csv_get(&c, r, "metric"), s->metric);
+                continue;
+            }
+            s->ceil_w = hx_xrealloc(s->ceil_w, (size_t)(s->nceil + 1) * sizeof *s->ceil_w);
+            s->ceil_r = hx_xrealloc(s->ceil_r, (size_t)(s->nceil + 1) * sizeof *s->ceil_r);
+            s->ceil_steal = hx_xrealloc(s->ceil_steal, (size_t)(s->nceil + 1) * sizeof *s->ceil_steal);
+            s->ceil_t = hx_xrealloc(s->ceil_t, (size_t)(s->nceil + 1) * sizeof *s->ceil_t);
+            s->ceil_s = hx_xrealloc(s->ceil_s, (size_t)(s->nceil + 1) * sizeof *s->ceil_s);
+            double st, tg, sh;
+            s->ceil_s[s->nceil] = has_step && hx_parse_double(hx_csv_get(&c, r, "step"), &sh) == 0 && sh > 0 && sh <= 1.5
+                                      ? sh
+                                      : NAN;
+            s->ceil_t[s->nceil] =
+                has_together && hx_parse_double(hx_csv_get(&c, r, "together"), &tg) == 0 && tg > 0 ? tg : NAN;
+            s->ceil_steal[s->nceil] =
+                has_steal && hx_parse_double(hx_csv_get(&c, r, "steal_pct"), &st) == 0 && st >= 0
+                    ? st
+                    : -1;
+            s->ceil_w[s->nceil] = (int)w;
+            s->ceil_r[s->nceil++] = v;
+        }
+        hx_csv_free(&c);
+        pool_rounds(s);
+        if (!s->nceil) { /* nothing of it applies: no ceiling named in the table */
+            free(s->ceil_path);
+            s->ceil_path = NULL;
+        }
+    }
+    free(dir);
+    free(own);
+    free(beside);
+    free(inres);
+    hx_buf_free(&name);
+    return rc;
+}
+
+double hx_ceiling_at(const HxStudy *s, int workers, double *together, double *step)
+{
+    int i = 0;
+    while (i < s->nceil && s->ceil_w[i] != workers)
+        i++;
+    if (together)
+        *together = i < s->nceil ? s->ceil_t[i] : NAN;
+    if (step)
+        *step = i < s->nceil ? s->ceil_s[i] : NAN;
+    return i < s->nceil ? s->ceil_r[i] : NAN;
+}
+
+void hx_ceiling_para(const HxStudy *s, HxBuf *b)
+{
+    hx_buf_printf(b, "Efficiency (a) also against this machine's ceiling from %s: \"0.750 (1.07 of 0.70)\" is "
+                  "1.07 of the 0.70 that independent copies keep at that many workers.", s->ceil_path);
+    if (s->ceil_rounds > 1) /* ceiling: rounds */
+        hx_buf_printf(b, " Each figure of it is the median of %d rounds measured between the study's own.",
+                      s->ceil_rounds);
+    /* a study's runs with more steal than the copies had lose more than
+     * the ceiling says: the user compares the two */
+    int steals = 0, paced = 0, stepped = 0;
+    for (int i = 0; i < s->nceil; i++)
+        if (s->ceil_steal[i] >= 0)
+            hx_buf_printf(b, "%s%.1f%% at %d", steals++ ? ", " : " Its copies ran with CPU steal of ", s->ceil_steal[i],
+                          s->ceil_w[i]);
+    if (steals)
+        hx_buf_put(b, " workers (the runs' own: the column steal_pct).");
+    for (int i = 0; i < s->nceil; i++) {
+        paced |= isfinite(s->ceil_t[i]);
+        stepped |= isfinite(s->ceil_s[i]);
+    }
+    if (paced)
+        hx_buf_put(b, " \"pace 1.04\": the run is 1.04 times as fast as W workers that split the work perfectly at "
+                      "the speed each of W copies at once kept: the same share without the one-worker time, which was "
+                      "measured alone and at another moment.");
+    if (stepped)
+        hx_buf_put(b, " \"pace 0.74 of 0.83\": W workers that each did their share of that work at once, released "
+                      "together, kept 0.83 of it from the first's start to the last's end on this machine: the pace "
+                      "that its noise leaves a run whose workers must all end.");
+}

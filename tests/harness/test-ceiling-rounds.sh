@@ -1,0 +1,73 @@
+#!/bin/bash
+# `ceiling: rounds`: harness run measures one repeat of the ceiling's copies
+# (and its step) before each round of an `order: rounds` study, into
+# STEM-ceiling.csv beside its CSV, one row per worker count and round;
+# table finds that file and pools its rounds (the median of each figure);
+# --resume adds to it, a new study starts it again; a bad value, the key
+# without `order: rounds`, and a machine with one allowed core are refused
+# in one line before any run.
+# usage: test-ceiling-rounds.sh HARNESS
+set -u
+. "$(dirname "$0")/common.sh"
+test_setup ceiling-rounds "$1" "$1"
+command -v taskset > /dev/null || fail "taskset missing (util-linux)"
+[ "$(nproc)" -ge 2 ] || { echo "SKIP: one CPU: no ceiling to measure"; exit 77; }
+cat > c.conf <<'CONF'
+command: awk 'BEGIN{for(i=0;i<2e6;i++)s+=i; print s}'
+threads: 1 2
+repeats: 3
+order: rounds
+ceiling: rounds
+CONF
+"$H" run c.conf -o study.csv > run.out 2> run.err || { cat run.err; fail "the study"; }
+grep -q "ceiling: rounds: the copies before each round, into study-ceiling.csv" run.err || { cat run.err; fail "no line naming the file"; }
+# each round's copies come before that round's runs
+grep -E '^(ceiling: W=2|\[[0-9]/6\])' run.err | sed -E 's/^(ceiling): W=2.*/C/; s/^\[[0-9]\/6\].* r([0-9]):.*/\1/' | tr -d '\n' > order.txt
+[ "$(cat order.txt)" = "C00C11C22" ] || { cat run.err; fail "copies and rounds interleaved as $(cat order.txt)"; }
+python3 - <<'PY' || fail "the rounds' file"
+import csv
+rows = list(csv.DictReader(open("study-ceiling.csv")))
+assert [(r["workers"], r["round"], r["repeats"]) for r in rows] == [("2", str(k), "1") for k in range(3)], rows
+study = list(csv.DictReader(open("study.csv")))
+assert all(r["fingerprint"] == study[0]["fingerprint"] for r in rows), rows
+assert all(0 < float(r["step"]) <= 1.05 and float(r["together"]) > 0 for r in rows), rows
+PY
+"$H" table study.csv > t.md || fail "table"
+tr '\n' ' ' < t.md | grep -q "the median of 3 rounds measured between the study's own" || { cat t.md; fail "rounds not named"; }
+grep -qE "\| awk T=2 \| 3/3 \| .*pace [0-9.]+ of [0-9.]+\) \|" t.md || { cat t.md; fail "no pace against the rounds"; }
+# pooled: the median of each figure over the rounds, not the first row
+python3 - <<'PY' || fail "rewrite"
+import csv
+rows = list(csv.DictReader(open("study-ceiling.csv")))
+for r, tog, ratio in zip(rows, (10, 30, 20), ("0.5", "0.9", "0.7")):
+    r["together"], r["ratio_median"] = str(tog), ratio
+w = csv.DictWriter(open("pooled.csv", "w", newline=""), fieldnames=list(rows[0]))
+w.writeheader(); w.writerows(rows)
+PY
+"$H" table study.csv --ceiling pooled.csv --format json > p.json || fail "table --ceiling"
+python3 - <<'PY' || { cat p.json; fail "the rounds pooled"; }
+import json
+c = [c for c in json.load(open("p.json"))["configurations"] if c["workers"] == 2][0]
+assert abs(c["ceiling"] - 0.7) < 1e-9, c
+want = 20 / (2 * c["median_ms"])
+assert abs(c["ceiling_pace"] - want) < 1e-3 * want, (c["ceiling_pace"], want)
+PY
+# --resume with a fourth round adds its row; a new study starts the file again
+"$H" run c.conf -o study.csv --resume --set repeats=4 -q > /dev/null 2> resume.err || { cat resume.err; fail "--resume"; }
+[ "$(grep -c '^[0-9a-f]*,.*,2,1,' study-ceiling.csv)" -eq 4 ] && tail -1 study-ceiling.csv | grep -q ',3$' ||
+  { cat study-ceiling.csv; fail "--resume: the fourth round's row"; }
+"$H" run c.conf -o study.csv --overwrite -q > /dev/null 2>&1 || fail "--overwrite"
+[ "$(grep -c ',2,1,' study-ceiling.csv)" -eq 3 ] || { cat study-ceiling.csv; fail "a new study kept the old rounds"; }
+# bad input: one line naming the file and line, nothing run
+printf 'command: true\nthreads: 1 2\norder: rounds\nceiling: sometimes\n' > bad.conf
+"$H" run bad.conf -o bad.csv > /dev/null 2> bad.err && fail "ceiling: sometimes accepted"
+[ "$(wc -l < bad.err)" -eq 1 ] && grep -q "bad.conf:4: ceiling: expected off|rounds, got 'sometimes'" bad.err ||
+  fail "bad value: $(cat bad.err)"
+printf 'command: true\nthreads: 1 2\nceiling: rounds\n' > nested.conf
+"$H" run nested.conf -o nested.csv > /dev/null 2> nested.err && fail "ceiling: rounds without order: rounds accepted"
+[ "$(wc -l < nested.err)" -eq 1 ] && grep -q "nested.conf:3: ceiling: rounds .* it needs order: rounds" nested.err ||
+  fail "nested: $(cat nested.err)"
+taskset -c 0 "$H" run c.conf -o one.csv > /dev/null 2> one.err && fail "one allowed core accepted"
+grep -q "ceiling: rounds: only one core is allowed here" one.err || fail "one core: $(cat one.err)"
+[ ! -s one.csv ] || [ "$(wc -l < one.csv)" -le 1 ] || fail "one core: runs were recorded"
+echo "PASS: ceiling rounds"
