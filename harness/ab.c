@@ -271,9 +271,9 @@ static void tally(HxAbTally *t, const char *verdict)
 static int ab_one(const HxConfig *cfg, const HxTopo *t, const HxRun *r, const char *const rt[2], const char *key,
                   int higher, const HxAbRule *rule, HxAbTally *tal, const char **header)
 {
-    char tmp[] = "/tmp/harness-ab-XXXXXX";
-    if (!mkdtemp(tmp)) {
-        perror("harness ab: /tmp");
+    char err[512], *tmp = hx_temp_dir("ab", err, sizeof err);
+    if (!tmp) {
+        fprintf(stderr, "harness ab: %s\n", err);
         return -1;
     }
     HxCommand c[2];
@@ -305,6 +305,7 @@ static int ab_one(const HxConfig *cfg, const HxTopo *t, const HxRun *r, const ch
         hx_command_free(&c[k]);
     }
     rmdir(tmp);
+    free(tmp);
     return rc < 0 ? -1 : 0;
 }
 

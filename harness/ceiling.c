@@ -7,242 +7,20 @@
  * speed each keeps against a copy alone is the best efficiency any parallel
  * code can reach there (the "throughput ceiling"; Hoefler and Belli,
  * "Scientific benchmarking of parallel computing systems", SC 2015, ask
- * for such a machine baseline). `table` reports efficiency against it. */
+ * for such a machine baseline). `table` reports efficiency against it.
+ * Each scene of the plan has its own: a scene's copies are its own work.
+ * The copies themselves: ceiling_copies.c. */
+#include "ceiling.h"
 #include "program.h"
-#include "run.h"
 
 #include <errno.h>
 #include <fcntl.h>
 #include <getopt.h>
-#include <math.h>
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
-
-/* What a copy is measured by: the metric `table` reads the study by
- * (study.c's default_metric), so the ceiling and the efficiency against it
- * are ratios of the same thing. A copy's wall time would add its start, its
- * load and its writes, which scale otherwise: 40% of a 512x384 copy of the
- * dragon. */
-typedef struct {
-    const char *name; /* render_ms, a command study's first metric, or wall_ms */
-    int higher;       /* a rate: the ratio is together / alone */
-    double ms;        /* one unit in ms where it is a time, else 0 */
-} CeilMetric;
-
-static CeilMetric ceil_metric(const HxConfig *cfg)
-{
-    if (!cfg->prog)
-        return (CeilMetric){"render_ms", 0, 1};
-    const HxMetric *m = cfg->prog->nmetrics > 0 ? &cfg->prog->metrics[0] : NULL;
-    if (m && !hx_metric_is_size(m->name, m->unit))
-        return (CeilMetric){m->name, m->higher, m->higher ? 0 : hx_unit_ms(m->unit)};
-    return (CeilMetric){"wall_ms", 0, 1};
-}
-
-/* One copy started in its own process group, bound to core, its stdout and
- * stderr into out and err (a command study's metric may be in either). */
-static pid_t spawn(const HxCommand *c, const HxTopo *t, int core, const char *out, const char *err)
-{
-    pid_t pid = fork();
-    if (pid != 0)
-        return pid;
-    int fds[3] = {open("/dev/null", O_RDONLY), open(out, O_WRONLY | O_CREAT | O_TRUNC, 0600),
-                  open(err, O_WRONLY | O_CREAT | O_TRUNC, 0600)};
-    for (int fd = 0; fd < 3; fd++)
-        if (fds[fd] >= 0)
-            dup2(fds[fd], fd);
-    for (int fd = 0; fd < 3; fd++)
-        if (fds[fd] > 2)
-            close(fds[fd]);
-    HxRun one;
-    memset(&one, 0, sizeof one);
-    one.ncores = 1;
-    one.cores = &core;
-    hx_child_exec(c, t, &one, 1);
-}
-
-/* The copies' shared state: their commands, folders and metric. */
-typedef struct {
-    const HxConfig *cfg;
-    HxCommand *c;
-    char **dir;     /* each copy's run folder (command studies), else NULL */
-    const char *tmp;
-    CeilMetric m;
-    double pre; /* raytrace: how long the last copy alone took to reach its render, ms; 0 unknown */
-} Copies;
-
-/* When raytrace's copy i rendered, in ms from the copies' start, from its
- * record: its last render ends total_ms - write_ms after its start, and its
- * timed ones (runs) take render_ms each. span[0] < 0: not known. */
-static void render_span(const char *rec, double started, double render, double *span)
-{
-    char num[64];
-    double total, write, runs = 1;
-    span[0] = span[1] = -1;
-    if (!hx_record_get(rec, "total_ms", num, sizeof num) || hx_parse_double(num, &total) != 0 ||
-        !hx_record_get(rec, "write_ms", num, sizeof num) || hx_parse_double(num, &write) != 0)
-        return;
-    if (hx_record_get(rec, "runs", num, sizeof num) && (hx_parse_double(num, &runs) != 0 || runs < 1))
-        runs = 1;
-    span[1] = started + total - write;
-    span[0] = span[1] - render * runs;
-}
-
-/* Copy i's value of the metric from its outputs (wall the copy's wall ms),
- * and for raytrace when it rendered (render_span). 0, or -1 with why. */
-static int copy_value(const Copies *cp, int i, double started, double wall, double *v, double *span, char *why,
-                      size_t n)
-{
-    span[0] = span[1] = -1;
-    if (strcmp(cp->m.name, "wall_ms") == 0) {
-        *v = wall;
-        return 0;
-    }
-    HxBuf path = {0}, out = {0}, err = {0}, extra = {0};
-    hx_buf_printf(&path, "%s/copy-%d.out", cp->tmp, i);
-    int rc = hx_read_file(path.s, &out) != 0 ? -1 : 0;
-    if (cp->dir) { /* a command study's metric may be in stderr too */
-        path.len = 0;
-        hx_buf_printf(&path, "%s/copy-%d.err", cp->tmp, i);
-        rc = rc || hx_read_file(path.s, &err) != 0 ? -1 : 0;
-    }
-    char num[64];
-    if (rc != 0) {
-        snprintf(why, n, "copy %d: its output cannot be read", i);
-    } else if (!cp->dir) { /* raytrace: the record's render_ms */
-        char *rec = out.s ? hx_record_find(out.s) : NULL;
-        if (!rec || !hx_record_get(rec, cp->m.name, num, sizeof num) || hx_parse_double(num, v) != 0)
-            rc = -1, snprintf(why, n, "copy %d: no %s in its record", i, cp->m.name);
-        else
-            render_span(rec, started, *v, span);
-    } else if (hx_program_collect(cp->cfg, cp->dir[i], &out, &err, &extra, why, n) != 0) {
-        rc = -1;
-    } else { /* "name=value;...", the study's metrics in order: the first */
-        const char *eq = extra.s ? strchr(extra.s, '=') : NULL;
-        snprintf(num, sizeof num, "%.*s", eq ? (int)strcspn(eq + 1, ";") : 0, eq ? eq + 1 : "");
-        if (hx_parse_double(num, v) != 0)
-            rc = -1, snprintf(why, n, "copy %d: no %s", i, cp->m.name);
-    }
-    if (rc == 0 && !(*v > 0))
-        rc = -1, snprintf(why, n, "copy %d: %s = %g, not a positive value", i, cp->m.name, *v);
-    hx_buf_free(&path);
-    hx_buf_free(&out);
-    hx_buf_free(&err);
-    hx_buf_free(&extra);
-    return rc;
-}
-
-/* How much of each copy's render the others spent rendering too (0..1),
- * into ov; -1 where a span is not known. Copies that load for different
- * times can render partly alone, and then read faster than together. */
-static void overlaps(const double *span, int n, double *ov)
-{
-    for (int i = 0; i < n; i++) {
-        const double *a = span + 2 * i;
-        ov[i] = -1;
-        if (a[0] < 0 || !(a[1] > a[0]))
-            continue;
-        double sum = 0;
-        int known = 1;
-        for (int j = 0; j < n && known; j++) {
-            const double *b = span + 2 * j;
-            known = b[0] >= 0;
-            if (j != i) {
-                const double lo = a[0] > b[0] ? a[0] : b[0], hi = a[1] < b[1] ? a[1] : b[1];
-                sum += hi > lo ? hi - lo : 0;
-            }
-        }
-        if (known)
-            ov[i] = sum / ((double)(n - 1) * (a[1] - a[0]));
-    }
-}
-
-/* Runs n copies at once on cores[0..n-1]; each one's value of the metric
- * into v and, when n > 1 and ov is not NULL, its overlap (overlaps). 0, or
- * -1 when one failed (a line on stderr). */
-static int run_copies(Copies *cp, const HxTopo *t, const int *cores, int n, double *v, double *ov)
-{
-    pid_t *pid = hx_xmalloc((size_t)n * sizeof *pid);
-    double t0 = hx_now_ms(), *wall = hx_xmalloc((size_t)n * sizeof *wall);
-    double *started = hx_xmalloc((size_t)n * sizeof *started), *span = hx_xmalloc(2 * (size_t)n * sizeof *span);
-    int bad = 0;
-    /* raytrace's copies render together: from a start time past what the
-     * copy alone took to load, four times over (loads contend), 0.1 s at
-     * least; a copy that loads slower still starts late, and its overlap
-     * shows it */
-    char gate[64] = "0";
-    if (!cp->dir && cp->pre > 0 && n > 1)
-        snprintf(gate, sizeof gate, "%.3f", t0 + (4 * cp->pre > cp->pre + 100 ? 4 * cp->pre : cp->pre + 100));
-    for (int i = 0; i < n && !cp->dir; i++) { /* the value after --start-at (build_copies) */
-        HxStrList *a = &cp->c[i].argv;
-        free(a->v[a->n - 1]);
-        a->v[a->n - 1] = hx_strdup(gate);
-    }
-    for (int i = 0; i < n; i++) {
-        started[i] = hx_now_ms() - t0;
-        HxBuf o = {0}, e = {0};
-        hx_buf_printf(&o, "%s/copy-%d.out", cp->tmp, i);
-        hx_buf_printf(&e, "%s/copy-%d.err", cp->tmp, i);
-        pid[i] = spawn(&cp->c[i], t, cores[i], o.s, e.s);
-        if (pid[i] > 0)
-            setpgid(pid[i], pid[i]); /* both sides: no race with an early kill */
-        else
-            bad = 1; /* no fork: nothing of this copy to read */
-        hx_buf_free(&o);
-        hx_buf_free(&e);
-    }
-    /* The stop signals and SIGCHLD held but in sigsuspend, so a stop that
-     * comes between the check and the wait still wakes it. */
-    sigset_t hold, old;
-    sigemptyset(&hold);
-    sigaddset(&hold, SIGINT);
-    sigaddset(&hold, SIGTERM);
-    sigaddset(&hold, SIGCHLD);
-    sigprocmask(SIG_BLOCK, &hold, &old);
-    for (int done = 0; done < n && !hx_stop_signal();) {
-        int st, reaped = 0;
-        pid_t p;
-        while ((p = waitpid(-1, &st, WNOHANG)) > 0)
-            for (int i = 0; i < n; i++)
-                if (pid[i] == p) {
-                    wall[i] = hx_now_ms() - t0;
-                    bad |= !WIFEXITED(st) || WEXITSTATUS(st) != 0;
-                    pid[i] = 0;
-                    done++;
-                    reaped++;
-                }
-        if (p < 0 && errno == ECHILD)
-            break;
-        if (!reaped && done < n)
-            sigsuspend(&old);
-    }
-    sigprocmask(SIG_SETMASK, &old, NULL);
-    if (hx_stop_signal()) { /* SIGINT or SIGTERM: no copy outlives the harness */
-        for (int i = 0; i < n; i++)
-            if (pid[i] > 0)
-                kill(-pid[i], SIGKILL);
-        hx_reap_strays();
-        bad = -1;
-    }
-    char why[512] = "a copy of the workload failed (run the study once to see why)";
-    for (int i = 0; i < n && !bad; i++)
-        bad = copy_value(cp, i, started[i], wall[i], &v[i], span + 2 * i, why, sizeof why) != 0;
-    if (bad > 0)
-        fprintf(stderr, "harness ceiling: %s\n", why);
-    if (!bad && ov && n > 1)
-        overlaps(span, n, ov);
-    if (!bad && n == 1)
-        cp->pre = span[0] > started[0] ? span[0] - started[0] : 0;
-    free(pid);
-    free(wall);
-    free(started);
-    free(span);
-    return bad ? -1 : 0;
-}
 
 /* The study's one-worker workload: its first run with one worker, no MPI,
  * serial for raytrace. */
@@ -289,8 +67,8 @@ static int ceiling_opts(int argc, char **argv, CeilOpts *o)
         case 't': o->rt_opt = optarg; break;
         case 'h':
             fputs("usage: harness ceiling CONFIG [--repeats N] [-o FILE] [--set KEY=VALUE]... [--raytrace PATH]\n"
-                  "For each worker count W of CONFIG's plan, runs W one-worker copies of the study's\n"
-                  "workload at once, pinned one per core where the study pins W workers, against one\n"
+                  "For each scene and worker count W of CONFIG's plan, runs W one-worker copies of the\n"
+                  "study's workload at once, pinned one per core where the study pins W workers, against one\n"
                   "copy alone: the speed each copy keeps is the machine's ceiling for W-worker\n"
                   "efficiency. Writes FILE (default results/ceiling-FINGERPRINT.csv), which `table`\n"
                   "reads (docs/harness-noise.md, \"Ceiling\").\n", stdout);
@@ -305,245 +83,141 @@ static int ceiling_opts(int argc, char **argv, CeilOpts *o)
     return -1;
 }
 
-/* The study's worker counts above 1 that are pinned, each with its cores:
- * ws[i] workers on cores[i]. Their number. */
-static int worker_counts(const HxPlan *plan, int *ws, int **cores, int max)
+/* One scene of the plan: its first run (the copies' workload) and its
+ * pinned worker counts above 1, ws[i] workers on cores[i]. */
+typedef struct {
+    const char *name;
+    const HxRun *first;
+    int ws[64], *cores[64], nw, wmax;
+} CeilScene;
+
+/* The scene's pinned worker counts (CeilScene). */
+static void worker_counts(const HxPlan *plan, CeilScene *sc)
 {
-    int n = 0;
-    for (size_t i = 0; i < plan->n && n < max; i++) {
+    sc->nw = 0, sc->wmax = 1;
+    for (size_t i = 0; i < plan->n && sc->nw < 64; i++) {
         const HxRun *r = &plan->runs[i];
-        int seen = 0;
-        for (int k = 0; k < n; k++)
-            seen |= ws[k] == r->workers;
+        int seen = strcmp(r->scene_name, sc->name) != 0;
+        for (int k = 0; k < sc->nw; k++)
+            seen |= sc->ws[k] == r->workers;
         if (seen || r->workers < 2 || r->ncores != r->workers || r->oversubscribed)
             continue;
-        ws[n] = r->workers;
-        cores[n++] = r->cores;
-    }
-    return n;
-}
-
-/* One copy's command line per slot, each with its own image or folder. */
-static int build_copies(const HxConfig *cfg, const HxTopo *t, const HxRun *one, const char *rt, int n, Copies *cp)
-{
-    char *workdir = cfg->prog ? hx_path_join(cp->tmp, "work") : NULL;
-    char why[512];
-    int rc = workdir && (mkdir(workdir, 0700) != 0 || hx_program_setup(cfg, workdir, why, sizeof why) != 0) ? -1 : 0;
-    cp->dir = cfg->prog ? hx_xmalloc((size_t)n * sizeof *cp->dir) : NULL;
-    for (int i = 0; i < n; i++) {
-        HxBuf img = {0}, dir = {0};
-        hx_buf_printf(&img, "%s/copy-%d.ppm", cp->tmp, i);
-        hx_buf_printf(&dir, "%s/copy-%d", workdir ? workdir : cp->tmp, i);
-        if (rc == 0 && cfg->prog) {
-            HxVars vars;
-            hx_vars_of_run(cfg, one, dir.s, workdir, &vars);
-            rc = hx_program_prepare(cfg, &vars, dir.s, why, sizeof why);
-            hx_vars_free(&vars);
-        }
-        hx_build_command(cfg, t, one, rt, img.s, dir.s, workdir, &cp->c[i]);
-        if (!cfg->prog) { /* its value set by run_copies */
-            HxStrList *a = &cp->c[i].argv;
-            hx_strlist_push(a, "--start-at");
-            hx_strlist_push(a, "0");
-            hx_command_terminate(&cp->c[i]);
-        }
-        hx_buf_free(&img);
-        if (cp->dir)
-            cp->dir[i] = dir.s;
-        else
-            hx_buf_free(&dir);
-    }
-    if (rc)
-        fprintf(stderr, "harness ceiling: %s\n", why);
-    free(workdir);
-    return rc;
-}
-
-/* The step probe (syncstep.c) after W copies ran together: each worker's work
- * per step is what W workers sharing one copy's work would each do, the
- * copies' value together / W where the metric is a time, else their wall
- * time / W; as many steps as fill the copies' time held to 0.3 to 2 s,
- * but 5 at least (longer where each step is) and 500 at most. Its share
- * into share[*n] and its work per step into quantum[*n], the CPU steal
- * over it into *stolen and *ticks. */
-static void step_after(const Copies *cp, const HxTopo *t, const int *cores, int w, const double *v, double wall,
-                       double *share, int *n, double *quantum, unsigned long long *stolen, unsigned long long *ticks)
-{
-    const double q = (cp->m.ms > 0 ? hx_median(v, (size_t)w) * cp->m.ms : wall) / w;
-    const double fill = wall < 300 ? 300 : wall > 2000 ? 2000 : wall;
-    const int steps = fill / q < 5 ? 5 : fill / q > 500 ? 500 : (int)(fill / q);
-    HxCpuStat s0, s1;
-    HxSyncStep st;
-    hx_cpu_stat(&s0);
-    if (hx_sync_step(t, cores, w, q, steps, &st) != 0) {
-        fprintf(stderr, "harness ceiling: W=%d: no step this repeat (a worker could not be bound to its core, a "
-                        "step did not end within %.0f s, or a signal came)\n", w, hx_sync_wait_ms(q) / 1000);
-        return;
-    }
-    hx_cpu_stat(&s1);
-    quantum[*n] = q;
-    share[(*n)++] = st.share;
-    if (s0.ok && s1.ok) {
-        *stolen += s1.steal - s0.steal;
-        *ticks += hx_cpu_ticks(&s0, &s1);
+        sc->ws[sc->nw] = r->workers;
+        sc->cores[sc->nw++] = r->cores;
+        sc->wmax = r->workers > sc->wmax ? r->workers : sc->wmax;
     }
 }
 
-#define CEIL_HEADER                                                                                              \
-    "fingerprint,host,workers,repeats,ratio_median,ratio_min,ratio_max,alone,config,metric,steal_pct,overlap,"      \
-    "together,step,step_ms,round\n"
-
-/* The W= line's figures of one worker count, and its CSV row. */
-static void ceil_report(const Copies *cp, int w, int repeats, int round, const double *ratio, const double *tog,
-                        int n, double solos, double steal, double overlap, double step, double quantum,
-                        double ssteal, const HxFingerprint *fp, const char *config, FILE *say, HxBuf *b)
-{
-    const double together = hx_median(tog, (size_t)n); /* table's pace compares a run with it directly */
-    double med = hx_median(ratio, (size_t)n), lo = hx_min(ratio, (size_t)n), hi = lo;
-    for (int i = 0; i < n; i++)
-        hi = ratio[i] > hi ? ratio[i] : hi;
-    if (say) {
-        fprintf(say, "%sW=%d: each copy's %s at %.3f of a copy alone (median of %d, %.3f to %.3f; alone %.4g, "
-                "together %.4g", round >= 0 ? "ceiling: " : "", w, cp->m.name, med, n, lo, hi, solos / repeats,
-                together);
-        if (steal >= 0)
-            fprintf(say, "; CPU steal %.1f%%", steal);
-        if (overlap >= 0) /* below 1, the copies rendered partly alone and the ceiling reads high */
-            fprintf(say, "; renders overlapping %.2f", overlap);
-        if (isfinite(step)) /* the step: what a W-way split of that work keeps when all W must end */
-            fprintf(say, "; a step of %.4g ms on %d cores at once keeps %.3f (CPU steal %.1f%%)", quantum, w, step,
-                    ssteal);
-        fprintf(say, ")\n");
-        fflush(say);
-    }
-    hx_buf_printf(b, "%s,%s,%d,%d,%.4f,%.4f,%.4f,%.6g,", fp->fingerprint, fp->host, w, repeats, med, lo, hi,
-                  solos / repeats);
-    hx_csv_field(b, config);
-    hx_buf_put(b, ",");
-    hx_csv_field(b, cp->m.name);
-    hx_buf_printf(b, ",%.2f,%.3f,%.6g,%.4f,%.6g,", steal, overlap, together, step, quantum);
-    if (round >= 0)
-        hx_buf_printf(b, "%d", round);
-    hx_buf_put(b, "\n");
-}
-
-/* Measures w copies on cores, repeats times: one line on say (unless NULL),
- * one CSV row into b, its round column round (none where < 0). 0, or -1
- * when a copy failed. */
-static int measure_w(Copies *cp, const HxTopo *t, int w, const int *cores, int repeats, int round,
-                     const HxFingerprint *fp, const char *config, FILE *say, HxBuf *b)
-{
-    int n = 0, nstep = 0, bad = 0;
-    double *ratio = hx_xmalloc((size_t)(w * repeats) * sizeof *ratio), *v = hx_xmalloc((size_t)w * sizeof *v);
-    double *ov = hx_xmalloc((size_t)w * sizeof *ov), *ovs = hx_xmalloc((size_t)(w * repeats) * sizeof *ovs);
-    double *tog = hx_xmalloc((size_t)(w * repeats) * sizeof *tog);
-    double solo = 0, solos = 0, *sshare = hx_xmalloc((size_t)repeats * sizeof *sshare),
-           *squant = hx_xmalloc((size_t)repeats * sizeof *squant);
-    size_t nov = 0;
-    /* the CPU time the hypervisor took while the copies ran together: a
-     * study's runs with more steal than this lose more than the ceiling */
-    unsigned long long stolen = 0, ticks = 0, sstolen = 0, sticks = 0;
-    for (int r = 0; r < repeats && !bad; r++) {
-        /* alone, then all at once: a slow phase of the machine hits both */
-        HxCpuStat s0, s1;
-        bad = run_copies(cp, t, cores, 1, &solo, NULL) != 0;
-        hx_cpu_stat(&s0);
-        const double t0 = hx_now_ms();
-        bad = bad || run_copies(cp, t, cores, w, v, ov) != 0;
-        const double wall = hx_now_ms() - t0;
-        hx_cpu_stat(&s1);
-        if (bad)
-            break;
-        step_after(cp, t, cores, w, v, wall, sshare, &nstep, squant, &sstolen, &sticks);
-        for (int i = 0; i < w; i++)
-            if (ov[i] >= 0)
-                ovs[nov++] = ov[i];
-        if (s0.ok && s1.ok) {
-            stolen += s1.steal - s0.steal;
-            ticks += hx_cpu_ticks(&s0, &s1);
-        }
-        solos += solo;
-        for (int i = 0; i < w; i++) {
-            tog[n] = v[i];
-            ratio[n++] = cp->m.higher ? v[i] / solo : solo / v[i];
-        }
-    }
-    if (!bad)
-        ceil_report(cp, w, repeats, round, ratio, tog, n, solos, ticks ? 100.0 * (double)stolen / (double)ticks : -1,
-                    nov ? hx_median(ovs, nov) : -1, nstep ? hx_median(sshare, (size_t)nstep) : NAN,
-                    nstep ? hx_median(squant, (size_t)nstep) : NAN,
-                    sticks ? 100.0 * (double)sstolen / (double)sticks : 0.0, fp, config, say, b);
-    free(sshare);
-    free(squant);
-    free(ratio);
-    free(tog);
-    free(v);
-    free(ov);
-    free(ovs);
-    return bad ? -1 : 0;
-}
-
-/* Only wakes sigsuspend in run_copies: the default would discard it. */
-static void on_child(int sig) { (void)sig; }
-
-/* The copies of a plan's pinned worker counts, ready to run. */
+/* The copies of a plan's scenes, ready to run. */
 struct HxCeilRounds {
     const HxConfig *cfg;
     const HxTopo *t;
     const HxFingerprint *fp;
-    Copies cp;
-    char tmp[32];
-    int made; /* tmp exists */
-    int ws[64], *cores[64], nw, wmax;
-    char *path; /* ceiling: rounds: the file its rows go to */
+    const char *rt;
+    CeilScene *sc;
+    int nsc, nw;  /* scenes; worker counts of them all */
+    HxCopies cp;  /* of scene built */
+    int built;    /* -1 none */
+    char *tmp;    /* the copies' folder */
+    char *path;   /* ceiling: rounds: the file its rows go to */
+    int fd;       /* open on it */
+    HxStrList kept; /* "ROUND\tSCENE" of its rows from before (--resume) */
 };
 
-/* Plans c's worker counts and builds their copies' commands (the scene
- * cache resolved before). 0, or -1 with a line on stderr. */
-static int ceil_open(HxCeilRounds *c, const HxConfig *cfg, const HxPlan *plan, const HxTopo *t, const char *rt,
-                     const char *who)
+/* The plan's scenes and their worker counts into c (nothing made yet). */
+static void ceil_plan(HxCeilRounds *c, const HxConfig *cfg, const HxPlan *plan, const HxTopo *t, const char *rt)
 {
     memset(c, 0, sizeof *c);
-    c->cfg = cfg, c->t = t;
-    c->nw = worker_counts(plan, c->ws, c->cores, 64), c->wmax = 1;
-    for (int k = 0; k < c->nw; k++)
-        c->wmax = c->ws[k] > c->wmax ? c->ws[k] : c->wmax;
-    snprintf(c->tmp, sizeof c->tmp, "/tmp/harness-ceiling-XXXXXX");
-    if (t->ncores < 2 || !t->have_hwloc) {
+    c->cfg = cfg, c->t = t, c->rt = rt, c->built = -1, c->fd = -1;
+    c->sc = hx_xmalloc((plan->n ? plan->n : 1) * sizeof *c->sc);
+    for (size_t i = 0; i < plan->n; i++) {
+        int seen = 0;
+        for (int k = 0; k < c->nsc && !seen; k++)
+            seen = strcmp(c->sc[k].name, plan->runs[i].scene_name) == 0;
+        if (seen)
+            continue;
+        CeilScene *sc = &c->sc[c->nsc++];
+        sc->name = plan->runs[i].scene_name;
+        sc->first = &plan->runs[i];
+        worker_counts(plan, sc);
+        c->nw += sc->nw;
+    }
+}
+
+/* What refuses a ceiling before anything is made or run: one line on
+ * stderr and -1, else 0. */
+static int ceil_check(const HxCeilRounds *c, const char *who)
+{
+    if (c->t->ncores < 2 || !c->t->have_hwloc) {
         fprintf(stderr, "%s: %s: one copy per core needs two cores or more and hwloc to pin them\n", who,
-                t->ncores < 2 ? "only one core is allowed here" : "built without hwloc");
+                c->t->ncores < 2 ? "only one core is allowed here" : "built without hwloc");
         return -1;
     }
     if (c->nw == 0) {
-        fprintf(stderr, "%s: %s plans no pinned run of 2 to %d workers: no ceiling to measure\n", who, cfg->path,
-                t->ncores);
+        fprintf(stderr, "%s: %s plans no pinned run of 2 to %d workers: no ceiling to measure\n", who, c->cfg->path,
+                c->t->ncores);
         return -1;
     }
-    if (!mkdtemp(c->tmp)) {
-        fprintf(stderr, "%s: /tmp: %s\n", who, strerror(errno));
+    return 0;
+}
+
+/* ceil_check, then the copies' folder. 0, or -1 (said). */
+static int ceil_open(HxCeilRounds *c, const char *who)
+{
+    char err[512];
+    if (ceil_check(c, who) != 0)
         return -1;
-    }
-    c->made = 1;
+    c->tmp = hx_temp_dir("ceiling", err, sizeof err);
+    if (!c->tmp)
+        fprintf(stderr, "%s: %s\n", who, err);
+    return c->tmp ? 0 : -1;
+}
+
+/* Scene k's copies built (the scene cache resolved before). 0, or -1. */
+static int ceil_build(HxCeilRounds *c, int k)
+{
+    if (c->built == k)
+        return 0;
+    hx_copies_free(&c->cp);
+    c->built = -1;
     HxRun one;
-    one_worker(cfg, &plan->runs[0], &one);
-    c->cp = (Copies){cfg, hx_xmalloc((size_t)c->wmax * sizeof *c->cp.c), NULL, c->tmp, ceil_metric(cfg), 0};
-    memset(c->cp.c, 0, (size_t)c->wmax * sizeof *c->cp.c);
-    return build_copies(cfg, t, &one, rt, c->wmax, &c->cp);
+    one_worker(c->cfg, c->sc[k].first, &one);
+    HxBuf work = {0};
+    hx_buf_printf(&work, "%s/work-%d", c->tmp, k);
+    const int rc = hx_copies_build(&c->cp, c->cfg, c->t, &one, c->rt, c->tmp, work.s, c->sc[k].wmax);
+    hx_buf_free(&work);
+    c->built = rc ? -1 : k;
+    return rc;
+}
+
+/* Scene k's worker counts, repeats each: a line each on say, a row each
+ * into b. 0, or -1 (a copy failed or a stop signal came). */
+static int ceil_scene(HxCeilRounds *c, int k, int repeats, int round, FILE *say, HxBuf *b)
+{
+    const CeilScene *sc = &c->sc[k];
+    HxCeilKey key = {c->fp, c->cfg->path, sc->name, round, c->nsc > 1};
+    int rc = ceil_build(c, k);
+    for (int w = 0; w < sc->nw && rc == 0 && !hx_stop_signal(); w++)
+        rc = hx_copies_measure(&c->cp, c->t, sc->ws[w], sc->cores[w], repeats, &key, say, b);
+    hx_reap_strays(); /* no copy of a failed round left on a core */
+    return rc || hx_stop_signal() ? -1 : 0;
 }
 
 static void ceil_close(HxCeilRounds *c)
 {
-    for (int i = 0; c->cp.c && i < c->wmax; i++) {
-        hx_command_free(&c->cp.c[i]);
-        if (c->cp.dir)
-            free(c->cp.dir[i]);
-    }
-    free(c->cp.c);
-    free(c->cp.dir);
-    if (c->made)
+    hx_copies_free(&c->cp);
+    if (c->tmp)
         hx_rmtree(c->tmp);
+    if (c->fd >= 0)
+        close(c->fd);
+    free(c->tmp);
     free(c->path);
+    free(c->sc);
+    hx_strlist_free(&c->kept);
 }
+
+/* Only wakes sigsuspend in run_copies: the default would discard it. */
+static void on_child(int sig) { (void)sig; }
 
 char *hx_ceiling_rounds_path(const char *csv_path)
 {
@@ -553,32 +227,99 @@ char *hx_ceiling_rounds_path(const char *csv_path)
     return b.s;
 }
 
+int hx_ceiling_rounds_check(const HxConfig *cfg, const HxPlan *plan, const HxTopo *t)
+{
+    HxCeilRounds c;
+    ceil_plan(&c, cfg, plan, t, NULL);
+    const int rc = ceil_check(&c, "harness run: ceiling: rounds");
+    ceil_close(&c);
+    return rc;
+}
+
+/* The rounds' file, open on c->fd: started again, or (keep, as --resume)
+ * its rows so far read into c->kept and a torn last row dropped. 0, or -1
+ * (said). */
+static int rounds_file(HxCeilRounds *c, int keep)
+{
+    const char *who = "harness run: ceiling: rounds";
+    const size_t hlen = strlen(HX_CEIL_HEADER);
+    struct stat st;
+    HxBuf text = {0};
+    c->fd = open(c->path, O_RDWR | O_CREAT | O_CLOEXEC | (keep ? 0 : O_TRUNC), 0644);
+    int rc = c->fd >= 0 && fstat(c->fd, &st) == 0 ? 0 : -1;
+    if (rc == 0 && !S_ISREG(st.st_mode)) {
+        fprintf(stderr, "%s: %s: not a regular file\n", who, c->path);
+        return -1;
+    }
+    if (rc == 0 && st.st_size == 0)
+        rc = write(c->fd, HX_CEIL_HEADER, hlen) == (ssize_t)hlen ? 0 : -1;
+    else if (rc == 0)
+        rc = hx_read_file(c->path, &text);
+    if (rc != 0) {
+        fprintf(stderr, "%s: %s: %s\n", who, c->path, strerror(errno));
+        return -1;
+    }
+    if (!text.s)
+        return 0;
+    if (text.len < hlen || memcmp(text.s, HX_CEIL_HEADER, hlen) != 0) {
+        fprintf(stderr, "%s: %s: its header is not this harness's; move it away, or start the study again\n", who,
+                c->path);
+        hx_buf_free(&text);
+        return -1;
+    }
+    /* a row cut short (a power loss) is dropped: its round is measured again */
+    const size_t whole = (size_t)(strrchr(text.s, '\n') - text.s) + 1;
+    if (whole < text.len)
+        fprintf(stderr, "%s: %s: dropping a torn last row\n", who, c->path);
+    if (whole < text.len && ftruncate(c->fd, (off_t)whole) != 0) {
+        fprintf(stderr, "%s: %s: cannot drop a torn last row: %s\n", who, c->path, strerror(errno));
+        hx_buf_free(&text);
+        return -1;
+    }
+    hx_buf_free(&text);
+    HxCsv csv;
+    char err[512];
+    if (hx_csv_read(c->path, &csv, err, sizeof err) != 0) {
+        fprintf(stderr, "%s: %s\n", who, err);
+        return -1;
+    }
+    for (size_t r = 0; r < csv.nrows; r++) {
+        HxBuf k = {0};
+        hx_buf_printf(&k, "%s\t%s", hx_csv_get(&csv, r, "round"), hx_csv_get(&csv, r, "scene"));
+        hx_strlist_push(&c->kept, k.s);
+        hx_buf_free(&k);
+    }
+    hx_csv_free(&csv);
+    return 0;
+}
+
 HxCeilRounds *hx_ceiling_rounds_open(const HxConfig *cfg, const HxPlan *plan, const HxTopo *t,
                                      const HxFingerprint *fp, const char *raytrace, const char *path, int keep)
 {
     HxCeilRounds *c = hx_xmalloc(sizeof *c);
-    if (ceil_open(c, cfg, plan, t, raytrace, "harness run: ceiling: rounds") != 0) {
-        ceil_close(c);
-        free(c);
-        return NULL;
-    }
+    ceil_plan(c, cfg, plan, t, raytrace);
     c->fp = fp;
     c->path = hx_strdup(path);
-    /* the file belongs to the study's CSV: a new study starts it again */
-    const int fd = open(path, O_WRONLY | O_CREAT | O_CLOEXEC | (keep ? O_APPEND : O_TRUNC), 0644);
-    struct stat st;
-    const int fresh = fd >= 0 && fstat(fd, &st) == 0 && st.st_size == 0;
-    if (fd < 0 || (fresh && write(fd, CEIL_HEADER, strlen(CEIL_HEADER)) != (ssize_t)strlen(CEIL_HEADER)) ||
-        close(fd) != 0) {
-        fprintf(stderr, "harness run: ceiling: rounds: %s: %s\n", path, strerror(errno));
+    if (ceil_open(c, "harness run: ceiling: rounds") != 0 || rounds_file(c, keep) != 0) {
         hx_ceiling_rounds_close(c);
         return NULL;
     }
     return c;
 }
 
-int hx_ceiling_rounds_measure(HxCeilRounds *c, int round, int quiet)
+int hx_ceiling_rounds_measure(HxCeilRounds *c, const char *scene, int round, int quiet)
 {
+    int k = 0;
+    while (k < c->nsc && strcmp(c->sc[k].name, scene) != 0)
+        k++;
+    HxBuf key = {0};
+    hx_buf_printf(&key, "%d\t%s", round, scene);
+    /* a scene without a pinned worker count has no ceiling; a round
+     * measured before --resume keeps its row */
+    const int skip = k == c->nsc || c->sc[k].nw == 0 || hx_strlist_find(&c->kept, key.s) >= 0;
+    hx_buf_free(&key);
+    if (skip)
+        return 0;
     struct sigaction sa, old;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_child;
@@ -586,16 +327,15 @@ int hx_ceiling_rounds_measure(HxCeilRounds *c, int round, int quiet)
     sigemptyset(&sa.sa_mask);
     sigaction(SIGCHLD, &sa, &old);
     HxBuf b = {0};
-    int rc = 0;
-    for (int k = 0; k < c->nw && rc == 0 && !hx_stop_signal(); k++)
-        rc = measure_w(&c->cp, c->t, c->ws[k], c->cores[k], 1, round, c->fp, c->cfg->path, quiet ? NULL : stderr,
-                       &b);
+    int rc = ceil_scene(c, k, 1, round, quiet ? NULL : stderr, &b);
     sigaction(SIGCHLD, &old, NULL);
-    rc = rc || hx_stop_signal() ? -1 : 0;
-    /* whole rows only, appended after the round's copies all ended */
-    const int fd = rc ? -1 : open(c->path, O_WRONLY | O_APPEND | O_CLOEXEC);
-    if (!rc && (fd < 0 || write(fd, b.s, b.len) != (ssize_t)b.len || close(fd) != 0)) {
+    /* whole rows only, appended after the round's copies all ended; a
+     * write cut short (a full disk) is cut back off */
+    const off_t end = rc ? 0 : lseek(c->fd, 0, SEEK_END);
+    if (!rc && (end < 0 || write(c->fd, b.s, b.len) != (ssize_t)b.len || fsync(c->fd) != 0)) {
         fprintf(stderr, "harness run: ceiling: rounds: %s: %s\n", c->path, strerror(errno));
+        if (end >= 0 && ftruncate(c->fd, end) != 0)
+            fprintf(stderr, "harness run: ceiling: rounds: %s: a torn row left: %s\n", c->path, strerror(errno));
         rc = -1;
     }
     hx_buf_free(&b);
@@ -608,6 +348,45 @@ void hx_ceiling_rounds_close(HxCeilRounds *c)
         return;
     ceil_close(c);
     free(c);
+}
+
+/* Every scene's ceiling, repeats each, into b (its header first). 0, or
+ * the exit status. */
+static int ceil_all(HxCeilRounds *c, int repeats, HxBuf *b)
+{
+    fprintf(stderr, "harness ceiling: %s on %s: %d worker count(s)%s, %d repeat(s) each, copies measured by %s\n",
+            c->cfg->path, c->fp->host, c->nw, c->nsc > 1 ? " of its scenes" : "", repeats, hx_ceil_metric(c->cfg).name);
+    hx_buf_put(b, HX_CEIL_HEADER);
+    int rc = 0;
+    for (int k = 0; k < c->nsc && rc == 0; k++)
+        if (c->sc[k].nw > 0)
+            rc = ceil_scene(c, k, repeats, -1, stdout, b) != 0;
+    if (hx_stop_signal()) {
+        fprintf(stderr, "harness ceiling: stopped by %s: its copies ended, no ceiling written\n",
+                hx_signal_name(hx_stop_signal()));
+        rc = 128 + hx_stop_signal();
+    }
+    return rc;
+}
+
+/* b into -o FILE, else results/ceiling-FINGERPRINT.csv. 0 or 1. */
+static int ceil_write(const char *out, const HxFingerprint *fp, const HxBuf *b)
+{
+    HxBuf path = {0};
+    if (out)
+        hx_buf_put(&path, out);
+    else
+        hx_buf_printf(&path, "%sceiling-%s.csv", hx_is_dir("results") ? "results/" : "", fp->fingerprint);
+    FILE *f = fopen(path.s, "w");
+    int rc = 0;
+    if (!f || fputs(b->s, f) == EOF || fclose(f) != 0) {
+        fprintf(stderr, "harness ceiling: %s: %s\n", path.s, strerror(errno));
+        rc = 1;
+    } else {
+        fprintf(stderr, "harness ceiling: wrote %s\n", path.s);
+    }
+    hx_buf_free(&path);
+    return rc;
 }
 
 int hx_cmd_ceiling(int argc, char **argv)
@@ -632,44 +411,24 @@ int hx_cmd_ceiling(int argc, char **argv)
     hx_topo_load(&t);
     hx_plan_cores(&t, &cfg, &plan);
     HxFingerprint fp;
-    HxBuf b = {0}, out = {0};
+    HxBuf b = {0};
     char *rt = hx_find_raytrace(&cfg, o.rt_opt);
     HxCeilRounds c;
-    if (!cfg.prog)
+    ceil_plan(&c, &cfg, &plan, &t, rt);
+    rc = ceil_check(&c, "harness ceiling") != 0;
+    if (rc == 0 && !cfg.prog) /* the scene cache only for a ceiling that will run */
         hx_resolve_scene_cache(&cfg, NULL);
-    if (ceil_open(&c, &cfg, &plan, &t, rt, "harness ceiling") != 0) {
-        rc = 1;
-    } else {
-        rc = 0;
+    rc = rc || ceil_open(&c, "harness ceiling") != 0;
+    if (rc == 0) {
         hx_fingerprint_get(&fp, &t, 0, cfg.prog ? NULL : rt, NULL, NULL);
-        hx_buf_put(&b, CEIL_HEADER);
-        fprintf(stderr, "harness ceiling: %s on %s: %d worker count(s), %d repeat(s) each, copies measured by %s\n",
-                cfg.path, fp.host, c.nw, o.repeats, c.cp.m.name);
-        for (int k = 0; k < c.nw && !rc; k++)
-            rc = measure_w(&c.cp, &t, c.ws[k], c.cores[k], o.repeats, -1, &fp, cfg.path, stdout, &b) != 0;
-        if (hx_stop_signal()) {
-            fprintf(stderr, "harness ceiling: stopped by %s: its copies ended, no ceiling written\n",
-                    hx_signal_name(hx_stop_signal()));
-            rc = 128 + hx_stop_signal();
-        }
+        c.fp = &fp;
+        rc = ceil_all(&c, o.repeats, &b);
     }
     ceil_close(&c);
-    if (rc == 0) {
-        if (o.out)
-            hx_buf_put(&out, o.out);
-        else
-            hx_buf_printf(&out, "%sceiling-%s.csv", hx_is_dir("results") ? "results/" : "", fp.fingerprint);
-        FILE *f = fopen(out.s, "w");
-        if (!f || fputs(b.s, f) == EOF || fclose(f) != 0) {
-            fprintf(stderr, "harness ceiling: %s: %s\n", out.s, strerror(errno));
-            rc = 1;
-        } else {
-            fprintf(stderr, "harness ceiling: wrote %s\n", out.s);
-        }
-    }
+    if (rc == 0)
+        rc = ceil_write(o.out, &fp, &b);
     free(rt);
     hx_buf_free(&b);
-    hx_buf_free(&out);
     hx_topo_free(&t);
     hx_plan_free(&plan);
     hx_config_free(&cfg);

@@ -22,35 +22,83 @@ static double median_of(const double *v, int n, int nonneg)
     return r;
 }
 
-/* Several rows of one worker count (`harness run` with `ceiling: rounds`
- * writes one per round) become one: the median of each figure over the
- * rounds, which sampled the same minutes as the study's runs. */
+/* Whether two rows' scenes are one (NULL: a file without the column). */
+static int same_scene(const char *a, const char *b)
+{
+    return a && b ? strcmp(a, b) == 0 : a == b;
+}
+
+/* Several rows of one scene and worker count (`harness run` with `ceiling:
+ * rounds` writes one per round) become one: the median of each figure
+ * over the rounds, which sampled the same minutes as the study's runs. */
 static void pool_rounds(HxStudy *s)
 {
     int n = 0;
     double *buf = hx_xmalloc((size_t)(s->nceil ? s->nceil : 1) * sizeof *buf);
     s->ceil_rounds = 1;
     for (int i = 0; i < s->nceil; i++) {
-        int w = s->ceil_w[i], k = 0, seen = 0;
-        for (int j = 0; j < n; j++)
-            seen |= s->ceil_w[j] == w;
-        if (seen)
+        HxCeilPoint *p = &s->ceil[i];
+        int k = 0, seen = 0;
+        for (int j = 0; j < n && !seen; j++)
+            seen = s->ceil[j].w == p->w && same_scene(s->ceil[j].scene, p->scene);
+        if (seen) {
+            free(p->scene);
             continue;
-        double *fields[4] = {s->ceil_r, s->ceil_t, s->ceil_s, s->ceil_steal}, out[4];
+        }
+        double out[4];
         for (int f = 0; f < 4; f++) {
             k = 0;
             for (int j = i; j < s->nceil; j++)
-                if (s->ceil_w[j] == w)
-                    buf[k++] = fields[f][j];
+                if (s->ceil[j].w == p->w && same_scene(s->ceil[j].scene, p->scene))
+                    buf[k++] = f == 0 ? s->ceil[j].r : f == 1 ? s->ceil[j].t : f == 2 ? s->ceil[j].s : s->ceil[j].steal;
             out[f] = median_of(buf, k, f == 3);
         }
         s->ceil_rounds = k > s->ceil_rounds ? k : s->ceil_rounds;
-        s->ceil_w[n] = w; /* n <= i: rows not yet read are past it */
-        s->ceil_r[n] = out[0], s->ceil_t[n] = out[1], s->ceil_s[n] = out[2], s->ceil_steal[n] = out[3];
-        n++;
+        /* n <= i: rows not yet read are past it */
+        s->ceil[n++] = (HxCeilPoint){p->scene, p->w, out[0], out[3], out[1], out[2]};
     }
     s->nceil = n;
     free(buf);
+}
+
+/* c's rows of the study's fingerprint and metric into s (pooled); who and
+ * path name them in what is said. */
+static void read_rows(HxStudy *s, const HxCsv *c, const char *who, const char *path, const char *fp)
+{
+    /* a ceiling of another metric is no ceiling of this one; files
+     * without the column are of the copies' wall time, used with a line
+     * that says so (docs/harness-noise.md, "Ceiling") */
+    const int has_metric = hx_csv_col(c, "metric") >= 0, has_steal = hx_csv_col(c, "steal_pct") >= 0,
+              has_together = hx_csv_col(c, "together") >= 0, has_step = hx_csv_col(c, "step") >= 0,
+              has_scene = hx_csv_col(c, "scene") >= 0;
+    size_t other = 0;
+    if (!has_metric && strcmp(s->metric, "wall_ms") != 0)
+        fprintf(stderr, "%s: --ceiling: %s has no metric column: a ceiling of the copies' wall time, read against "
+                        "%s\n", who, path, s->metric);
+    for (size_t r = 0; r < c->nrows; r++) {
+        long w;
+        double v, st, tg, sh;
+        if (strcmp(hx_csv_get(c, r, "fingerprint"), fp) != 0 ||
+            hx_parse_int(hx_csv_get(c, r, "workers"), 2, 1 << 20, &w) ||
+            hx_parse_double(hx_csv_get(c, r, "ratio_median"), &v) || !(v > 0))
+            continue;
+        if (has_metric && strcmp(hx_csv_get(c, r, "metric"), s->metric) != 0) {
+            if (!other++)
+                fprintf(stderr, "%s: --ceiling: %s measures %s, this table reads %s: not used\n", who, path,
+                        hx_csv_get(c, r, "metric"), s->metric);
+            continue;
+        }
+        s->ceil = hx_xrealloc(s->ceil, (size_t)(s->nceil + 1) * sizeof *s->ceil);
+        HxCeilPoint *p = &s->ceil[s->nceil++];
+        const char *scene = has_scene ? hx_csv_get(c, r, "scene") : "";
+        p->scene = *scene ? hx_strdup(scene) : NULL;
+        p->w = (int)w;
+        p->r = v;
+        p->s = has_step && hx_parse_double(hx_csv_get(c, r, "step"), &sh) == 0 && sh > 0 && sh <= 1.5 ? sh : NAN;
+        p->t = has_together && hx_parse_double(hx_csv_get(c, r, "together"), &tg) == 0 && tg > 0 ? tg : NAN;
+        p->steal = has_steal && hx_parse_double(hx_csv_get(c, r, "steal_pct"), &st) == 0 && st >= 0 ? st : -1;
+    }
+    pool_rounds(s);
 }
 
 int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *csv_path)
@@ -68,8 +116,10 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
     }
     HxCsv c;
     char err[512];
-    int rc = 0, found = 0;
-    for (int i = 0; i < 4 && !found && rc == 0; i++) {
+    int rc = 0;
+    /* the first file with rows of this study's machine and metric: one
+     * found but of another, or empty, leaves the next its turn */
+    for (int i = 0; i < 4 && !s->nceil && rc == 0; i++) {
         if (!cand[i] || (!file && !hx_file_exists(cand[i])))
             continue;
         if (hx_csv_read(cand[i], &c, err, sizeof err) != 0) {
@@ -79,57 +129,13 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
         }
         if (hx_csv_col(&c, "ratio_median") < 0) {
             fprintf(stderr, "%s: --ceiling: %s: not a ceiling file (no ratio_median column)\n", who, cand[i]);
-            hx_csv_free(&c);
             rc = -1;
-            break;
-        }
-        found = 1;
-        s->ceil_path = hx_strdup(cand[i]);
-        /* a ceiling of another metric is no ceiling of this one; files
-         * without the column are of the copies' wall time, used with a
-         * line that says so (docs/harness-noise.md, "Ceiling") */
-        const int has_metric = hx_csv_col(&c, "metric") >= 0, has_steal = hx_csv_col(&c, "steal_pct") >= 0,
-                  has_together = hx_csv_col(&c, "together") >= 0, has_step = hx_csv_col(&c, "step") >= 0;
-        size_t other = 0;
-        if (!has_metric && strcmp(s->metric, "wall_ms") != 0)
-            fprintf(stderr, "%s: --ceiling: %s has no metric column: a ceiling of the copies' wall time, read "
-                            "against %s\n", who, cand[i], s->metric);
-        for (size_t r = 0; r < c.nrows; r++) {
-            long w;
-            double v;
-            if (strcmp(hx_csv_get(&c, r, "fingerprint"), fp) != 0 || hx_parse_int(hx_csv_get(&c, r, "workers"), 2, 1 << 20, &w) ||
-                hx_parse_double(hx_csv_get(&c, r, "ratio_median"), &v) || !(v > 0))
-                continue;
-            if (has_metric && strcmp(hx_csv_get(&c, r, "metric"), s->metric) != 0) {
-                if (!other++)
-                    fprintf(stderr, "%s: --ceiling: %s measures %s, this table reads %s: not used\n", who, cand[i],
-                            hx_csv_get(&c, r, "metric"), s->metric);
-                continue;
-            }
-            s->ceil_w = hx_xrealloc(s->ceil_w, (size_t)(s->nceil + 1) * sizeof *s->ceil_w);
-            s->ceil_r = hx_xrealloc(s->ceil_r, (size_t)(s->nceil + 1) * sizeof *s->ceil_r);
-            s->ceil_steal = hx_xrealloc(s->ceil_steal, (size_t)(s->nceil + 1) * sizeof *s->ceil_steal);
-            s->ceil_t = hx_xrealloc(s->ceil_t, (size_t)(s->nceil + 1) * sizeof *s->ceil_t);
-            s->ceil_s = hx_xrealloc(s->ceil_s, (size_t)(s->nceil + 1) * sizeof *s->ceil_s);
-            double st, tg, sh;
-            s->ceil_s[s->nceil] = has_step && hx_parse_double(hx_csv_get(&c, r, "step"), &sh) == 0 && sh > 0 && sh <= 1.5
-                                      ? sh
-                                      : NAN;
-            s->ceil_t[s->nceil] =
-                has_together && hx_parse_double(hx_csv_get(&c, r, "together"), &tg) == 0 && tg > 0 ? tg : NAN;
-            s->ceil_steal[s->nceil] =
-                has_steal && hx_parse_double(hx_csv_get(&c, r, "steal_pct"), &st) == 0 && st >= 0
-                    ? st
-                    : -1;
-            s->ceil_w[s->nceil] = (int)w;
-            s->ceil_r[s->nceil++] = v;
+        } else {
+            read_rows(s, &c, who, cand[i], fp);
+            if (s->nceil) /* nothing of it applies: no ceiling named in the table */
+                s->ceil_path = hx_strdup(cand[i]);
         }
         hx_csv_free(&c);
-        pool_rounds(s);
-        if (!s->nceil) { /* nothing of it applies: no ceiling named in the table */
-            free(s->ceil_path);
-            s->ceil_path = NULL;
-        }
     }
     free(dir);
     free(own);
@@ -139,16 +145,18 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
     return rc;
 }
 
-double hx_ceiling_at(const HxStudy *s, int workers, double *together, double *step)
+double hx_ceiling_at(const HxStudy *s, const char *scene, int workers, double *together, double *step)
 {
-    int i = 0;
-    while (i < s->nceil && s->ceil_w[i] != workers)
-        i++;
+    /* the scene's own, else one of any scene (a file without the column) */
+    const HxCeilPoint *p = NULL;
+    for (int i = 0; i < s->nceil; i++)
+        if (s->ceil[i].w == workers && (!s->ceil[i].scene || (scene && strcmp(s->ceil[i].scene, scene) == 0)))
+            p = !p || !p->scene ? &s->ceil[i] : p;
     if (together)
-        *together = i < s->nceil ? s->ceil_t[i] : NAN;
+        *together = p ? p->t : NAN;
     if (step)
-        *step = i < s->nceil ? s->ceil_s[i] : NAN;
-    return i < s->nceil ? s->ceil_r[i] : NAN;
+        *step = p ? p->s : NAN;
+    return p ? p->r : NAN;
 }
 
 void hx_ceiling_para(const HxStudy *s, HxBuf *b)
@@ -160,16 +168,21 @@ void hx_ceiling_para(const HxStudy *s, HxBuf *b)
                       s->ceil_rounds);
     /* a study's runs with more steal than the copies had lose more than
      * the ceiling says: the user compares the two */
-    int steals = 0, paced = 0, stepped = 0;
+    int steals = 0, paced = 0, stepped = 0, scenes = 0;
     for (int i = 0; i < s->nceil; i++)
-        if (s->ceil_steal[i] >= 0)
-            hx_buf_printf(b, "%s%.1f%% at %d", steals++ ? ", " : " Its copies ran with CPU steal of ", s->ceil_steal[i],
-                          s->ceil_w[i]);
+        scenes |= s->ceil[i].scene && !same_scene(s->ceil[i].scene, s->ceil[0].scene);
+    for (int i = 0; i < s->nceil; i++)
+        if (s->ceil[i].steal >= 0) {
+            hx_buf_printf(b, "%s%.1f%% at %d", steals++ ? ", " : " Its copies ran with CPU steal of ", s->ceil[i].steal,
+                          s->ceil[i].w);
+            if (scenes) /* each scene's copies are its own work */
+                hx_buf_printf(b, " (%s)", s->ceil[i].scene);
+        }
     if (steals)
         hx_buf_put(b, " workers (the runs' own: the column steal_pct).");
     for (int i = 0; i < s->nceil; i++) {
-        paced |= isfinite(s->ceil_t[i]);
-        stepped |= isfinite(s->ceil_s[i]);
+        paced |= isfinite(s->ceil[i].t);
+        stepped |= isfinite(s->ceil[i].s);
     }
     if (paced)
         hx_buf_put(b, " \"pace 1.04\": the run is 1.04 times as fast as W workers that split the work perfectly at "

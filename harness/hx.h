@@ -53,6 +53,9 @@ int hx_is_dir(const char *path);
 char *hx_which(const char *name);
 char *hx_dirname(const char *path);     /* malloc'd */
 char *hx_path_join(const char *a, const char *b);
+/* A new private folder $TMPDIR/harness-NAME-XXXXXX ($TMPDIR, else /tmp),
+ * malloc'd; NULL with why in err. */
+char *hx_temp_dir(const char *name, char *err, size_t n);
 int hx_cmp_double(const void *a, const void *b);
 /* Runs argv[0] (found on PATH) with argv, never through a shell, in folder
  * dir (NULL: here). Its stdout goes to out, cut at n - 1 bytes (out may be
@@ -513,6 +516,16 @@ typedef struct {
     double raw_median;   /* their median (compare's --min-ms) */
 } HxGroup;
 
+/* The machine's ceiling at one worker count (ceiling.c, ceiling_read.c). */
+typedef struct {
+    char *scene;  /* of this scene; NULL: of any (a file without the column) */
+    int w;        /* at w workers, each copy keeps */
+    double r;     /* this share of a lone copy's speed, */
+    double steal; /* with this CPU steal (%) while they ran, -1 unknown; */
+    double t;     /* each copy's own metric while they ran, NAN unknown; */
+    double s;     /* the share a step of w workers kept (syncstep.c), NAN unknown */
+} HxCeilPoint;
+
 typedef struct {
     HxCsv csv;
     HxGroup *g;
@@ -526,12 +539,8 @@ typedef struct {
     int higher;          /* 1: higher is better (a rate), 0: lower (a time) */
     int size;            /* 1: a size (unit B, KiB, ..., GB, or maxrss_kib):
                           * shown against 1 worker, no speedup or fit */
-    int nceil;           /* the machine's ceiling (harness ceiling): */
-    int *ceil_w;         /* at ceil_w[i] workers, each keeps ceil_r[i] */
-    double *ceil_r;      /* of a lone worker's speed */
-    double *ceil_steal;  /* with this CPU steal (%) while they ran, -1 unknown */
-    double *ceil_t;      /* each copy's own metric while they ran, NAN unknown */
-    double *ceil_s;      /* the share a step of W workers kept (syncstep.c), NAN unknown */
+    int nceil;           /* the machine's ceiling (harness ceiling), by scene and workers */
+    HxCeilPoint *ceil;
     char *ceil_path;
     int ceil_rounds;     /* the most rows pooled for one worker count (ceiling: rounds), else 1 */
 } HxStudy;
@@ -574,10 +583,10 @@ int hx_study_better(const HxStudy *s, double a, double b);
  * ceiling-FINGERPRINT.csv beside the CSV or in results/. 0 when one was
  * read (or none is there and none was asked for), -1 with a line said. */
 int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *csv_path);
-/* Its ratio at workers, NAN when not measured; *together and *step (may be
+/* Its ratio for scene at workers, NAN when not measured; *together and *step (may be
  * NULL): each copy's own metric with that many running, and the share a
  * step of that many workers kept, NAN unknown. */
-double hx_ceiling_at(const HxStudy *s, int workers, double *together, double *step);
+double hx_ceiling_at(const HxStudy *s, const char *scene, int workers, double *together, double *step);
 /* table's paragraph on the study's ceiling, appended to b. */
 void hx_ceiling_para(const HxStudy *s, HxBuf *b);
 /* table's per-configuration, fit and cross tables as HTML (harness report). */

@@ -389,8 +389,11 @@ static void plot_scaling(HxPlot *c, const HxStudy *s, int efficiency)
     if (nseries > 0 && s->nceil > 0) {
         fprintf(dat, "# ceiling\n1 0 1 1 1 1 1 1\n");
         for (int k = 0; k < s->nceil; k++) {
-            double r = s->ceil_r[k], w = s->ceil_w[k];
-            fprintf(dat, "%d 0 %.6g %.6g %.6g %.6g %.6g %.6g\n", s->ceil_w[k], r * w, r, r * w, r * w, r, r);
+            /* one line: the first scene's (its copies are its own work) */
+            if (s->ceil[k].scene && s->ceil[0].scene && strcmp(s->ceil[k].scene, s->ceil[0].scene) != 0)
+                continue;
+            double r = s->ceil[k].r, w = s->ceil[k].w;
+            fprintf(dat, "%d 0 %.6g %.6g %.6g %.6g %.6g %.6g\n", s->ceil[k].w, r * w, r, r * w, r * w, r, r);
             yhi = fmax(yhi, efficiency ? r : r * w);
         }
         fprintf(dat, "\n\n");
@@ -431,9 +434,18 @@ static void plot_scaling(HxPlot *c, const HxStudy *s, int efficiency)
     }
     if (s->nceil > 0) {
         hx_plot_file(gp, "%s", c->base, kind, "dat");
-        fprintf(gp, " index %d using 1:%d with linespoints dashtype 3 pt 1 lc rgb 'black' title "
-                    "'machine ceiling (independent copies)', \\\n     ",
-                nseries, efficiency ? 4 : 3);
+        HxBuf title = {0};
+        hx_buf_put(&title, "machine ceiling (independent copies");
+        for (int k = 1; k < s->nceil; k++)
+            if (s->ceil[k].scene && s->ceil[0].scene && strcmp(s->ceil[k].scene, s->ceil[0].scene) != 0) {
+                hx_buf_printf(&title, " of %s", s->ceil[0].scene); /* the line drawn is this scene's */
+                break;
+            }
+        hx_buf_put(&title, ")");
+        fprintf(gp, " index %d using 1:%d with linespoints dashtype 3 pt 1 lc rgb 'black' title ", nseries,
+                efficiency ? 4 : 3);
+        hx_plot_put(gp, "%s, \\\n     ", title.s);
+        hx_buf_free(&title);
     }
     fprintf(gp, "%s with lines dashtype 2 lc rgb 'gray40' title 'ideal'\n", efficiency ? "1" : "x");
     hx_plot_tail(gp, c, kind);

@@ -188,16 +188,21 @@ typedef struct HxCeilRounds HxCeilRounds;
 /* Where `harness run` writes the ceiling of its rounds: the CSV's path
  * with "-ceiling.csv" for its ".csv" (malloc'd). */
 char *hx_ceiling_rounds_path(const char *csv_path);
-/* The copies of plan's pinned worker counts, their rows appended to path
- * (kept where keep, as --resume does, else started again; its header
- * written when it is new). NULL with a line on stderr when this
- * machine or plan cannot have them. */
+/* What refuses `ceiling: rounds` on this machine or plan (one allowed core,
+ * no hwloc, no pinned worker count above 1): a line on stderr and -1,
+ * before anything is opened. Else 0. */
+int hx_ceiling_rounds_check(const HxConfig *cfg, const HxPlan *plan, const HxTopo *t);
+/* The copies of each scene's pinned worker counts, their rows appended to
+ * path (kept where keep, as --resume does, else started again; its header
+ * written when it is new). NULL with a line on stderr when this machine,
+ * plan or file cannot have them. */
 HxCeilRounds *hx_ceiling_rounds_open(const HxConfig *cfg, const HxPlan *plan, const HxTopo *t,
                                      const HxFingerprint *fp, const char *raytrace, const char *path, int keep);
-/* One repeat of the ceiling at every worker count, as round `round`: one
- * row each, a line each on stderr unless quiet. 0, or -1 (a copy failed, a
- * stop signal, or the file could not be written). */
-int hx_ceiling_rounds_measure(HxCeilRounds *c, int round, int quiet);
+/* One repeat of scene's ceiling at each of its worker counts, as round
+ * `round`: one row each, a line each on stderr unless quiet; nothing where
+ * the file has that round of that scene already. 0, or -1 (a copy failed,
+ * a stop signal, or the file could not be written). */
+int hx_ceiling_rounds_measure(HxCeilRounds *c, const char *scene, int round, int quiet);
 void hx_ceiling_rounds_close(HxCeilRounds *c);
 
 /* ---- what --resume accepts (resume.c) ---- */

@@ -151,6 +151,7 @@ typedef struct {
     size_t executed, skipped, attempted, nstat[6];
     HxCeilRounds *ceil; /* ceiling: rounds */
     int ceil_round;     /* the round whose ceiling was measured last, -1 none */
+    const char *ceil_scene; /* of this scene */
     double ceil_ms;     /* spent measuring it, not the harness's overhead */
 } Study;
 
@@ -416,12 +417,13 @@ static int run_plan(Study *st)
         }
         if (r->warmup && !warmup_needed(st, i))
             continue;
-        if (st->ceil && !r->warmup && r->repeat != st->ceil_round) {
+        if (st->ceil && !r->warmup && (r->repeat != st->ceil_round || strcmp(r->scene_name, st->ceil_scene) != 0)) {
             /* the copies between the rounds: a drift of the machine reaches
              * the ceiling as it reaches the runs (docs/harness-noise.md) */
             st->ceil_round = r->repeat;
+            st->ceil_scene = r->scene_name;
             const double c0 = hx_now_ms();
-            const int bad = hx_ceiling_rounds_measure(st->ceil, r->repeat, st->quiet) != 0;
+            const int bad = hx_ceiling_rounds_measure(st->ceil, r->scene_name, r->repeat, st->quiet) != 0;
             st->ceil_ms += hx_now_ms() - c0;
             if (bad && !hx_stop_signal()) {
                 fprintf(stderr, "harness run: ceiling: rounds: no ceiling from round %d on; the study goes on\n",
@@ -644,16 +646,11 @@ static int study_open(Study *st, int resume, int overwrite)
     hx_settings_hash(&st->cfg, st->chash);
     if (resume && load_done(st, err, sizeof err) != 0)
         return -1;
-    const char *tmp_root = getenv("TMPDIR");
-    HxBuf t = {0};
-    hx_buf_printf(&t, "%s/harness-XXXXXX", tmp_root && *tmp_root ? tmp_root : "/tmp");
-    if (!mkdtemp(t.s)) {
-        fprintf(stderr, "harness run: cannot create a temporary directory in %s: %s\n",
-                tmp_root && *tmp_root ? tmp_root : "/tmp", strerror(errno));
-        hx_buf_free(&t);
+    st->tmpdir = hx_temp_dir("run", err, sizeof err);
+    if (!st->tmpdir) {
+        fprintf(stderr, "harness run: %s\n", err);
         return -1;
     }
-    st->tmpdir = t.s;
     st->image = hx_path_join(st->tmpdir, "image.ppm");
     hx_install_stop_handlers();
     int want_gpu = hx_config_has(&st->cfg, hx_backend_gpu);
@@ -670,6 +667,7 @@ static int study_open(Study *st, int resume, int overwrite)
 static int ceiling_open(Study *st, int resume)
 {
     st->ceil_round = -1;
+    st->ceil_scene = "";
     if (!st->cfg.ceiling_rounds)
         return 0;
     char *path = hx_ceiling_rounds_path(st->out_path);
@@ -781,16 +779,18 @@ int hx_cmd_run(int argc, char **argv)
     hx_topo_load(&st.topo);
     hx_plan_cores(&st.topo, &st.cfg, &st.plan);
     st.raytrace = hx_find_raytrace(&st.cfg, o.rt_opt);
-    warn_plan(&st);
-    int rc = 0;
+    /* before the CSV is opened: --overwrite empties it */
+    int rc = st.cfg.ceiling_rounds && hx_ceiling_rounds_check(&st.cfg, &st.plan, &st.topo) != 0;
+    if (rc == 0)
+        warn_plan(&st);
     HxBuf defout = {0};
-    if (o.dry) {
+    if (rc == 0 && o.dry) {
         print_dry_run(&st);
-    } else if (!st.cfg.prog && access(st.raytrace, X_OK) != 0) {
+    } else if (rc == 0 && !st.cfg.prog && access(st.raytrace, X_OK) != 0) {
         fprintf(stderr, "harness run: raytrace not executable at '%s' (set --raytrace, 'raytrace:' in the config "
                         "or $RAYTRACE)\n", st.raytrace);
         rc = 1;
-    } else {
+    } else if (rc == 0) {
         if (!o.out_path)
             hx_buf_printf(&defout, "%s%s.csv", hx_is_dir("results") ? "results/" : "", st.cfg.study);
         st.out_path = o.out_path ? o.out_path : defout.s;

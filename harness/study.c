@@ -504,11 +504,9 @@ void hx_study_free(HxStudy *s)
     hx_strlist_free(&s->scenes);
     hx_strlist_free(&s->labels);
     hx_csv_free(&s->csv);
-    free(s->ceil_w);
-    free(s->ceil_r);
-    free(s->ceil_steal);
-    free(s->ceil_t);
-    free(s->ceil_s);
+    for (int i = 0; i < s->nceil; i++)
+        free(s->ceil[i].scene);
+    free(s->ceil);
     free(s->ceil_path);
     memset(s, 0, sizeof *s);
 }

@@ -156,7 +156,7 @@ static void scaling_stats(const HxStudy *s, const HxGroup *g, const char *baseli
     }
     c->efa = c->spa / g->axis;
     double tog = NAN, step = NAN;
-    c->ceil = g->axis > 1 ? hx_ceiling_at(s, g->workers, &tog, &step) : NAN;
+    c->ceil = g->axis > 1 ? hx_ceiling_at(s, g->scene, g->workers, &tog, &step) : NAN;
     /* The same share without the one-worker time: W copies each took tog at
      * once, so W workers sharing the work as well would take tog / W. The
      * one-worker time is measured alone, at another moment: on a VM whose

@@ -226,6 +226,20 @@ char *hx_path_join(const char *a, const char *b)
     return buf.s;
 }
 
+char *hx_temp_dir(const char *name, char *err, size_t n)
+{
+    const char *root = getenv("TMPDIR");
+    if (!root || !*root)
+        root = "/tmp";
+    HxBuf t = {0};
+    hx_buf_printf(&t, "%s/harness-%s-XXXXXX", root, name);
+    if (mkdtemp(t.s))
+        return t.s;
+    snprintf(err, n, "cannot create a temporary folder in %s: %s", root, strerror(errno));
+    hx_buf_free(&t);
+    return NULL;
+}
+
 int hx_cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;

@@ -3,12 +3,17 @@
 # (and its step) before each round of an `order: rounds` study, into
 # STEM-ceiling.csv beside its CSV, one row per worker count and round;
 # table finds that file and pools its rounds (the median of each figure);
-# --resume adds to it, a new study starts it again; a bad value, the key
-# without `order: rounds`, and a machine with one allowed core are refused
-# in one line before any run.
-# usage: test-ceiling-rounds.sh HARNESS
+# --resume adds to it (a round measured before it, not again; a torn row
+# dropped), a new study starts it again; a bad value, the key without
+# `order: rounds`, and a machine with one allowed core are refused in one
+# line before any run, and before --overwrite empties the CSV. An empty
+# file of the study's own leaves table the machine's ceiling-FP.csv. With
+# raytrace: each scene's rounds have copies of that scene, and table reads
+# each scene against its own.
+# usage: test-ceiling-rounds.sh HARNESS [RAYTRACE SOURCE_ROOT]
 set -u
 . "$(dirname "$0")/common.sh"
+RT=${2:+$(abs "$2")} SRC=${3:+$(abs "$3")}
 test_setup ceiling-rounds "$1" "$1"
 command -v taskset > /dev/null || fail "taskset missing (util-linux)"
 [ "$(nproc)" -ge 2 ] || { echo "SKIP: one CPU: no ceiling to measure"; exit 77; }
@@ -54,10 +59,37 @@ assert abs(c["ceiling_pace"] - want) < 1e-3 * want, (c["ceiling_pace"], want)
 PY
 # --resume with a fourth round adds its row; a new study starts the file again
 "$H" run c.conf -o study.csv --resume --set repeats=4 -q > /dev/null 2> resume.err || { cat resume.err; fail "--resume"; }
-[ "$(grep -c '^[0-9a-f]*,.*,2,1,' study-ceiling.csv)" -eq 4 ] && tail -1 study-ceiling.csv | grep -q ',3$' ||
+[ "$(grep -c '^[0-9a-f]*,.*,2,1,' study-ceiling.csv)" -eq 4 ] && tail -1 study-ceiling.csv | grep -q ',3,-$' ||
   { cat study-ceiling.csv; fail "--resume: the fourth round's row"; }
+# a round whose copies ran but not all its runs (stopped there): --resume
+# runs the rest and keeps that round's row, one; a torn row is dropped
+head -n -1 study.csv > cut.csv && mv cut.csv study.csv
+printf 'torn,row' >> study-ceiling.csv
+"$H" run c.conf -o study.csv --resume --set repeats=4 -q > /dev/null 2> again.err || { cat again.err; fail "--resume again"; }
+grep -q "ceiling: rounds: study-ceiling.csv: dropping a torn last row" again.err || { cat again.err; fail "torn row unsaid"; }
+python3 - <<'PY' || { cat study-ceiling.csv; fail "--resume measured a round again"; }
+import csv
+rows = list(csv.DictReader(open("study-ceiling.csv")))
+assert [r["round"] for r in rows] == ["0", "1", "2", "3"], rows
+assert len(list(csv.DictReader(open("study.csv")))) == 8
+PY
+# a rounds file of another shape is not appended to
+printf 'a,b\n1,2\n' > other-ceiling.csv
+cp study.csv other.csv
+"$H" run c.conf -o other.csv --resume --set repeats=4 -q > /dev/null 2> other.err && fail "a foreign rounds file appended to"
+[ "$(wc -l < other.err)" -eq 1 ] && grep -q "other-ceiling.csv: its header is not this harness's" other.err ||
+  fail "foreign file: $(cat other.err)"
+[ "$(cat other-ceiling.csv)" = "$(printf 'a,b\n1,2')" ] || fail "the foreign file changed"
 "$H" run c.conf -o study.csv --overwrite -q > /dev/null 2>&1 || fail "--overwrite"
 [ "$(grep -c ',2,1,' study-ceiling.csv)" -eq 3 ] || { cat study-ceiling.csv; fail "a new study kept the old rounds"; }
+# an own file with no row of this machine leaves the machine's file its turn
+fp=$(python3 -c 'import csv; print(next(csv.DictReader(open("study.csv")))["fingerprint"])')
+cp pooled.csv "ceiling-$fp.csv"
+cp study-ceiling.csv kept-ceiling.csv
+head -1 kept-ceiling.csv > study-ceiling.csv
+"$H" table study.csv > e.md 2> e.err || { cat e.err; fail "table with an empty rounds file"; }
+grep -q "ceiling from ceiling-$fp.csv" e.md || { cat e.md; fail "an empty rounds file hid ceiling-$fp.csv"; }
+mv kept-ceiling.csv study-ceiling.csv
 # bad input: one line naming the file and line, nothing run
 printf 'command: true\nthreads: 1 2\norder: rounds\nceiling: sometimes\n' > bad.conf
 "$H" run bad.conf -o bad.csv > /dev/null 2> bad.err && fail "ceiling: sometimes accepted"
@@ -70,4 +102,48 @@ printf 'command: true\nthreads: 1 2\nceiling: rounds\n' > nested.conf
 taskset -c 0 "$H" run c.conf -o one.csv > /dev/null 2> one.err && fail "one allowed core accepted"
 grep -q "ceiling: rounds: only one core is allowed here" one.err || fail "one core: $(cat one.err)"
 [ ! -s one.csv ] || [ "$(wc -l < one.csv)" -le 1 ] || fail "one core: runs were recorded"
+# ... before --overwrite empties the study, and in a dry run
+cp study.csv before.csv
+taskset -c 0 "$H" run c.conf -o study.csv --overwrite > /dev/null 2> ow.err && fail "one core: --overwrite accepted"
+[ "$(wc -l < ow.err)" -eq 1 ] && grep -q "only one core is allowed here" ow.err || fail "one core, --overwrite: $(cat ow.err)"
+cmp -s before.csv study.csv || fail "a refused --overwrite emptied the study"
+taskset -c 0 "$H" run c.conf --dry-run > /dev/null 2> dry.err && fail "one core: --dry-run accepted"
+grep -q "only one core is allowed here" dry.err || fail "one core, --dry-run: $(cat dry.err)"
+# raytrace: each scene's rounds, with copies of that scene
+if [ -z "$RT" ]; then echo "raytrace not built here: scenes not checked"; else
+cat > rt.conf <<CONF
+scene_dir: $SRC/scenes
+scenes: demo glass
+backend: serial openmp
+threads: 1 2
+resolution: 160x120
+repeats: 2
+order: rounds
+ceiling: rounds
+CONF
+"$H" run rt.conf -o rt.csv --raytrace "$RT" > /dev/null 2> rt.err || { cat rt.err; fail "the raytrace study"; }
+grep -q "^ceiling: W=2 of glass: each copy's render_ms" rt.err || { cat rt.err; fail "no scene on the W= line"; }
+python3 - <<'PY' || { cat rt-ceiling.csv; fail "the scenes' rounds"; }
+import csv
+rows = list(csv.DictReader(open("rt-ceiling.csv")))
+assert [(r["scene"], r["round"]) for r in rows] == [("demo", "0"), ("demo", "1"), ("glass", "0"), ("glass", "1")], rows
+# glass's copies render glass: more work than demo's at this size
+demo, glass = (sorted(float(r["alone"]) for r in rows if r["scene"] == s) for s in ("demo", "glass"))
+assert glass[0] > 1.5 * demo[-1], (demo, glass)
+for r, tog in zip(rows, (10, 30, 40, 60)):
+    r["together"] = str(tog)
+w = csv.DictWriter(open("rt-pooled.csv", "w", newline=""), fieldnames=list(rows[0]))
+w.writeheader(); w.writerows(rows)
+PY
+"$H" table rt.csv --ceiling rt-pooled.csv --format json > rt.json || fail "table of the scenes"
+python3 - <<'PY' || { cat rt.json; fail "a scene read against another's ceiling"; }
+import json
+tog = {"demo": 20, "glass": 50}  # each scene's median over its rounds
+cs = [c for c in json.load(open("rt.json"))["configurations"] if c["workers"] == 2]
+assert {c["scene"] for c in cs} == {"demo", "glass"}, cs
+for c in cs:
+    want = tog[c["scene"]] / (2 * c["median_ms"])
+    assert abs(c["ceiling_pace"] - want) < 1e-3 * want, (c, want)
+PY
+fi
 echo "PASS: ceiling rounds"

@@ -111,17 +111,24 @@ grep -q "| 0.500 (0.25 of 2.00, pace 0.25 of [0-9.]*) |" nt2.md || { cat nt2.md;
 if [ -z "$RT" ]; then echo "raytrace not built here: its copies not checked"; else
 cat > rt.conf <<CONF
 scene_dir: $SRC/scenes
-scenes: demo
+scenes: demo glass
 backend: serial openmp
 threads: 1 2
 resolution: 160x120
 repeats: 1
 CONF
 "$H" ceiling rt.conf -o rt.csv --repeats 2 --raytrace "$RT" > rt.out 2> rt.err || { cat rt.out rt.err; fail "raytrace ceiling failed"; }
-grep -q "^W=2: each copy's render_ms at [0-9.]* of a copy alone (.*; renders overlapping [0-9.]*; a step of [0-9.]* ms on 2 cores at once keeps [0-9.]* (CPU steal [0-9.]*%))$" rt.out ||
+grep -q "^W=2 of demo: each copy's render_ms at [0-9.]* of a copy alone (.*; renders overlapping [0-9.]*; a step of [0-9.]* ms on 2 cores at once keeps [0-9.]* (CPU steal [0-9.]*%))$" rt.out ||
   { cat rt.out rt.err; fail "raytrace ceiling: no render_ms or overlap"; }
-python3 -c 'import csv; r = next(csv.DictReader(open("rt.csv"))); assert r["metric"] == "render_ms" and 0 <= float(r["overlap"]) <= 1, r' ||
-  fail "rt.csv: $(cat rt.csv)"
+grep -q "^W=2 of glass: " rt.out || { cat rt.out; fail "raytrace ceiling: the second scene not measured"; }
+python3 - <<'PY' || fail "rt.csv: $(cat rt.csv)"
+import csv
+rows = list(csv.DictReader(open("rt.csv")))
+assert [r["scene"] for r in rows] == ["demo", "glass"], rows
+assert all(r["metric"] == "render_ms" and 0 <= float(r["overlap"]) <= 1 for r in rows), rows
+# each scene's copies render that scene: glass is more work than demo
+assert float(rows[1]["alone"]) > 1.5 * float(rows[0]["alone"]), rows
+PY
 fi
 # a table too narrow for E(a)'s whole cell keeps its pace, and says what
 # it left out (a study of the 16-core host in results/)
