@@ -55,7 +55,7 @@ static void pool_rounds(HxStudy *s)
         }
         s->ceil_rounds = k > s->ceil_rounds ? k : s->ceil_rounds;
         /* n <= i: rows not yet read are past it */
-        s->ceil[n++] = (HxCeilPoint){p->scene, p->w, out[0], out[3], out[1], out[2]};
+        s->ceil[n++] = (HxCeilPoint){p->scene, p->w, out[0], out[3], out[1], out[2], -1};
     }
     s->nceil = n;
     free(buf);
@@ -70,13 +70,13 @@ static void read_rows(HxStudy *s, const HxCsv *c, const char *who, const char *p
      * that says so (docs/harness-noise.md, "Ceiling") */
     const int has_metric = hx_csv_col(c, "metric") >= 0, has_steal = hx_csv_col(c, "steal_pct") >= 0,
               has_together = hx_csv_col(c, "together") >= 0, has_step = hx_csv_col(c, "step") >= 0,
-              has_scene = hx_csv_col(c, "scene") >= 0;
+              has_scene = hx_csv_col(c, "scene") >= 0, has_round = hx_csv_col(c, "round") >= 0;
     size_t other = 0;
     if (!has_metric && strcmp(s->metric, "wall_ms") != 0)
         fprintf(stderr, "%s: --ceiling: %s has no metric column: a ceiling of the copies' wall time, read against "
                         "%s\n", who, path, s->metric);
     for (size_t r = 0; r < c->nrows; r++) {
-        long w;
+        long w, round;
         double v, st, tg, sh;
         if (strcmp(hx_csv_get(c, r, "fingerprint"), fp) != 0 ||
             hx_parse_int(hx_csv_get(c, r, "workers"), 2, 1 << 20, &w) ||
@@ -97,7 +97,15 @@ static void read_rows(HxStudy *s, const HxCsv *c, const char *who, const char *p
         p->s = has_step && hx_parse_double(hx_csv_get(c, r, "step"), &sh) == 0 && sh > 0 && sh <= 1.5 ? sh : NAN;
         p->t = has_together && hx_parse_double(hx_csv_get(c, r, "together"), &tg) == 0 && tg > 0 ? tg : NAN;
         p->steal = has_steal && hx_parse_double(hx_csv_get(c, r, "steal_pct"), &st) == 0 && st >= 0 ? st : -1;
+        p->round = has_round && hx_parse_int(hx_csv_get(c, r, "round"), 0, 1 << 30, &round) == 0 ? (int)round : -1;
     }
+    /* the rounds as measured, for each run's pace against its own round */
+    for (int i = 0; i < s->nceil; i++)
+        if (s->ceil[i].round >= 0) {
+            s->ceil_round = hx_xrealloc(s->ceil_round, (size_t)(s->nceil_round + 1) * sizeof *s->ceil_round);
+            s->ceil_round[s->nceil_round] = s->ceil[i];
+            s->ceil_round[s->nceil_round++].scene = s->ceil[i].scene ? hx_strdup(s->ceil[i].scene) : NULL;
+        }
     pool_rounds(s);
 }
 
@@ -159,13 +167,37 @@ double hx_ceiling_at(const HxStudy *s, const char *scene, int workers, double *t
     return p ? p->r : NAN;
 }
 
+double hx_ceiling_paired_pace(const HxStudy *s, const HxGroup *g)
+{
+    if (!g->nt || g->workers < 2)
+        return NAN;
+    double *pace = hx_xmalloc(g->nt * sizeof *pace);
+    size_t n = 0;
+    for (size_t k = 0; k < g->nt; k++) {
+        const HxCeilPoint *p = NULL;
+        for (int i = 0; i < s->nceil_round && !p; i++) {
+            const HxCeilPoint *q = &s->ceil_round[i];
+            if (q->w == g->workers && q->round == g->rep[k] && (!q->scene || strcmp(q->scene, g->scene) == 0))
+                p = q;
+        }
+        if (!p || !isfinite(p->t) || !(g->t[k] > 0))
+            break;
+        pace[n++] = (s->higher ? g->t[k] / p->t : p->t / g->t[k]) / g->workers;
+    }
+    const double r = n == g->nt ? hx_median(pace, n) : NAN;
+    free(pace);
+    return r;
+}
+
 void hx_ceiling_para(const HxStudy *s, HxBuf *b)
 {
     hx_buf_printf(b, "Efficiency (a) also against this machine's ceiling from %s: \"0.750 (1.07 of 0.70)\" is "
                   "1.07 of the 0.70 that independent copies keep at that many workers.", s->ceil_path);
     if (s->ceil_rounds > 1) /* ceiling: rounds */
-        hx_buf_printf(b, " Each figure of it is the median of %d rounds measured between the study's own.",
-                      s->ceil_rounds);
+        hx_buf_printf(b, " Each figure of it is the median of %d rounds measured between the study's own%s",
+                      s->ceil_rounds, s->nceil_round ? "; a pace is the median of each run's against the copies "
+                                                       "of its own round (where every run's round has them)."
+                                                     : ".");
     /* a study's runs with more steal than the copies had lose more than
      * the ceiling says: the user compares the two */
     int steals = 0, paced = 0, stepped = 0, scenes = 0;

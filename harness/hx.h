@@ -505,6 +505,7 @@ typedef struct {
     int workers;
     size_t nrows, nok, ntimeout, nwrong, nerror;
     double *t;           /* ok samples of the metric */
+    int *rep;            /* each one's repeat (its round with order: rounds), -1 unknown */
     size_t nt;
     double median, min, q1, q3;
     int noutliers;
@@ -524,6 +525,7 @@ typedef struct {
     double steal; /* with this CPU steal (%) while they ran, -1 unknown; */
     double t;     /* each copy's own metric while they ran, NAN unknown; */
     double s;     /* the share a step of w workers kept (syncstep.c), NAN unknown */
+    int round;    /* ceiling: rounds: the round it was measured before, -1 pooled or none */
 } HxCeilPoint;
 
 typedef struct {
@@ -541,6 +543,8 @@ typedef struct {
                           * shown against 1 worker, no speedup or fit */
     int nceil;           /* the machine's ceiling (harness ceiling), by scene and workers */
     HxCeilPoint *ceil;
+    int nceil_round;     /* ceiling: rounds: its rows as measured, before pooling */
+    HxCeilPoint *ceil_round;
     char *ceil_path;
     int ceil_rounds;     /* the most rows pooled for one worker count (ceiling: rounds), else 1 */
 } HxStudy;
@@ -587,6 +591,10 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
  * NULL): each copy's own metric with that many running, and the share a
  * step of that many workers kept, NAN unknown. */
 double hx_ceiling_at(const HxStudy *s, const char *scene, int workers, double *together, double *step);
+/* ceiling: rounds: the median over g's samples of each one's pace against
+ * the copies of its own round (together / (W x the sample), a rate's
+ * inverse); NAN unless every sample's round has a row. */
+double hx_ceiling_paired_pace(const HxStudy *s, const HxGroup *g);
 /* table's paragraph on the study's ceiling, appended to b. */
 void hx_ceiling_para(const HxStudy *s, HxBuf *b);
 /* table's per-configuration, fit and cross tables as HTML (harness report). */

@@ -427,6 +427,7 @@ static void group_rows(HxStudy *s, const char *metric)
             g->ok_row = (size_t)-1;
             g->steal_max = -1;
             g->t = hx_xmalloc(n * sizeof(double));
+            g->rep = hx_xmalloc(n * sizeof(int));
             g->raw = hx_xmalloc(n * sizeof(double));
             if (hx_strlist_find(&s->scenes, g->scene) < 0)
                 hx_strlist_push(&s->scenes, g->scene);
@@ -446,6 +447,8 @@ static void group_rows(HxStudy *s, const char *metric)
         if (s->row_status_wrong[r]) {
             g->nwrong++;
         } else if (strcmp(st, "ok") == 0 && row_metric(csv, r, metric, &t) == 0) {
+            long rep;
+            g->rep[g->nt] = hx_parse_int(hx_csv_get(csv, r, "repeat"), 0, 1 << 30, &rep) ? -1 : (int)rep;
             g->t[g->nt++] = t;
             g->nok++;
             if (g->ok_row == (size_t)-1)
@@ -498,6 +501,7 @@ void hx_study_free(HxStudy *s)
         free(s->g[i].block);
         free(s->g[i].t);
         free(s->g[i].raw);
+        free(s->g[i].rep);
     }
     free(s->g);
     free(s->row_status_wrong);
@@ -507,6 +511,9 @@ void hx_study_free(HxStudy *s)
     for (int i = 0; i < s->nceil; i++)
         free(s->ceil[i].scene);
     free(s->ceil);
+    for (int i = 0; i < s->nceil_round; i++)
+        free(s->ceil_round[i].scene);
+    free(s->ceil_round);
     free(s->ceil_path);
     memset(s, 0, sizeof *s);
 }

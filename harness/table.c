@@ -165,6 +165,10 @@ static void scaling_stats(const HxStudy *s, const HxGroup *g, const char *baseli
     c->pace = isfinite(c->ceil) && isfinite(tog) && g->nt && g->median > 0
                   ? (s->higher ? g->median / tog : tog / g->median) / g->workers
                   : NAN;
+    /* with rounds, each run against the copies of its own minutes: the
+     * machine's drift between rounds then leaves the pace */
+    const double paired = isfinite(c->pace) ? hx_ceiling_paired_pace(s, g) : NAN;
+    c->pace = isfinite(paired) ? paired : c->pace;
     c->step = isfinite(c->pace) ? step : NAN;
     /* Karp-Flatt only where it means something: a speedup below 1 gives
      * e > 1, a "serial fraction" that no program has */
