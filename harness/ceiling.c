@@ -120,8 +120,10 @@ struct HxCeilRounds {
     int built;    /* -1 none */
     char *tmp;    /* the copies' folder */
     char *path;   /* ceiling: rounds: the file its rows go to */
-    int fd;       /* open on it */
-    HxStrList kept; /* "ROUND\tSCENE" of its rows from before (--resume) */
+    int fd;       /* open on it (hx_ceiling_rounds_start) */
+    int keep;     /* --resume: its rows kept */
+    size_t whole; /* bytes of its whole rows, where a torn one follows */
+    HxStrList kept; /* "ROUND\tSCENE\tW" of its rows from before (--resume) */
 };
 
 /* The plan's scenes and their worker counts into c (nothing made yet). */
@@ -129,13 +131,13 @@ static void ceil_plan(HxCeilRounds *c, const HxConfig *cfg, const HxPlan *plan, 
 {
     memset(c, 0, sizeof *c);
     c->cfg = cfg, c->t = t, c->rt = rt, c->built = -1, c->fd = -1;
-    c->sc = hx_xmalloc((plan->n ? plan->n : 1) * sizeof *c->sc);
     for (size_t i = 0; i < plan->n; i++) {
         int seen = 0;
         for (int k = 0; k < c->nsc && !seen; k++)
             seen = strcmp(c->sc[k].name, plan->runs[i].scene_name) == 0;
         if (seen)
             continue;
+        c->sc = hx_xrealloc(c->sc, (size_t)(c->nsc + 1) * sizeof *c->sc);
         CeilScene *sc = &c->sc[c->nsc++];
         sc->name = plan->runs[i].scene_name;
         sc->first = &plan->runs[i];
@@ -190,15 +192,17 @@ static int ceil_build(HxCeilRounds *c, int k)
     return rc;
 }
 
-/* Scene k's worker counts, repeats each: a line each on say, a row each
- * into b. 0, or -1 (a copy failed or a stop signal came). */
-static int ceil_scene(HxCeilRounds *c, int k, int repeats, int round, FILE *say, HxBuf *b)
+/* Scene k's worker counts (but those where skip[i]), repeats each: a line
+ * each on say, a row each into b. 0, or -1 (a copy failed or a stop
+ * signal came). */
+static int ceil_scene(HxCeilRounds *c, int k, const int *skip, int repeats, int round, FILE *say, HxBuf *b)
 {
     const CeilScene *sc = &c->sc[k];
     HxCeilKey key = {c->fp, c->cfg->path, sc->name, round, c->nsc > 1};
     int rc = ceil_build(c, k);
     for (int w = 0; w < sc->nw && rc == 0 && !hx_stop_signal(); w++)
-        rc = hx_copies_measure(&c->cp, c->t, sc->ws[w], sc->cores[w], repeats, &key, say, b);
+        if (!skip || !skip[w])
+            rc = hx_copies_measure(&c->cp, c->t, sc->ws[w], sc->cores[w], repeats, &key, say, b);
     hx_reap_strays(); /* no copy of a failed round left on a core */
     return rc || hx_stop_signal() ? -1 : 0;
 }
@@ -236,56 +240,45 @@ int hx_ceiling_rounds_check(const HxConfig *cfg, const HxPlan *plan, const HxTop
     return rc;
 }
 
-/* The rounds' file, open on c->fd: started again, or (keep, as --resume)
- * its rows so far read into c->kept and a torn last row dropped. 0, or -1
- * (said). */
-static int rounds_file(HxCeilRounds *c, int keep)
+/* The rounds' file before the study's CSV is opened, nothing written: a
+ * regular file that can be written, or none yet; with keep (--resume),
+ * its header this harness's and its whole rows' rounds into c->kept. 0,
+ * or -1 (said). */
+static int rounds_check(HxCeilRounds *c)
 {
     const char *who = "harness run: ceiling: rounds";
-    const size_t hlen = strlen(HX_CEIL_HEADER);
     struct stat st;
+    if (stat(c->path, &st) != 0)
+        return errno == ENOENT ? 0 : (fprintf(stderr, "%s: %s: %s\n", who, c->path, strerror(errno)), -1);
+    if (!S_ISREG(st.st_mode) || access(c->path, W_OK) != 0) {
+        fprintf(stderr, "%s: %s: %s\n", who, c->path, S_ISREG(st.st_mode) ? strerror(errno) : "not a regular file");
+        return -1;
+    }
     HxBuf text = {0};
-    c->fd = open(c->path, O_RDWR | O_CREAT | O_CLOEXEC | (keep ? 0 : O_TRUNC), 0644);
-    int rc = c->fd >= 0 && fstat(c->fd, &st) == 0 ? 0 : -1;
-    if (rc == 0 && !S_ISREG(st.st_mode)) {
-        fprintf(stderr, "%s: %s: not a regular file\n", who, c->path);
-        return -1;
-    }
-    if (rc == 0 && st.st_size == 0)
-        rc = write(c->fd, HX_CEIL_HEADER, hlen) == (ssize_t)hlen ? 0 : -1;
-    else if (rc == 0)
-        rc = hx_read_file(c->path, &text);
-    if (rc != 0) {
-        fprintf(stderr, "%s: %s: %s\n", who, c->path, strerror(errno));
-        return -1;
-    }
-    if (!text.s)
+    if (!c->keep || st.st_size == 0)
         return 0;
-    if (text.len < hlen || memcmp(text.s, HX_CEIL_HEADER, hlen) != 0) {
+    const size_t hlen = strlen(HX_CEIL_HEADER);
+    if (hx_read_file(c->path, &text) != 0 || text.len < hlen || memcmp(text.s, HX_CEIL_HEADER, hlen) != 0) {
         fprintf(stderr, "%s: %s: its header is not this harness's; move it away, or start the study again\n", who,
                 c->path);
         hx_buf_free(&text);
         return -1;
     }
-    /* a row cut short (a power loss) is dropped: its round is measured again */
-    const size_t whole = (size_t)(strrchr(text.s, '\n') - text.s) + 1;
-    if (whole < text.len)
-        fprintf(stderr, "%s: %s: dropping a torn last row\n", who, c->path);
-    if (whole < text.len && ftruncate(c->fd, (off_t)whole) != 0) {
-        fprintf(stderr, "%s: %s: cannot drop a torn last row: %s\n", who, c->path, strerror(errno));
-        hx_buf_free(&text);
-        return -1;
-    }
-    hx_buf_free(&text);
+    /* a row cut short (a power loss) is dropped when the study starts */
+    c->whole = (size_t)(strrchr(text.s, '\n') - text.s) + 1;
+    text.s[c->whole] = '\0';
     HxCsv csv;
     char err[512];
-    if (hx_csv_read(c->path, &csv, err, sizeof err) != 0) {
-        fprintf(stderr, "%s: %s\n", who, err);
+    const int rc = hx_csv_parse(text.s, &csv, err, sizeof err);
+    hx_buf_free(&text);
+    if (rc != 0) {
+        fprintf(stderr, "%s: %s: %s\n", who, c->path, err);
         return -1;
     }
     for (size_t r = 0; r < csv.nrows; r++) {
         HxBuf k = {0};
-        hx_buf_printf(&k, "%s\t%s", hx_csv_get(&csv, r, "round"), hx_csv_get(&csv, r, "scene"));
+        hx_buf_printf(&k, "%s\t%s\t%s", hx_csv_get(&csv, r, "round"), hx_csv_get(&csv, r, "scene"),
+                      hx_csv_get(&csv, r, "workers"));
         hx_strlist_push(&c->kept, k.s);
         hx_buf_free(&k);
     }
@@ -293,18 +286,41 @@ static int rounds_file(HxCeilRounds *c, int keep)
     return 0;
 }
 
-HxCeilRounds *hx_ceiling_rounds_open(const HxConfig *cfg, const HxPlan *plan, const HxTopo *t,
-                                     const HxFingerprint *fp, const char *raytrace, const char *path, int keep)
+HxCeilRounds *hx_ceiling_rounds_open(const HxConfig *cfg, const HxPlan *plan, const HxTopo *t, const char *raytrace,
+                                     const char *path, int keep)
 {
     HxCeilRounds *c = hx_xmalloc(sizeof *c);
     ceil_plan(c, cfg, plan, t, raytrace);
-    c->fp = fp;
     c->path = hx_strdup(path);
-    if (ceil_open(c, "harness run: ceiling: rounds") != 0 || rounds_file(c, keep) != 0) {
+    c->keep = keep;
+    if (ceil_check(c, "harness run: ceiling: rounds") != 0 || rounds_check(c) != 0 ||
+        ceil_open(c, "harness run: ceiling: rounds") != 0) {
         hx_ceiling_rounds_close(c);
         return NULL;
     }
     return c;
+}
+
+int hx_ceiling_rounds_start(HxCeilRounds *c, const HxFingerprint *fp)
+{
+    const char *who = "harness run: ceiling: rounds";
+    struct stat st;
+    c->fp = fp;
+    /* the file belongs to the study's CSV: a new study starts it again */
+    c->fd = open(c->path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    int rc = c->fd >= 0 && fstat(c->fd, &st) == 0 ? 0 : -1;
+    if (rc == 0 && c->keep && c->whole && (size_t)st.st_size > c->whole) {
+        fprintf(stderr, "%s: %s: dropping a torn last row\n", who, c->path);
+        rc = ftruncate(c->fd, (off_t)c->whole);
+    } else if (rc == 0 && !c->keep) {
+        rc = ftruncate(c->fd, 0);
+    }
+    const size_t hlen = strlen(HX_CEIL_HEADER);
+    if (rc == 0 && (!c->keep || st.st_size == 0))
+        rc = write(c->fd, HX_CEIL_HEADER, hlen) == (ssize_t)hlen ? 0 : -1;
+    if (rc != 0)
+        fprintf(stderr, "%s: %s: %s\n", who, c->path, strerror(errno));
+    return rc;
 }
 
 int hx_ceiling_rounds_measure(HxCeilRounds *c, const char *scene, int round, int quiet)
@@ -312,13 +328,19 @@ int hx_ceiling_rounds_measure(HxCeilRounds *c, const char *scene, int round, int
     int k = 0;
     while (k < c->nsc && strcmp(c->sc[k].name, scene) != 0)
         k++;
-    HxBuf key = {0};
-    hx_buf_printf(&key, "%d\t%s", round, scene);
-    /* a scene without a pinned worker count has no ceiling; a round
-     * measured before --resume keeps its row */
-    const int skip = k == c->nsc || c->sc[k].nw == 0 || hx_strlist_find(&c->kept, key.s) >= 0;
-    hx_buf_free(&key);
-    if (skip)
+    if (k == c->nsc || c->sc[k].nw == 0) /* no pinned worker count: no ceiling */
+        return 0;
+    /* the worker counts of this round measured before --resume keep their
+     * rows; those the study grew by are measured */
+    int skip[64], todo = 0;
+    for (int w = 0; w < c->sc[k].nw; w++) {
+        HxBuf key = {0};
+        hx_buf_printf(&key, "%d\t%s\t%d", round, scene, c->sc[k].ws[w]);
+        skip[w] = hx_strlist_find(&c->kept, key.s) >= 0;
+        todo += !skip[w];
+        hx_buf_free(&key);
+    }
+    if (!todo)
         return 0;
     struct sigaction sa, old;
     memset(&sa, 0, sizeof sa);
@@ -327,7 +349,7 @@ int hx_ceiling_rounds_measure(HxCeilRounds *c, const char *scene, int round, int
     sigemptyset(&sa.sa_mask);
     sigaction(SIGCHLD, &sa, &old);
     HxBuf b = {0};
-    int rc = ceil_scene(c, k, 1, round, quiet ? NULL : stderr, &b);
+    int rc = ceil_scene(c, k, skip, 1, round, quiet ? NULL : stderr, &b);
     sigaction(SIGCHLD, &old, NULL);
     /* whole rows only, appended after the round's copies all ended; a
      * write cut short (a full disk) is cut back off */
@@ -360,7 +382,7 @@ static int ceil_all(HxCeilRounds *c, int repeats, HxBuf *b)
     int rc = 0;
     for (int k = 0; k < c->nsc && rc == 0; k++)
         if (c->sc[k].nw > 0)
-            rc = ceil_scene(c, k, repeats, -1, stdout, b) != 0;
+            rc = ceil_scene(c, k, NULL, repeats, -1, stdout, b) != 0;
     if (hx_stop_signal()) {
         fprintf(stderr, "harness ceiling: stopped by %s: its copies ended, no ceiling written\n",
                 hx_signal_name(hx_stop_signal()));

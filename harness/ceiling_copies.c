@@ -284,8 +284,9 @@ static void step_after(const HxCopies *cp, const HxTopo *t, const int *cores, in
     HxSyncStep st;
     hx_cpu_stat(&s0);
     if (hx_sync_step(t, cores, w, q, steps, &st) != 0) {
-        fprintf(stderr, "harness ceiling: W=%d: no step this repeat (a worker could not be bound to its core, a "
-                        "step did not end within %.0f s, or a signal came)\n", w, hx_sync_wait_ms(q) / 1000);
+        if (!hx_stop_signal()) /* a stop is said by who stops */
+            fprintf(stderr, "harness ceiling: W=%d: no step this repeat (a worker could not be bound to its core, "
+                            "a step did not end within %.0f s, or a signal came)\n", w, hx_sync_wait_ms(q) / 1000);
         return;
     }
     hx_cpu_stat(&s1);

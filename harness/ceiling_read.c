@@ -88,9 +88,11 @@ static void read_rows(HxStudy *s, const HxCsv *c, const char *who, const char *p
                         hx_csv_get(c, r, "metric"), s->metric);
             continue;
         }
+        const char *scene = has_scene ? hx_csv_get(c, r, "scene") : "";
+        if (*scene && hx_strlist_find(&s->scenes, scene) < 0) /* another study's scene */
+            continue;
         s->ceil = hx_xrealloc(s->ceil, (size_t)(s->nceil + 1) * sizeof *s->ceil);
         HxCeilPoint *p = &s->ceil[s->nceil++];
-        const char *scene = has_scene ? hx_csv_get(c, r, "scene") : "";
         p->scene = *scene ? hx_strdup(scene) : NULL;
         p->w = (int)w;
         p->r = v;
@@ -107,6 +109,15 @@ static void read_rows(HxStudy *s, const HxCsv *c, const char *who, const char *p
             s->ceil_round[s->nceil_round++].scene = s->ceil[i].scene ? hx_strdup(s->ceil[i].scene) : NULL;
         }
     pool_rounds(s);
+}
+
+/* Whether the ceiling has rows for scene (or rows of any scene). */
+static int has_scene_rows(const HxStudy *s, const char *scene)
+{
+    for (int i = 0; i < s->nceil; i++)
+        if (!s->ceil[i].scene || strcmp(s->ceil[i].scene, scene) == 0)
+            return 1;
+    return 0;
 }
 
 int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *csv_path)
@@ -142,6 +153,13 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
             read_rows(s, &c, who, cand[i], fp);
             if (s->nceil) /* nothing of it applies: no ceiling named in the table */
                 s->ceil_path = hx_strdup(cand[i]);
+            if (file && !s->nceil)
+                fprintf(stderr, "%s: --ceiling: %s has no row of this study's machine, metric and scenes: not used\n",
+                        who, file);
+            for (size_t k = 0; k < s->scenes.n && s->nceil; k++)
+                if (!has_scene_rows(s, s->scenes.v[k]))
+                    fprintf(stderr, "%s: --ceiling: %s has no row of scene %s: its efficiency is not read against "
+                                    "a ceiling\n", who, cand[i], s->scenes.v[k]);
         }
         hx_csv_free(&c);
     }

@@ -192,15 +192,19 @@ char *hx_ceiling_rounds_path(const char *csv_path);
  * no hwloc, no pinned worker count above 1): a line on stderr and -1,
  * before anything is opened. Else 0. */
 int hx_ceiling_rounds_check(const HxConfig *cfg, const HxPlan *plan, const HxTopo *t);
-/* The copies of each scene's pinned worker counts, their rows appended to
- * path (kept where keep, as --resume does, else started again; its header
- * written when it is new). NULL with a line on stderr when this machine,
- * plan or file cannot have them. */
-HxCeilRounds *hx_ceiling_rounds_open(const HxConfig *cfg, const HxPlan *plan, const HxTopo *t,
-                                     const HxFingerprint *fp, const char *raytrace, const char *path, int keep);
+/* The copies of each scene's pinned worker counts, their rows to go to
+ * path: checked before the study's CSV is opened, nothing written (with
+ * keep, as --resume does, the rounds in it read). NULL with a line on
+ * stderr when this machine, plan or file cannot have them. */
+HxCeilRounds *hx_ceiling_rounds_open(const HxConfig *cfg, const HxPlan *plan, const HxTopo *t, const char *raytrace,
+                                     const char *path, int keep);
+/* Once the study's CSV is open: the file started again (or, kept, a torn
+ * last row dropped), its header written when it is new; rows of machine
+ * fp. 0, or -1 (said). */
+int hx_ceiling_rounds_start(HxCeilRounds *c, const HxFingerprint *fp);
 /* One repeat of scene's ceiling at each of its worker counts, as round
- * `round`: one row each, a line each on stderr unless quiet; nothing where
- * the file has that round of that scene already. 0, or -1 (a copy failed,
+ * `round`: one row each, a line each on stderr unless quiet; none of a
+ * worker count whose row of that round the file has already. 0, or -1 (a copy failed,
  * a stop signal, or the file could not be written). */
 int hx_ceiling_rounds_measure(HxCeilRounds *c, const char *scene, int round, int quiet);
 void hx_ceiling_rounds_close(HxCeilRounds *c);

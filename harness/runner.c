@@ -663,7 +663,8 @@ static int study_open(Study *st, int resume, int overwrite)
     return st->cfg.prog ? program_open(st) : 0;
 }
 
-/* ceiling: rounds: the copies ready, their file beside the CSV. 0 or -1. */
+/* ceiling: rounds: the copies ready, their file beside the CSV checked;
+ * before study_open, which --overwrite empties the CSV in. 0 or -1. */
 static int ceiling_open(Study *st, int resume)
 {
     st->ceil_round = -1;
@@ -671,11 +672,24 @@ static int ceiling_open(Study *st, int resume)
     if (!st->cfg.ceiling_rounds)
         return 0;
     char *path = hx_ceiling_rounds_path(st->out_path);
-    st->ceil = hx_ceiling_rounds_open(&st->cfg, &st->plan, &st->topo, &st->fp, st->raytrace, path, resume);
-    if (st->ceil && !st->quiet)
-        fprintf(stderr, "harness run: ceiling: rounds: the copies before each round, into %s\n", path);
+    st->ceil = hx_ceiling_rounds_open(&st->cfg, &st->plan, &st->topo, st->raytrace, path, resume);
     free(path);
     return st->ceil ? 0 : -1;
+}
+
+/* ... and its file started, once the CSV is open. 0 or -1. */
+static int ceiling_start(Study *st)
+{
+    if (!st->ceil)
+        return 0;
+    if (hx_ceiling_rounds_start(st->ceil, &st->fp) != 0)
+        return -1;
+    if (!st->quiet) {
+        char *path = hx_ceiling_rounds_path(st->out_path);
+        fprintf(stderr, "harness run: ceiling: rounds: the copies before each round, into %s\n", path);
+        free(path);
+    }
+    return 0;
 }
 
 static void study_close(Study *st)
@@ -794,7 +808,8 @@ int hx_cmd_run(int argc, char **argv)
         if (!o.out_path)
             hx_buf_printf(&defout, "%s%s.csv", hx_is_dir("results") ? "results/" : "", st.cfg.study);
         st.out_path = o.out_path ? o.out_path : defout.s;
-        if (study_open(&st, o.resume, o.overwrite) != 0 || ceiling_open(&st, o.resume) != 0) {
+        if (ceiling_open(&st, o.resume) != 0 || study_open(&st, o.resume, o.overwrite) != 0 ||
+            ceiling_start(&st) != 0) {
             rc = 1;
         } else {
             st.t0 = hx_now_ms();

@@ -76,15 +76,29 @@ tr '\n' ' ' < p.md | grep -q "a pace is the median of each run's against the cop
 # a round whose copies ran but not all its runs (stopped there): --resume
 # runs the rest and keeps that round's row, one; a torn row is dropped
 head -n -1 study.csv > cut.csv && mv cut.csv study.csv
+cp study-ceiling.csv whole.csv
 printf 'torn,row' >> study-ceiling.csv
 "$H" run c.conf -o study.csv --resume --set repeats=4 -q > /dev/null 2> again.err || { cat again.err; fail "--resume again"; }
 grep -q "ceiling: rounds: study-ceiling.csv: dropping a torn last row" again.err || { cat again.err; fail "torn row unsaid"; }
-python3 - <<'PY' || { cat study-ceiling.csv; fail "--resume measured a round again"; }
+cmp -s whole.csv study-ceiling.csv || { diff whole.csv study-ceiling.csv; fail "--resume: the rounds file changed"; }
+[ "$(wc -l < study.csv)" -eq 9 ] || fail "--resume: the round's last run not run"
+# a worker count the study grew by gets its row in a round that has the
+# others' (here round 3's W=2 row made another W's, as if W=2 were new)
+sed -i '$ s/^\([0-9a-f]*,[^,]*\),2,/\1,3,/' study-ceiling.csv
+head -n -1 study.csv > cut.csv && mv cut.csv study.csv
+"$H" run c.conf -o study.csv --resume --set repeats=4 -q > /dev/null 2> grew.err || { cat grew.err; fail "--resume (grown)"; }
+python3 - <<'PY' || { cat study-ceiling.csv; fail "--resume: the new worker count not measured"; }
 import csv
 rows = list(csv.DictReader(open("study-ceiling.csv")))
-assert [r["round"] for r in rows] == ["0", "1", "2", "3"], rows
-assert len(list(csv.DictReader(open("study.csv")))) == 8
+assert [(r["round"], r["workers"]) for r in rows] == [("0", "2"), ("1", "2"), ("2", "2"), ("3", "3"), ("3", "2")], rows
 PY
+sed -i '5 s/^\([0-9a-f]*,[^,]*\),3,/\1,2,/; $d' study-ceiling.csv
+# a rounds file that is not a file is refused before --overwrite empties the study
+mkdir dir-ceiling.csv
+cp study.csv dir.csv
+"$H" run c.conf -o dir.csv --overwrite -q > /dev/null 2> dir.err && fail "a folder as the rounds file accepted"
+[ "$(wc -l < dir.err)" -eq 1 ] && grep -q "dir-ceiling.csv: not a regular file" dir.err || fail "folder: $(cat dir.err)"
+cmp -s study.csv dir.csv || fail "a refused rounds file: --overwrite emptied the study"
 # a rounds file of another shape is not appended to
 printf 'a,b\n1,2\n' > other-ceiling.csv
 cp study.csv other.csv
@@ -102,6 +116,12 @@ head -1 kept-ceiling.csv > study-ceiling.csv
 "$H" table study.csv > e.md 2> e.err || { cat e.err; fail "table with an empty rounds file"; }
 grep -q "ceiling from ceiling-$fp.csv" e.md || { cat e.md; fail "an empty rounds file hid ceiling-$fp.csv"; }
 mv kept-ceiling.csv study-ceiling.csv
+# a ceiling of another scene is no ceiling of this one: said, not named
+sed 's/,-$/,other/' study-ceiling.csv > other-scene.csv
+"$H" table study.csv --ceiling other-scene.csv > os.md 2> os.err || { cat os.err; fail "table, another scene's ceiling"; }
+grep -q "other-scene.csv has no row of this study's machine, metric and scenes: not used" os.err ||
+  { cat os.err; fail "another scene's ceiling unsaid"; }
+grep -q "against this machine's ceiling" os.md && { cat os.md; fail "another scene's ceiling named"; }
 # bad input: one line naming the file and line, nothing run
 printf 'command: true\nthreads: 1 2\norder: rounds\nceiling: sometimes\n' > bad.conf
 "$H" run bad.conf -o bad.csv > /dev/null 2> bad.err && fail "ceiling: sometimes accepted"
@@ -145,7 +165,7 @@ assert glass[0] > 1.5 * demo[-1], (demo, glass)
 for r, tog in zip(rows, (10, 30, 40, 60)):
     r["together"] = str(tog)
 w = csv.DictWriter(open("rt-pooled.csv", "w", newline=""), fieldnames=list(rows[0]))
-w.writeheader(); w.writerows(rows)
+w.writeheader(); w.writerows([rows[0], rows[2], rows[1], rows[3]])  # the scenes interleaved
 PY
 "$H" table rt.csv --ceiling rt-pooled.csv --format json > rt.json || fail "table of the scenes"
 python3 - <<'PY' || { cat rt.json; fail "a scene read against another's ceiling"; }
