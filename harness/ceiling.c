@@ -122,7 +122,6 @@ struct HxCeilRounds {
     char *path;   /* ceiling: rounds: the file its rows go to */
     int fd;       /* open on it (hx_ceiling_rounds_start) */
     int keep;     /* --resume: its rows kept */
-    size_t whole; /* bytes of its whole rows, where a torn one follows */
     HxStrList kept; /* "ROUND\tSCENE\tW" of its rows from before (--resume) */
 };
 
@@ -231,48 +230,77 @@ char *hx_ceiling_rounds_path(const char *csv_path)
     return b.s;
 }
 
+#define ROUNDS_WHO "harness run: ceiling: rounds"
+
 int hx_ceiling_rounds_check(const HxConfig *cfg, const HxPlan *plan, const HxTopo *t)
 {
     HxCeilRounds c;
     ceil_plan(&c, cfg, plan, t, NULL);
-    const int rc = ceil_check(&c, "harness run: ceiling: rounds");
+    const int rc = ceil_check(&c, ROUNDS_WHO);
     ceil_close(&c);
     return rc;
 }
 
+/* Whether text starts with this harness's header. */
+static int own_header(const HxBuf *text)
+{
+    const size_t hlen = strlen(HX_CEIL_HEADER);
+    return text->len >= hlen && memcmp(text->s, HX_CEIL_HEADER, hlen) == 0;
+}
+
 /* The rounds' file before the study's CSV is opened, nothing written: a
- * regular file that can be written, or none yet; with keep (--resume),
- * its header this harness's and its whole rows' rounds into c->kept. 0,
- * or -1 (said). */
+ * regular file one can write, or one its folder can take; with keep
+ * (--resume), this harness's header. 0, or -1 (said). */
 static int rounds_check(HxCeilRounds *c)
 {
-    const char *who = "harness run: ceiling: rounds";
     struct stat st;
-    if (stat(c->path, &st) != 0)
-        return errno == ENOENT ? 0 : (fprintf(stderr, "%s: %s: %s\n", who, c->path, strerror(errno)), -1);
+    const int missing = stat(c->path, &st) != 0;
+    if (missing && errno != ENOENT) {
+        fprintf(stderr, "%s: %s: %s\n", ROUNDS_WHO, c->path, strerror(errno));
+        return -1;
+    }
+    if (missing) { /* its folder must take it */
+        char *dir = hx_dirname(c->path);
+        const int rc = access(dir, W_OK | X_OK) == 0 ? 0 : -1;
+        if (rc)
+            fprintf(stderr, "%s: %s: cannot create %s there: %s\n", ROUNDS_WHO, dir, c->path, strerror(errno));
+        free(dir);
+        return rc;
+    }
     if (!S_ISREG(st.st_mode) || access(c->path, W_OK) != 0) {
-        fprintf(stderr, "%s: %s: %s\n", who, c->path, S_ISREG(st.st_mode) ? strerror(errno) : "not a regular file");
+        fprintf(stderr, "%s: %s: %s\n", ROUNDS_WHO, c->path,
+                S_ISREG(st.st_mode) ? strerror(errno) : "not a regular file");
         return -1;
     }
     HxBuf text = {0};
-    if (!c->keep || st.st_size == 0)
-        return 0;
-    const size_t hlen = strlen(HX_CEIL_HEADER);
-    if (hx_read_file(c->path, &text) != 0 || text.len < hlen || memcmp(text.s, HX_CEIL_HEADER, hlen) != 0) {
-        fprintf(stderr, "%s: %s: its header is not this harness's; move it away, or start the study again\n", who,
-                c->path);
-        hx_buf_free(&text);
-        return -1;
+    const int rc = c->keep && st.st_size > 0 && (hx_read_file(c->path, &text) != 0 || !own_header(&text)) ? -1 : 0;
+    if (rc)
+        fprintf(stderr, "%s: %s: its header is not this harness's; move it away, or start the study again\n",
+                ROUNDS_WHO, c->path);
+    hx_buf_free(&text);
+    return rc;
+}
+
+/* --resume, the study's CSV locked: the rows in the file (text, its
+ * header this harness's) into c->kept, a row cut short (a power loss)
+ * dropped. 0, or -1 (said). */
+static int rounds_keep(HxCeilRounds *c, HxBuf *text)
+{
+    size_t whole = text->len;
+    while (whole > 0 && text->s[whole - 1] != '\n')
+        whole--;
+    if (whole < text->len) {
+        fprintf(stderr, "%s: %s: dropping a torn last row\n", ROUNDS_WHO, c->path);
+        if (ftruncate(c->fd, (off_t)whole) != 0) {
+            fprintf(stderr, "%s: %s: %s\n", ROUNDS_WHO, c->path, strerror(errno));
+            return -1;
+        }
     }
-    /* a row cut short (a power loss) is dropped when the study starts */
-    c->whole = (size_t)(strrchr(text.s, '\n') - text.s) + 1;
-    text.s[c->whole] = '\0';
+    text->s[whole] = '\0';
     HxCsv csv;
     char err[512];
-    const int rc = hx_csv_parse(text.s, &csv, err, sizeof err);
-    hx_buf_free(&text);
-    if (rc != 0) {
-        fprintf(stderr, "%s: %s: %s\n", who, c->path, err);
+    if (hx_csv_parse(text->s, &csv, err, sizeof err) != 0) {
+        fprintf(stderr, "%s: %s: %s\n", ROUNDS_WHO, c->path, err);
         return -1;
     }
     for (size_t r = 0; r < csv.nrows; r++) {
@@ -293,8 +321,7 @@ HxCeilRounds *hx_ceiling_rounds_open(const HxConfig *cfg, const HxPlan *plan, co
     ceil_plan(c, cfg, plan, t, raytrace);
     c->path = hx_strdup(path);
     c->keep = keep;
-    if (ceil_check(c, "harness run: ceiling: rounds") != 0 || rounds_check(c) != 0 ||
-        ceil_open(c, "harness run: ceiling: rounds") != 0) {
+    if (ceil_check(c, ROUNDS_WHO) != 0 || rounds_check(c) != 0 || ceil_open(c, ROUNDS_WHO) != 0) {
         hx_ceiling_rounds_close(c);
         return NULL;
     }
@@ -303,23 +330,34 @@ HxCeilRounds *hx_ceiling_rounds_open(const HxConfig *cfg, const HxPlan *plan, co
 
 int hx_ceiling_rounds_start(HxCeilRounds *c, const HxFingerprint *fp)
 {
-    const char *who = "harness run: ceiling: rounds";
-    struct stat st;
     c->fp = fp;
-    /* the file belongs to the study's CSV: a new study starts it again */
+    /* the file belongs to the study's CSV, read now that its lock is
+     * held: a new study starts it again */
     c->fd = open(c->path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-    int rc = c->fd >= 0 && fstat(c->fd, &st) == 0 ? 0 : -1;
-    if (rc == 0 && c->keep && c->whole && (size_t)st.st_size > c->whole) {
-        fprintf(stderr, "%s: %s: dropping a torn last row\n", who, c->path);
-        rc = ftruncate(c->fd, (off_t)c->whole);
-    } else if (rc == 0 && !c->keep) {
+    HxBuf text = {0};
+    int rc = c->fd < 0 ? -1 : 0;
+    if (rc == 0 && c->keep && hx_read_file(c->path, &text) != 0)
+        rc = -1;
+    else if (rc == 0 && !c->keep)
         rc = ftruncate(c->fd, 0);
+    if (rc != 0) {
+        fprintf(stderr, "%s: %s: %s\n", ROUNDS_WHO, c->path, strerror(errno));
+    } else if (text.len > 0 && !own_header(&text)) {
+        fprintf(stderr, "%s: %s: its header is not this harness's; move it away, or start the study again\n",
+                ROUNDS_WHO, c->path);
+        rc = -1;
+    } else if (text.len > 0) {
+        rc = rounds_keep(c, &text);
+    } else {
+        const size_t hlen = strlen(HX_CEIL_HEADER);
+        if (write(c->fd, HX_CEIL_HEADER, hlen) != (ssize_t)hlen || fsync(c->fd) != 0) {
+            fprintf(stderr, "%s: %s: %s\n", ROUNDS_WHO, c->path, strerror(errno));
+            if (ftruncate(c->fd, 0) != 0) /* a torn header reads as another file's */
+                fprintf(stderr, "%s: %s: a torn header left: %s\n", ROUNDS_WHO, c->path, strerror(errno));
+            rc = -1;
+        }
     }
-    const size_t hlen = strlen(HX_CEIL_HEADER);
-    if (rc == 0 && (!c->keep || st.st_size == 0))
-        rc = write(c->fd, HX_CEIL_HEADER, hlen) == (ssize_t)hlen ? 0 : -1;
-    if (rc != 0)
-        fprintf(stderr, "%s: %s: %s\n", who, c->path, strerror(errno));
+    hx_buf_free(&text);
     return rc;
 }
 
@@ -355,9 +393,9 @@ int hx_ceiling_rounds_measure(HxCeilRounds *c, const char *scene, int round, int
      * write cut short (a full disk) is cut back off */
     const off_t end = rc ? 0 : lseek(c->fd, 0, SEEK_END);
     if (!rc && (end < 0 || write(c->fd, b.s, b.len) != (ssize_t)b.len || fsync(c->fd) != 0)) {
-        fprintf(stderr, "harness run: ceiling: rounds: %s: %s\n", c->path, strerror(errno));
+        fprintf(stderr, "%s: %s: %s\n", ROUNDS_WHO, c->path, strerror(errno));
         if (end >= 0 && ftruncate(c->fd, end) != 0)
-            fprintf(stderr, "harness run: ceiling: rounds: %s: a torn row left: %s\n", c->path, strerror(errno));
+            fprintf(stderr, "%s: %s: a torn row left: %s\n", ROUNDS_WHO, c->path, strerror(errno));
         rc = -1;
     }
     hx_buf_free(&b);
