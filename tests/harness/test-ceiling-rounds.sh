@@ -99,6 +99,19 @@ cp study.csv dir.csv
 "$H" run c.conf -o dir.csv --overwrite -q > /dev/null 2> dir.err && fail "a folder as the rounds file accepted"
 [ "$(wc -l < dir.err)" -eq 1 ] && grep -q "dir-ceiling.csv: not a regular file" dir.err || fail "folder: $(cat dir.err)"
 cmp -s study.csv dir.csv || fail "a refused rounds file: --overwrite emptied the study"
+# ... and a folder that cannot take a new one (as another user: root may write anywhere)
+if [ "$(id -u)" -ne 0 ]; then echo "not root: a folder another user cannot write not checked"; else
+  command -v setpriv > /dev/null || fail "setpriv missing (util-linux)"
+  ro=$(mktemp -d /tmp/hx-ceiling-ro-XXXXXX) && chmod 755 "$ro"
+  # the harness copied there: the build may be in a folder only root can enter
+  cp "$H" "$ro/harness" && cp c.conf study.csv "$ro"/ && chmod 755 "$ro/harness" && chmod 644 "$ro/c.conf" && chmod 666 "$ro/study.csv"
+  (cd "$ro" && setpriv --reuid=65534 --regid=65534 --clear-groups ./harness run c.conf -o study.csv --overwrite -q) \
+    > /dev/null 2> ro.err && { rm -rf "$ro"; fail "a rounds file its folder cannot take accepted"; }
+  cmp -s study.csv "$ro/study.csv"; same=$?
+  rm -rf "$ro"
+  grep -q "cannot create study-ceiling.csv there: Permission denied" ro.err || fail "unwritable folder: $(cat ro.err)"
+  [ $same -eq 0 ] || fail "an unwritable folder: --overwrite emptied the study"
+fi
 # a rounds file of another shape is not appended to
 printf 'a,b\n1,2\n' > other-ceiling.csv
 cp study.csv other.csv
