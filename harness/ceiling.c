@@ -328,7 +328,7 @@ HxCeilRounds *hx_ceiling_rounds_open(const HxConfig *cfg, const HxPlan *plan, co
     return c;
 }
 
-int hx_ceiling_rounds_start(HxCeilRounds *c, const HxFingerprint *fp)
+int hx_ceiling_rounds_start(HxCeilRounds *c, const HxFingerprint *fp, int quiet)
 {
     c->fp = fp;
     /* the file belongs to the study's CSV, read now that its lock is
@@ -358,6 +358,8 @@ int hx_ceiling_rounds_start(HxCeilRounds *c, const HxFingerprint *fp)
         }
     }
     hx_buf_free(&text);
+    if (rc == 0 && !quiet)
+        fprintf(stderr, "%s: the copies before each round, into %s\n", ROUNDS_WHO, c->path);
     return rc;
 }
 

@@ -198,10 +198,11 @@ int hx_ceiling_rounds_check(const HxConfig *cfg, const HxPlan *plan, const HxTop
  * stderr when this machine, plan or file cannot have them. */
 HxCeilRounds *hx_ceiling_rounds_open(const HxConfig *cfg, const HxPlan *plan, const HxTopo *t, const char *raytrace,
                                      const char *path, int keep);
-/* Once the study's CSV is open: the file started again (or, kept, a torn
- * last row dropped), its header written when it is new; rows of machine
- * fp. 0, or -1 (said). */
-int hx_ceiling_rounds_start(HxCeilRounds *c, const HxFingerprint *fp);
+/* Once the study's CSV is open (locked): the file started again (or,
+ * kept, its rounds read and a torn last row dropped), its header written
+ * when it is new, a line saying so unless quiet; rows of machine fp. 0,
+ * or -1 (said). */
+int hx_ceiling_rounds_start(HxCeilRounds *c, const HxFingerprint *fp, int quiet);
 /* One repeat of scene's ceiling at each of its worker counts, as round
  * `round`: one row each, a line each on stderr unless quiet; none of a
  * worker count whose row of that round the file has already. 0, or -1 (a copy failed,

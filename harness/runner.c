@@ -677,21 +677,6 @@ static int ceiling_open(Study *st, int resume)
     return st->ceil ? 0 : -1;
 }
 
-/* ... and its file started, once the CSV is open. 0 or -1. */
-static int ceiling_start(Study *st)
-{
-    if (!st->ceil)
-        return 0;
-    if (hx_ceiling_rounds_start(st->ceil, &st->fp) != 0)
-        return -1;
-    if (!st->quiet) {
-        char *path = hx_ceiling_rounds_path(st->out_path);
-        fprintf(stderr, "harness run: ceiling: rounds: the copies before each round, into %s\n", path);
-        free(path);
-    }
-    return 0;
-}
-
 static void study_close(Study *st)
 {
     hx_ceiling_rounds_close(st->ceil);
@@ -809,7 +794,7 @@ int hx_cmd_run(int argc, char **argv)
             hx_buf_printf(&defout, "%s%s.csv", hx_is_dir("results") ? "results/" : "", st.cfg.study);
         st.out_path = o.out_path ? o.out_path : defout.s;
         if (ceiling_open(&st, o.resume) != 0 || study_open(&st, o.resume, o.overwrite) != 0 ||
-            ceiling_start(&st) != 0) {
+            (st.ceil && hx_ceiling_rounds_start(st.ceil, &st.fp, st.quiet) != 0)) {
             rc = 1;
         } else {
             st.t0 = hx_now_ms();
