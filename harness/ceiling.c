@@ -162,12 +162,10 @@ static int ceil_check(const HxCeilRounds *c, const char *who)
     return 0;
 }
 
-/* ceil_check, then the copies' folder. 0, or -1 (said). */
+/* The copies' folder (after ceil_check). 0, or -1 (said). */
 static int ceil_open(HxCeilRounds *c, const char *who)
 {
     char err[512];
-    if (ceil_check(c, who) != 0)
-        return -1;
     c->tmp = hx_temp_dir("ceiling", err, sizeof err);
     if (!c->tmp)
         fprintf(stderr, "%s: %s\n", who, err);
@@ -241,11 +239,15 @@ int hx_ceiling_rounds_check(const HxConfig *cfg, const HxPlan *plan, const HxTop
     return rc;
 }
 
-/* Whether text starts with this harness's header. */
-static int own_header(const HxBuf *text)
+/* Whether text starts with this harness's header; a line where not. */
+static int own_header(const HxCeilRounds *c, const HxBuf *text)
 {
     const size_t hlen = strlen(HX_CEIL_HEADER);
-    return text->len >= hlen && memcmp(text->s, HX_CEIL_HEADER, hlen) == 0;
+    if (text->len >= hlen && memcmp(text->s, HX_CEIL_HEADER, hlen) == 0)
+        return 1;
+    fprintf(stderr, "%s: %s: its header is not this harness's; move it away, or start the study again\n", ROUNDS_WHO,
+            c->path);
+    return 0;
 }
 
 /* The rounds' file before the study's CSV is opened, nothing written: a
@@ -273,10 +275,11 @@ static int rounds_check(HxCeilRounds *c)
         return -1;
     }
     HxBuf text = {0};
-    const int rc = c->keep && st.st_size > 0 && (hx_read_file(c->path, &text) != 0 || !own_header(&text)) ? -1 : 0;
-    if (rc)
-        fprintf(stderr, "%s: %s: its header is not this harness's; move it away, or start the study again\n",
-                ROUNDS_WHO, c->path);
+    int rc = 0;
+    if (c->keep && st.st_size > 0 && hx_read_file(c->path, &text) != 0)
+        rc = -1, fprintf(stderr, "%s: %s: %s\n", ROUNDS_WHO, c->path, strerror(errno));
+    else if (c->keep && st.st_size > 0 && !own_header(c, &text))
+        rc = -1;
     hx_buf_free(&text);
     return rc;
 }
@@ -342,9 +345,7 @@ int hx_ceiling_rounds_start(HxCeilRounds *c, const HxFingerprint *fp, int quiet)
         rc = ftruncate(c->fd, 0);
     if (rc != 0) {
         fprintf(stderr, "%s: %s: %s\n", ROUNDS_WHO, c->path, strerror(errno));
-    } else if (text.len > 0 && !own_header(&text)) {
-        fprintf(stderr, "%s: %s: its header is not this harness's; move it away, or start the study again\n",
-                ROUNDS_WHO, c->path);
+    } else if (text.len > 0 && !own_header(c, &text)) {
         rc = -1;
     } else if (text.len > 0) {
         rc = rounds_keep(c, &text);

@@ -28,6 +28,13 @@ static int same_scene(const char *a, const char *b)
     return a && b ? strcmp(a, b) == 0 : a == b;
 }
 
+/* Whether row p is a ceiling of scene: its own, or one of any scene (a
+ * file without the column). */
+static int fits_scene(const HxCeilPoint *p, const char *scene)
+{
+    return !p->scene || (scene && strcmp(p->scene, scene) == 0);
+}
+
 /* Several rows of one scene and worker count (`harness run` with `ceiling:
  * rounds` writes one per round) become one: the median of each figure
  * over the rounds, which sampled the same minutes as the study's runs. */
@@ -115,7 +122,7 @@ static void read_rows(HxStudy *s, const HxCsv *c, const char *who, const char *p
 static int has_scene_rows(const HxStudy *s, const char *scene)
 {
     for (int i = 0; i < s->nceil; i++)
-        if (!s->ceil[i].scene || strcmp(s->ceil[i].scene, scene) == 0)
+        if (fits_scene(&s->ceil[i], scene))
             return 1;
     return 0;
 }
@@ -173,10 +180,10 @@ int hx_ceiling_load(HxStudy *s, const char *who, const char *file, const char *c
 
 double hx_ceiling_at(const HxStudy *s, const char *scene, int workers, double *together, double *step)
 {
-    /* the scene's own, else one of any scene (a file without the column) */
+    /* the scene's own before one of any scene */
     const HxCeilPoint *p = NULL;
     for (int i = 0; i < s->nceil; i++)
-        if (s->ceil[i].w == workers && (!s->ceil[i].scene || (scene && strcmp(s->ceil[i].scene, scene) == 0)))
+        if (s->ceil[i].w == workers && fits_scene(&s->ceil[i], scene))
             p = !p || !p->scene ? &s->ceil[i] : p;
     if (together)
         *together = p ? p->t : NAN;
@@ -195,7 +202,7 @@ double hx_ceiling_paired_pace(const HxStudy *s, const HxGroup *g)
         const HxCeilPoint *p = NULL;
         for (int i = 0; i < s->nceil_round && !p; i++) {
             const HxCeilPoint *q = &s->ceil_round[i];
-            if (q->w == g->workers && q->round == g->rep[k] && (!q->scene || strcmp(q->scene, g->scene) == 0))
+            if (q->w == g->workers && q->round == g->rep[k] && fits_scene(q, g->scene))
                 p = q;
         }
         if (!p || !isfinite(p->t) || !(g->t[k] > 0))
@@ -225,7 +232,7 @@ void hx_ceiling_para(const HxStudy *s, HxBuf *b)
         if (s->ceil[i].steal >= 0) {
             hx_buf_printf(b, "%s%.1f%% at %d", steals++ ? ", " : " Its copies ran with CPU steal of ", s->ceil[i].steal,
                           s->ceil[i].w);
-            if (scenes) /* each scene's copies are its own work */
+            if (scenes && s->ceil[i].scene) /* each scene's copies are its own work */
                 hx_buf_printf(b, " (%s)", s->ceil[i].scene);
         }
     if (steals)
