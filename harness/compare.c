@@ -4,15 +4,20 @@
  *  - work counters and the image hash are deterministic, so any difference
  *    is a regression (or a renderer change that needs a new baseline);
  *  - times are noisy, so a configuration regresses only when its median got
- *    slower by more than --factor (default 1.5) AND the samples differ
+ *    slower by more than --factor (default 1.8) AND the samples differ
  *    significantly: two-sided Mann-Whitney U p < --alpha (default 0.05) when
  *    both sides have >= 4 samples (with 3 against 3 the smallest possible p is
  *    0.1, the test could never fire); in both cases the minimum must also be
  *    slower by more than the factor (the minimum is the least noisy estimate
  *    of the undisturbed time: on a busy 2-core machine, medians of a quiet
- *    and a loaded run of the same code differed by 1.5x with p = 0.095).
+ *    and a loaded run of the same code differed by 1.5x with p = 0.095),
+ *    or, with the test, the median ratio's whole 95% interval;
+ *  - runs that timed out or failed count against NEW: a larger share of them
+ *    than in BASE is a regression.
  * A 2x slowdown passes both rules; scheduler noise on a quiet machine (a few
- * percent, occasionally one slow repeat) passes neither. */
+ * percent, occasionally one slow repeat) passes neither. "no change" needs
+ * the interval inside the factor both ways and, from 10 samples a side, the
+ * slowest tenth too. */
 #include "compare.h"
 #include "hx.h"
 
@@ -33,8 +38,10 @@ static void usage_compare(FILE *f)
           "(an option left unset matches the default the renderer reports):\n"
           "  - any change of a work counter (rays, node_visits, prim_tests, ...) or of the\n"
           "    image hash, a configuration missing from NEW, or no ok run in NEW;\n"
-          "  - a time regression: median and minimum ratios NEW/BASE both > F and, with\n"
-          "    >= 4 samples a side, Mann-Whitney U two-sided p < A.\n"
+          "  - a larger share of runs that timed out or failed in NEW than in BASE;\n"
+          "  - a time regression: median ratio NEW/BASE > F, and the minimum ratio > F or,\n"
+          "    with >= 4 samples a side, the median ratio's 95% interval above F; with\n"
+          "    >= 4 samples a side also Mann-Whitney U two-sided p < A.\n"
           "The same rule the other way round reports an IMPROVEMENT (never a failure).\n"
           "Rows from different machines (fingerprint column) are reported as such.\n"
           "  --factor F    slowdown factor that counts (default 1.8)\n"
@@ -157,6 +164,7 @@ static CmpVerdict *push_verdict(CmpVerdicts *vs, const HxGroup *g, const char *v
     v->kind = CMP_NOTE;
     v->note = note ? hx_strdup(note) : NULL;
     v->base_median = v->new_median = v->ratio = v->p = v->min_ratio = v->ci_lo = v->ci_hi = v->mde = NAN;
+    v->tail_ratio = NAN;
     v->raw_base = v->raw_new = NAN;
     /* g is BASE's group, other NEW's; a "new" verdict has only NEW's */
     v->n_base = strcmp(verdict, "new") == 0 ? 0 : g->nt;
@@ -245,6 +253,28 @@ static Resolution resolution(const HxGroup *n, const HxGroup *b, const CmpRule *
     return r;
 }
 
+/* The slowest tenth's cost ratio, NEW against BASE (the 0.9 quantile of
+ * times, the 0.1 of rates), from 10 samples a side; NAN with fewer, where
+ * that quantile is one run. */
+static double quantile(const double *x, size_t n, double q)
+{
+    double *c = hx_xmalloc(n * sizeof *c);
+    memcpy(c, x, n * sizeof *c);
+    qsort(c, n, sizeof *c, hx_cmp_double);
+    const double v = hx_quantile_sorted(c, n, q);
+    free(c);
+    return v;
+}
+
+static double tail_ratio(const HxGroup *n, const HxGroup *b, int higher)
+{
+    if (n->nt < 10 || b->nt < 10)
+        return NAN;
+    const double q = higher ? 0.1 : 0.9;
+    double r = quantile(n->t, n->nt, q) / quantile(b->t, b->nt, q);
+    return higher ? 1.0 / r : r;
+}
+
 static void judge_time(const HxGroup *n, const HxGroup *b, const CmpRule *rule, CmpVerdicts *vs)
 {
     /* ratio and rmin as costs, above 1 worse, whatever the direction */
@@ -260,22 +290,27 @@ static void judge_time(const HxGroup *n, const HxGroup *b, const CmpRule *rule, 
         v->raw_new = n->raw_median;
         return;
     }
-    double p = NAN;
+    Resolution res = resolution(n, b, rule);
+    double p = NAN, f = rule->factor;
     int slow, fast;
     if (b->nt >= 4 && n->nt >= 4) {
         p = hx_mann_whitney_p(n->t, n->nt, b->t, b->nt);
         /* the minimum must move too: noise on a busy machine only ever adds
-         * time, so it inflates medians but rarely the fastest run */
-        slow = ratio > rule->factor && p < rule->alpha && rmin > rule->factor;
-        fast = ratio < 1.0 / rule->factor && p < rule->alpha && rmin < 1.0 / rule->factor;
+         * time, so it inflates medians but rarely the fastest run. Unless
+         * the interval itself lies beyond the factor: then one run as fast
+         * as BASE's among many slow ones does not hold the verdict back. */
+        slow = ratio > f && p < rule->alpha && (rmin > f || res.lo > f);
+        fast = ratio < 1.0 / f && p < rule->alpha && (rmin < 1.0 / f || res.hi < 1.0 / f);
     } else {
-        slow = ratio > rule->factor && rmin > rule->factor;
-        fast = ratio < 1.0 / rule->factor && rmin < 1.0 / rule->factor;
+        slow = ratio > f && rmin > f;
+        fast = ratio < 1.0 / f && rmin < 1.0 / f;
     }
-    Resolution res = resolution(n, b, rule);
     /* "no change" only where the interval rules out the asked factor both
-     * ways; anything else that is not a verdict is inconclusive */
-    int none = res.lo > 1.0 / rule->factor && res.hi < rule->factor;
+     * ways, and the slowest tenth moved less than it too (a tenth of the
+     * runs far slower leaves the median where it was); anything else that
+     * is not a verdict is inconclusive */
+    const double tail = tail_ratio(n, b, rule->higher);
+    int none = res.lo > 1.0 / f && res.hi < f && !(tail > f);
     const char *verdict = slow ? "REGRESSION" : fast ? "IMPROVEMENT" : none ? "no change" : "INCONCLUSIVE";
     CmpVerdict *v = push_verdict(vs, b, verdict, NULL, n);
     v->kind = CMP_TIME;
@@ -288,6 +323,7 @@ static void judge_time(const HxGroup *n, const HxGroup *b, const CmpRule *rule, 
     v->ci_hi = res.hi;
     v->mde = res.mde;
     v->need = res.need;
+    v->tail_ratio = tail;
     v->busy[0] = n->nbusy, v->busy[1] = b->nbusy;
     v->stolen[0] = n->nstolen, v->stolen[1] = b->nstolen;
     v->rows[0] = n->nrows, v->rows[1] = b->nrows;
@@ -322,9 +358,15 @@ void hx_cmp_reason(HxBuf *r, const CmpVerdict *v, const CmpRule *rule)
     int none = strcmp(v->verdict, "no change") == 0;
     if (none && (v->ci_lo > 1.0 || v->ci_hi < 1.0))
         hx_buf_printf(r, "; a change of x%.2f, within the factor %.2f", v->ratio, rule->factor);
-    if (!judged && !none && isfinite(v->mde))
+    const double f = rule->factor;
+    const int beyond = v->ci_lo > f || v->ci_hi < 1.0 / f, tail = v->tail_ratio > f;
+    if (!judged && !none && tail && !beyond && v->ci_lo > 1.0 / f && v->ci_hi < f)
+        hx_buf_printf(r, "; the medians agree, but the slowest tenth of NEW is x%.2f BASE's", v->tail_ratio);
+    else if (!judged && !none && beyond) /* the interval is past the factor: the test held it back */
+        hx_buf_printf(r, "; the interval lies beyond x%.2f, but the rank test's p is not below %.3g", f, rule->alpha);
+    else if (!judged && !none && isfinite(v->mde))
         hx_buf_printf(r, "; at this noise only changes beyond x%.2f are detectable, about %ld repeats a side "
-                         "would resolve x%.2f", v->mde, v->need, rule->factor);
+                         "would resolve x%.2f", v->mde, v->need, f);
     else if (!judged && !none)
         hx_buf_put(r, "; too few samples for an interval (3 a side at least)");
 }
@@ -348,6 +390,21 @@ static void judge(const HxStudy *nw, const HxStudy *base, const HxGroup *b, cons
     if (n->nwrong) {
         HxBuf r = {0};
         hx_buf_printf(&r, "%zu wrong-image run(s) in NEW", n->nwrong);
+        push_verdict(vs, b, "REGRESSION", r.s, n);
+        hx_buf_free(&r);
+    }
+    /* a run that timed out or failed is a slow or broken run, not a
+     * missing sample: a larger share of them in NEW than in BASE is a
+     * regression, whatever NEW's ok runs took */
+    const size_t nf = n->ntimeout + n->nerror, bf = b->ntimeout + b->nerror;
+    if (n->nt && nf * b->nrows > bf * n->nrows) {
+        HxBuf r = {0};
+        hx_buf_printf(&r, "%zu of %zu runs in NEW did not end ok (", nf, n->nrows);
+        if (n->ntimeout)
+            hx_buf_printf(&r, "timeout %zu%s", n->ntimeout, n->nerror ? ", " : "");
+        if (n->nerror)
+            hx_buf_printf(&r, "%s %zu", n->first_status ? n->first_status : "other", n->nerror);
+        hx_buf_printf(&r, "), %zu of %zu in BASE", bf, b->nrows);
         push_verdict(vs, b, "REGRESSION", r.s, n);
         hx_buf_free(&r);
     }
@@ -418,6 +475,7 @@ static void print_json(const CmpVerdicts *vs, const CmpRule *rule, const char *n
         hx_json_pair(o, "ratio_ci95", v->ci_lo, v->ci_hi);
         hx_json_num(o, "detectable_ratio", v->mde);
         hx_json_num(o, "repeats_needed", v->need > 0 ? (double)v->need : NAN);
+        hx_json_num(o, "tail_ratio", v->tail_ratio);
         hx_json_num(o, "n_base", (double)v->n_base);
         hx_json_num(o, "n_new", (double)v->n_new);
         HxBuf why = {0};

@@ -28,6 +28,7 @@ typedef struct {
     char *note;               /* CMP_NOTE's reason, else NULL */
     double base_median, new_median, ratio, p, min_ratio; /* p NAN: too few for the test */
     double ci_lo, ci_hi, mde; /* the ratio's 95% interval, the smallest detectable change */
+    double tail_ratio;        /* the slowest tenth's ratio (10 samples a side), else NAN */
     long need;                /* repeats a side that would resolve the factor */
     size_t n_new, n_base;
     double raw_base, raw_new; /* render_ms medians (CMP_SHORT) */

@@ -144,7 +144,10 @@ int hx_series_load(sqlite3 *db, const char *dbpath, const char *metric, const Hx
         " JOIN (SELECT git_commit AS g, MIN(utc) AS first, MIN(id) AS first_id FROM runs GROUP BY git_commit) f"
         " ON f.g = r.git_commit"
         " WHERE r.status = 'ok' AND a.num IS NOT NULL"
-        " ORDER BY r.config_id, r.fingerprint, r.config_hash, COALESCE(c.commit_time, 0), f.first, f.first_id,"
+        /* a commit git does not know goes where it was first measured,
+         * among the others' commit times, not before them all */
+        " ORDER BY r.config_id, r.fingerprint, r.config_hash,"
+        " COALESCE(c.commit_time, CAST(strftime('%s', f.first) AS INTEGER), 0), f.first, f.first_id,"
         " r.git_commit, r.id");
     if (!st)
         return -1;
@@ -212,7 +215,9 @@ static void step_at(const HxSeries *s, size_t k, const HxStepRule *rule, double 
     size_t nx = pool(s, a, k, &x), ny = pool(s, k, b, &y);
     double mx = hx_median(x, nx), my = hx_median(y, ny);
     *ratio = mx > 0.0 ? my / mx : NAN;
-    *p = flat(x, nx) && flat(y, ny) ? 0.0 : hx_mann_whitney_p(x, nx, y, ny);
+    /* exact (an instruction count) only where each side shows it, two
+     * equal values at least: one timing alone is not exact */
+    *p = nx >= 2 && ny >= 2 && flat(x, nx) && flat(y, ny) ? 0.0 : hx_mann_whitney_p(x, nx, y, ny);
     free(x);
     free(y);
 }

@@ -184,7 +184,9 @@ static int check_commits(const char *path, const HxCsv *csv, int allow_dirty)
 
 static int record_commits(sqlite3 *db, const char *dbpath, const HxCsv *csv)
 {
-    sqlite3_stmt *st = hx_db_prep(db, dbpath, "INSERT OR IGNORE INTO commits(sha, commit_time) VALUES(?1, ?2)");
+    sqlite3_stmt *st = hx_db_prep(db, dbpath, "INSERT INTO commits(sha, commit_time) VALUES(?1, ?2) ON CONFLICT(sha) DO UPDATE"
+        /* (a commit unknown when first added gets its time once git has it) */
+        " SET commit_time = COALESCE(commit_time, excluded.commit_time)");
     if (!st)
         return -1;
     HxStrList seen = {0};

@@ -37,9 +37,17 @@ void hx_cpu_stat(HxCpuStat *s)
         fclose(f);
 }
 
+/* A counter's ticks from a to b. iowait can go down (proc(5)), and an
+ * unsigned difference would then wrap to near 2^64. */
+static unsigned long long ticks(unsigned long long a, unsigned long long b)
+{
+    return b > a ? b - a : 0;
+}
+
 unsigned long long hx_cpu_ticks(const HxCpuStat *a, const HxCpuStat *b)
 {
-    return (b->busy - a->busy) + (b->idle - a->idle) + (b->iowait - a->iowait) + (b->steal - a->steal);
+    return ticks(a->busy, b->busy) + ticks(a->idle, b->idle) + ticks(a->iowait, b->iowait) +
+           ticks(a->steal, b->steal);
 }
 
 void hx_noise(const HxCpuStat *a, const HxCpuStat *b, double wall_ms, double own_cpu_ms, int cpus, int workers,
@@ -48,7 +56,8 @@ void hx_noise(const HxCpuStat *a, const HxCpuStat *b, double wall_ms, double own
     memset(n, 0, sizeof *n);
     n->load1 = a->load1;
     n->others_cores = n->steal_pct = n->iowait_pct = -1;
-    unsigned long long busy = b->busy - a->busy, steal = b->steal - a->steal, iowait = b->iowait - a->iowait;
+    unsigned long long busy = ticks(a->busy, b->busy), steal = ticks(a->steal, b->steal),
+                       iowait = ticks(a->iowait, b->iowait);
     unsigned long long total = hx_cpu_ticks(a, b);
     if (!a->ok || !b->ok || total == 0 || !(wall_ms > 0))
         return;

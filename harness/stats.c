@@ -139,47 +139,50 @@ HxAmdahl hx_amdahl_fit(const double *p, const double *t, size_t n)
     return r;
 }
 
-/* Number of arrangements with U = u for sample sizes m, n (no ties), by the
- * recurrence f(m,n,u) = f(m-1,n,u-n) + f(m,n-1,u); exact for small samples
- * where the normal approximation is poor. */
-static double *u_counts(int m, int n)
+/* Two-sided Mann-Whitney U test p-value (Mann & Whitney 1947). Up to 60
+ * samples in all it is exact, ties too: the permutation distribution of the
+ * x sample's rank sum over every way to pick nx of the pooled values, the
+ * tied ones at their mid-ranks, counted by a dynamic program over the sorted
+ * values (the normal approximation with tie correction gave p = 0.033 where
+ * the exact p of 4 against 4 is 0.057). Beyond that, the normal
+ * approximation with tie and continuity correction. Note: with 3 against 3
+ * samples the smallest two-sided p is 0.1, so `compare` only uses this test
+ * from 4 samples a side. */
+#define HX_MW_EXACT 60
+
+/* Twice the smaller tail, P(W <= w) or P(W >= w), as R's wilcox.test, for
+ * the rank sum W of nx of the N doubled mid-ranks r2 (integers: 2 x the
+ * mid-rank), w its observed value, doubled too. */
+static double mw_exact(const int *r2, size_t N, size_t nx, long w)
 {
-    /* f[i][j][u]: i x-samples, j y-samples; the largest element is either an
-     * x (it beats all j y's: u - j) or a y (u unchanged). */
-    size_t U1 = (size_t)m * (size_t)n + 1;
-    size_t J = (size_t)n + 1;
-    double *f = calloc(((size_t)m + 1) * J * U1, sizeof(double));
+    const long S = (long)N * ((long)N + 1); /* the doubled ranks' sum */
+    const size_t W1 = (size_t)S + 1;
+    double *f = calloc((nx + 1) * W1, sizeof *f); /* f[k][s]: subsets of k with sum s */
     if (!f)
         abort();
-#define F(i, j, u) f[((size_t)(i) * J + (size_t)(j)) * U1 + (size_t)(u)]
-    for (int i = 0; i <= m; i++)
-        for (int j = 0; j <= n; j++) {
-            if (i == 0 || j == 0) {
-                F(i, j, 0) = 1;
-                continue;
-            }
-            for (int u = 0; u <= i * j; u++)
-                F(i, j, u) = (u - j >= 0 ? F(i - 1, j, u - j) : 0) + F(i, j - 1, u);
-        }
-    double *res = hx_xmalloc(U1 * sizeof *res);
-    for (size_t u = 0; u < U1; u++)
-        res[u] = F(m, n, u);
-#undef F
+    f[0] = 1;
+    for (size_t i = 0; i < N; i++)
+        for (size_t k = (i + 1 < nx ? i + 1 : nx); k >= 1; k--)
+            for (long s = S; s >= r2[i]; s--)
+                f[k * W1 + (size_t)s] += f[(k - 1) * W1 + (size_t)(s - r2[i])];
+    double total = 0, le = 0, ge = 0;
+    for (long s = 0; s <= S; s++) {
+        const double c = f[nx * W1 + (size_t)s];
+        total += c;
+        le += s <= w ? c : 0;
+        ge += s >= w ? c : 0;
+    }
     free(f);
-    return res;
+    return total > 0 ? fmin(1.0, 2.0 * fmin(le, ge) / total) : 1.0;
 }
 
-/* Two-sided Mann-Whitney U test p-value: exact without ties for small
- * samples, else the normal approximation with tie and continuity
- * correction. Note: with 3 against 3 samples the smallest exact two-sided p
- * is 0.1, so `compare` only uses this test from 4 samples a side. */
 double hx_mann_whitney_p(const double *x, size_t nx, const double *y, size_t ny)
 {
     if (nx == 0 || ny == 0)
         return 1.0;
     size_t N = nx + ny;
     double *v = hx_xmalloc(N * sizeof *v);
-    int *grp = hx_xmalloc(N * sizeof *grp);
+    int *grp = hx_xmalloc(N * sizeof *grp), *r2 = hx_xmalloc(N * sizeof *r2);
     size_t *idx = hx_xmalloc(N * sizeof *idx);
     for (size_t i = 0; i < nx; i++) v[i] = x[i], grp[i] = 0;
     for (size_t i = 0; i < ny; i++) v[nx + i] = y[i], grp[nx + i] = 1;
@@ -194,50 +197,38 @@ double hx_mann_whitney_p(const double *x, size_t nx, const double *y, size_t ny)
         }
         idx[j] = k;
     }
-    double rx = 0, tie_term = 0;
-    int ties = 0;
+    long wx2 = 0; /* the x sample's rank sum, doubled */
+    double tie_term = 0;
     for (size_t i = 0; i < N;) {
         size_t j = i;
         while (j + 1 < N && v[idx[j + 1]] == v[idx[i]])
             j++;
-        double rank = (double)(i + j) / 2.0 + 1.0;
+        const int rank2 = (int)(i + j + 2); /* 2 x the mid-rank (1-based) */
         double t = (double)(j - i + 1);
-        if (t > 1) {
-            ties = 1;
-            tie_term += t * t * t - t;
-        }
-        for (size_t k = i; k <= j; k++)
+        tie_term += t * t * t - t;
+        for (size_t k = i; k <= j; k++) {
+            r2[k] = rank2;
             if (grp[idx[k]] == 0)
-                rx += rank;
+                wx2 += rank2;
+        }
         i = j + 1;
+    }
+    double p;
+    if (N <= HX_MW_EXACT) {
+        p = mw_exact(r2, N, nx, wx2);
+    } else {
+        double m = (double)nx, n = (double)ny;
+        double U = (double)wx2 / 2.0 - m * (m + 1) / 2.0;
+        double mu = m * n / 2.0;
+        double var = m * n / 12.0 * ((m + n + 1) - tie_term / ((m + n) * (m + n - 1)));
+        double z = var > 0 ? (fabs(U - mu) - 0.5) / sqrt(var) : 0;
+        p = var > 0 ? erfc((z < 0 ? 0 : z) / sqrt(2.0)) : 1.0;
     }
     free(v);
     free(grp);
+    free(r2);
     free(idx);
-    double m = (double)nx, n = (double)ny;
-    double U = rx - m * (m + 1) / 2.0;
-    if (!ties && nx * ny <= 400) {
-        double *cnt = u_counts((int)nx, (int)ny);
-        double total = 0, le = 0, ge = 0;
-        int umax = (int)(nx * ny);
-        int u = (int)llround(U);
-        for (int k = 0; k <= umax; k++) {
-            total += cnt[k];
-            if (k <= u) le += cnt[k];
-            if (k >= u) ge += cnt[k];
-        }
-        free(cnt);
-        double p = 2.0 * fmin(le, ge) / total;
-        return p > 1 ? 1 : p;
-    }
-    double mu = m * n / 2.0;
-    double var = m * n / 12.0 * ((m + n + 1) - tie_term / ((m + n) * (m + n - 1)));
-    if (var <= 0)
-        return 1.0;
-    double z = (fabs(U - mu) - 0.5) / sqrt(var);
-    if (z < 0)
-        z = 0;
-    return erfc(z / sqrt(2.0));
+    return p;
 }
 
 /* ---- bootstrap intervals (Efron & Tibshirani 1993, percentile method) ----

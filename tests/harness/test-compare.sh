@@ -69,8 +69,53 @@ cat c6.out c7.out c8.err
 awk -F, -v OFS=, 'NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; print; next }
                   NR == 2 { $c["status"] = "crash"; $c["render_ms"] = ""; $c["rec_accel"] = ""; $c["width"] = "" }
                   { print }' unset.csv > crash1.csv
-"$H" compare crash1.csv set.csv > c5.out || { cat c5.out; fail "a crashed first repeat made the configuration missing"; }
-grep -q "1 configuration(s) compared, 0 regression(s)" c5.out || { cat c5.out; fail "crash1 not compared as one configuration"; }
+# (and the crash, which BASE never had, is a regression of its own)
+"$H" compare crash1.csv set.csv > c5.out && { cat c5.out; fail "a crash in NEW passed"; }
+grep -q "1 configuration(s) compared, 1 regression(s)" c5.out &&
+    grep -q "^REGRESSION ok .*: 1 of 5 runs in NEW did not end ok (crash 1), 0 of 5 in BASE$" c5.out &&
+    grep -q "^no change ok " c5.out || { cat c5.out; fail "crash1 not compared as one configuration"; }
+# runs that timed out are slow runs, not missing ones: half of NEW's hit the
+# timeout while its ok runs kept BASE's time
+python3 - set.csv timeout-new.csv <<'PY'
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+out = [dict(r) for r in rows]
+for i, r in enumerate(rows):
+    t = dict(r, status="timeout", render_ms="", run_id=r["run_id"] + "-t%d" % i)
+    out.append(t)
+w = csv.DictWriter(open(sys.argv[2], "w", newline=""), fieldnames=list(rows[0].keys()), lineterminator="\n")
+w.writeheader()
+w.writerows(out)
+PY
+"$H" compare timeout-new.csv set.csv > c9.out && { cat c9.out; fail "half the runs timing out passed"; }
+grep -q "^REGRESSION ok .*: 5 of 10 runs in NEW did not end ok (timeout 5), 0 of 5 in BASE$" c9.out ||
+    { cat c9.out; fail "timeouts not reported"; }
+# one run as fast as BASE's among nine five times slower: the interval,
+# wholly past the factor, decides where the minimum alone would not
+setrows set.csv ten-base.csv "1.25 1.26 1.24 1.25 1.27"
+python3 - ten-base.csv ten-base2.csv ten-slow.csv ten-tail.csv <<'PY'
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+def write(path, ms):
+    out = []
+    for i, v in enumerate(ms):
+        r = dict(rows[i % len(rows)], render_ms=str(v), repeat=str(i))
+        r["run_id"] = r["run_id"] + "-%d" % i
+        out.append(r)
+    w = csv.DictWriter(open(path, "w", newline=""), fieldnames=list(rows[0].keys()), lineterminator="\n")
+    w.writeheader()
+    w.writerows(out)
+base = [1.25 + 0.001 * i for i in range(20)]
+write(sys.argv[2], base)
+write(sys.argv[3], [1.25] + [6.25 + 0.01 * i for i in range(9)])
+# a tenth of the runs ten times slower: the medians agree, the tail does not
+write(sys.argv[4], [1.25 + 0.001 * i for i in range(17)] + [12.5, 12.6, 12.7])
+PY
+"$H" compare ten-slow.csv ten-base2.csv > c10.out && { cat c10.out; fail "a 5x slowdown in 9 of 10 runs passed"; }
+grep -q "^REGRESSION ok .*min ratio 1.00, n=10/20" c10.out || { cat c10.out; fail "one fast run held the verdict"; }
+"$H" compare ten-tail.csv ten-base2.csv > c11.out || { cat c11.out; fail "a slow tail failed the check"; }
+grep -q "^INCONCLUSIVE ok .*; the medians agree, but the slowest tenth of NEW is x[0-9.]* BASE's$" c11.out ||
+    { cat c11.out; fail "a tenth of the runs 10x slower called no change"; }
 # --format md, the pull-request summary. many: a study of N scenes s00..
 # made from IN's rows, its commit and CPU set, and per scene a change:
 # "s17=2" scales render_ms, "s05=1.25,1.3,5,6,1.2" sets the samples

@@ -56,6 +56,35 @@ grep -q "^INCONCLUSIVE scene=okb .*only steps beyond" unsure.out || { cat unsure
 "$H" history check --db h.db --metric instructions --threshold 0.03 --scene oka > ir.out && fail "an exact 4% step passed"
 grep -q "at commit c0ffee09 (after c0ffee08): +4.0%, p=0" ir.out || { cat ir.out; fail "the exact step"; }
 "$H" history check --db h.db --metric instructions --threshold 0.05 > ir5.out || { cat ir5.out; fail "a 4% step over a 5% threshold"; }
+# one timing a side is not an exact metric: two commits of one run each
+# cannot show a step, nor call it exact
+head -n 2 c1.csv > one1.csv
+head -n 2 c7.csv > one2.csv
+"$H" history add --db one.db one1.csv one2.csv > /dev/null || fail "add one-run studies"
+"$H" history check --db one.db --window 1 > one.out || { cat one.out; fail "one run a side flagged a step"; }
+grep -q "p=0\|exact" one.out && { cat one.out; fail "one run a side taken as exact"; }
+# commits git knows go in commit-time order; one it does not know (a CI
+# checkout's merge commit) goes where it was first measured, after them,
+# and a 20% step there is found there
+command -v git > /dev/null || fail "git missing (scripts/install-deps.sh)"
+mkdir repo && (cd repo && git init -q) || fail "git init"
+for k in 1 2 3 4 5 6; do
+    (cd repo && GIT_AUTHOR_NAME=t GIT_AUTHOR_EMAIL=t@t GIT_COMMITTER_NAME=t GIT_COMMITTER_EMAIL=t@t \
+        GIT_AUTHOR_DATE="2026-01-0${k}T00:00:00Z" GIT_COMMITTER_DATE="2026-01-0${k}T00:00:00Z" \
+        git commit -q --allow-empty -m "c$k") || fail "git commit"
+    sha=$(git -C repo rev-parse HEAD)
+    awk -F, -v OFS=, -v sha="$sha" -v k="$k" 'NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; print; next }
+        $c["scene"] == "oka" { $c["git_commit"] = sha; $c["utc"] = sprintf("2026-11-%02dT10:00:00Z", 10 + k); print }' \
+        c1.csv > "repo/k$k.csv"
+done
+awk -F, -v OFS=, 'NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; print; next }
+    $c["scene"] == "oka" { $c["git_commit"] = "deadbeefdeadbeefdeadbeefdeadbeefdeadbeef"
+                           $c["utc"] = "2026-11-20T10:00:00Z"; $c["render_ms"] = $c["render_ms"] * 1.2; print }' \
+    c1.csv > repo/u.csv
+(cd repo && "$H" history add --db k.db k1.csv k2.csv k3.csv k4.csv k5.csv k6.csv u.csv > /dev/null) || fail "add the repo's studies"
+(cd repo && "$H" history check --db k.db > ../k.out) && { cat k.out; fail "a 20% step at an unknown commit passed"; }
+grep -q "^STEP scene=oka .*at commit deadbeefdeadbeefdeadbeefdeadbeefdeadbeef (after $sha): +20.0%" k.out ||
+    { cat k.out; fail "the unknown commit not placed where it was measured"; }
 
 # bad input: one line, exit 1, nothing stored
 sed 's/c0ffee01/c0ffee01-dirty/' c1.csv > dirty.csv

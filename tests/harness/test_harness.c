@@ -510,6 +510,15 @@ static void test_stats(void)
     CHECK_NEAR(hx_mann_whitney_p(x, 5, x, 5), 1.0, 1e-12);
     double z[] = {5.5, 9.5, 6.5, 8.5, 7.5}; /* interleaved with y */
     CHECK(hx_mann_whitney_p(z, 5, y, 5) > 0.05);
+    /* ties, exact: of the 70 ways to pick 4 of {0,0,0,2,2,4,4,4}, 2 have a
+     * rank sum as low as {0,0,0,2}'s, so p = 2 x 2/70 (the normal
+     * approximation gave 0.033) */
+    double tx[] = {0, 0, 2, 0}, ty[] = {4, 4, 2, 4};
+    CHECK_NEAR(hx_mann_whitney_p(tx, 4, ty, 4), 4.0 / 70.0, 1e-12);
+    /* all of one value against all of another: 1 way of 126 to pick 5 of 9 */
+    double ax[] = {1, 1, 1, 1, 1}, ay[] = {2, 2, 2, 2};
+    CHECK_NEAR(hx_mann_whitney_p(ax, 5, ay, 4), 2.0 / 126.0, 1e-12);
+    CHECK_NEAR(hx_mann_whitney_p(ax, 5, ax, 4), 1.0, 1e-12);
 }
 
 static void test_csv(void)
