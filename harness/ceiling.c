@@ -432,6 +432,9 @@ static int ceil_all(HxCeilRounds *c, int repeats, HxBuf *b)
     return rc;
 }
 
+/* What a ceiling file starts with, in every version of its header. */
+#define CEIL_OWN "fingerprint,host,workers,repeats,ratio_median,"
+
 /* b into -o FILE, else results/ceiling-FINGERPRINT.csv. 0 or 1. */
 static int ceil_write(const char *out, const HxFingerprint *fp, const HxBuf *b)
 {
@@ -440,6 +443,10 @@ static int ceil_write(const char *out, const HxFingerprint *fp, const HxBuf *b)
         hx_buf_put(&path, out);
     else
         hx_buf_printf(&path, "%sceiling-%s.csv", hx_is_dir("results") ? "results/" : "", fp->fingerprint);
+    if (hx_may_replace("harness ceiling", path.s, CEIL_OWN) != 0) {
+        hx_buf_free(&path);
+        return 1;
+    }
     FILE *f = fopen(path.s, "w");
     int rc = 0;
     if (!f || fputs(b->s, f) == EOF || fclose(f) != 0) {
@@ -479,6 +486,8 @@ int hx_cmd_ceiling(int argc, char **argv)
     HxCeilRounds c;
     ceil_plan(&c, &cfg, &plan, &t, rt);
     rc = ceil_check(&c, "harness ceiling") != 0;
+    /* (-o checked before the copies run, and again when written) */
+    rc = rc || (o.out && hx_may_replace("harness ceiling", o.out, CEIL_OWN) != 0);
     if (rc == 0 && !cfg.prog) /* the scene cache only for a ceiling that will run */
         hx_resolve_scene_cache(&cfg, NULL);
     rc = rc || ceil_open(&c, "harness ceiling") != 0;

@@ -304,7 +304,11 @@ static int parse_scalar(int lineno, const char *key, const char *v, HxConfig *cf
     int rc = 0;
     long iv;
     if (strcmp(key, "study") == 0) {
-        cfg->study = hx_strdup(v);
+        /* (it names results/STUDY.csv and the Slurm files: a '/' would put them elsewhere) */
+        if (strchr(v, '/'))
+            rc = set_err(err, errlen, cfg, lineno, "study: a name, not a path: no '/', got '%s'", v);
+        else
+            cfg->study = hx_strdup(v);
     } else if (strcmp(key, "scene_dir") == 0) {
         cfg->scene_dir = hx_strdup(v);
     } else if (strcmp(key, "repeats") == 0) {
@@ -724,6 +728,15 @@ int hx_config_load_set(const char *path, const HxStrList *set, HxConfig *cfg, ch
     HxBuf b = {0};
     if (hx_read_file(path, &b) != 0) {
         snprintf(err, errlen, "%s: cannot read config: %s", path, strerror(errno));
+        hx_buf_free(&b);
+        return -1;
+    }
+    const char *nul = b.len ? memchr(b.s, '\0', b.len) : NULL;
+    if (nul) { /* (the parser reads C strings: the rest of the line would vanish) */
+        int line = 1;
+        for (const char *p = b.s; p < nul; p++)
+            line += *p == '\n';
+        snprintf(err, errlen, "%s:%d: control character 0x00 in the line", path, line);
         hx_buf_free(&b);
         return -1;
     }

@@ -217,6 +217,26 @@ static void truncate_to(int fd, off_t len)
         return;
 }
 
+int hx_csv_restart(int fd, const char *path, char *err, size_t errlen)
+{
+    if (ftruncate(fd, 0) != 0) {
+        snprintf(err, errlen, "%s: cannot truncate: %s", path, strerror(errno));
+        close(fd);
+        return -1;
+    }
+    HxBuf header = {0};
+    hx_csv_format_row(&header, NULL);
+    int rc = write_all(fd, header.s, header.len);
+    hx_buf_free(&header);
+    if (rc || fsync(fd) != 0) {
+        snprintf(err, errlen, "%s: write failed: %s", path, strerror(errno));
+        truncate_to(fd, 0); /* a torn header is worse than none */
+        close(fd);
+        return -1;
+    }
+    return fd;
+}
+
 int hx_csv_open_append(const char *path, int truncate_it, char *err, size_t errlen)
 {
     struct stat st;
@@ -242,25 +262,13 @@ int hx_csv_open_append(const char *path, int truncate_it, char *err, size_t errl
         close(fd);
         return -1;
     }
-    if (truncate_it && ftruncate(fd, 0) != 0) {
-        snprintf(err, errlen, "%s: cannot truncate: %s", path, strerror(errno));
-        close(fd);
-        return -1;
-    }
+    if (truncate_it == HX_CSV_LOCK_ONLY)
+        return fd;
+    fstat(fd, &st);
+    if (truncate_it || st.st_size == 0)
+        return hx_csv_restart(fd, path, err, errlen);
     HxBuf header = {0};
     hx_csv_format_row(&header, NULL);
-    fstat(fd, &st);
-    if (st.st_size == 0) {
-        int rc = write_all(fd, header.s, header.len);
-        hx_buf_free(&header);
-        if (rc || fsync(fd) != 0) {
-            snprintf(err, errlen, "%s: write failed: %s", path, strerror(errno));
-            truncate_to(fd, 0); /* a torn header is worse than none */
-            close(fd);
-            return -1;
-        }
-        return fd;
-    }
     /* An existing file must have our exact header: mixing schemas in one
      * file would silently shift columns. */
     char *buf = hx_xmalloc(header.len + 1);

@@ -45,9 +45,15 @@ int hx_parse_double(const char *s, double *out);
 int hx_parse_wxh(const char *s, long *w, long *h);
 double hx_now_ms(void);                 /* CLOCK_MONOTONIC */
 int hx_file_exists(const char *path);
-/* Reads a whole file into b (NUL-terminated); -1 with errno set on failure. */
+/* Reads a whole file (or pipe) into b (NUL-terminated); -1 with errno set on
+ * failure: EISDIR, EINVAL for a device, EFBIG past HX_READ_MAX bytes. */
+#define HX_READ_MAX ((size_t)1 << 30)
 int hx_read_file(const char *path, HxBuf *b);
 int hx_is_dir(const char *path);
+/* Whether a command may write path over: missing, empty, or a regular file
+ * that starts with own (what that command writes there). 0, or -1 with one
+ * line said, who first: -o must not take a results CSV for its own. */
+int hx_may_replace(const char *who, const char *path, const char *own);
 /* The program name runs: a path (with a '/') if executable, else the first
  * executable NAME on PATH; resolved (realpath), malloc'd, or NULL. */
 char *hx_which(const char *name);
@@ -370,9 +376,15 @@ const char *hx_csv_get(const HxCsv *csv, size_t row, const char *name);
 void hx_csv_field(HxBuf *b, const char *s);   /* RFC 4180 quoting */
 /* Formats one row of hx_ncolumns values (NULL -> empty) with a newline. */
 void hx_csv_format_row(HxBuf *b, const char *const *vals);
-/* Opens for appending: creates the header, checks an existing header, cuts a
- * torn last line. Returns fd or -1 with err. */
+/* Opens for appending, the file locked: creates the header, checks an
+ * existing header, cuts a torn last line; truncate 1: starts it again;
+ * HX_CSV_LOCK_ONLY: only opens and locks it, for hx_csv_restart later.
+ * Returns fd or -1 with err. */
+#define HX_CSV_LOCK_ONLY 2
 int hx_csv_open_append(const char *path, int truncate, char *err, size_t errlen);
+/* Empties the open CSV fd and writes the header: fd, or -1 with err (fd
+ * closed). */
+int hx_csv_restart(int fd, const char *path, char *err, size_t errlen);
 /* Writes a whole row with one write() and fsync()s it. */
 int hx_csv_append_row(int fd, const char *const *vals);
 /* Parses "record: k=v ..." (up to the line's end) into the row values

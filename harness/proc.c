@@ -120,13 +120,18 @@ const char *hx_signal_name(int sig)
     }
 }
 
-/* Keep the tail of a large stdout: the record line is the last line. */
+/* Keep the tail of a large stdout or stderr: the record line is the last
+ * line, and a metric is the last match, which a kept tail holds if the
+ * whole output does. */
 static void keep_tail(HxBuf *b)
 {
     const size_t limit = 4u << 20, keep = 64u << 10;
     if (b->len > limit) {
-        memmove(b->s, b->s + b->len - keep, keep);
-        b->len = keep;
+        size_t from = b->len - keep; /* (from a line's start, where the tail has one) */
+        const char *nl = memchr(b->s + from, '\n', keep - 1);
+        from = nl ? (size_t)(nl + 1 - b->s) : from;
+        memmove(b->s, b->s + from, b->len - from);
+        b->len -= from;
         b->s[b->len] = '\0';
     }
 }
@@ -252,12 +257,9 @@ static void read_output(Child *c, int out_fd, int err_fd)
                 continue;
             ssize_t n = read(fds[i].fd, chunk, sizeof chunk);
             if (n > 0) {
-                if (i == 0) {
-                    hx_buf_putn(&res->out, chunk, (size_t)n);
-                    keep_tail(&res->out);
-                } else if (res->err.len < (64u << 10)) {
-                    hx_buf_putn(&res->err, chunk, (size_t)n);
-                }
+                HxBuf *b = i == 0 ? &res->out : &res->err;
+                hx_buf_putn(b, chunk, (size_t)n);
+                keep_tail(b);
             } else if (n == 0 || errno != EINTR) {
                 close(fds[i].fd);
                 fds[i].fd = -1;

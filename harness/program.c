@@ -456,6 +456,8 @@ static int check_placeholders(const HxConfig *cfg, int *line, char *why, size_t 
             hx_subst(p, &vars, &path, bad, sizeof bad);
             if (hx_read_file(path.s, &text) != 0)
                 rc = fail(why, n, "template %s: %s: %s", pg->templates.v[i], path.s, strerror(errno));
+            else if (text.len && memchr(text.s, '\0', text.len))
+                rc = fail(why, n, "template %s: %s holds a NUL byte: not a text file", pg->templates.v[i], path.s);
             else if (hx_subst(text.s ? text.s : "", &vars, &out, bad, sizeof bad) != 0)
                 rc = fail(why, n, "template %s: %s has an unknown placeholder {%s}", pg->templates.v[i], path.s, bad);
         }
@@ -601,6 +603,8 @@ int hx_program_prepare(const HxConfig *cfg, const HxVars *vars, const char *rund
         hx_subst(pg->templates.v[i + 1], vars, &path, bad, sizeof bad);
         if (hx_read_file(path.s, &text) != 0)
             rc = fail(why, n, "template %s: %s: %s", pg->templates.v[i], path.s, strerror(errno));
+        else if (text.len && memchr(text.s, '\0', text.len))
+            rc = fail(why, n, "template %s: %s holds a NUL byte: not a text file", pg->templates.v[i], path.s);
         else if (hx_subst(text.s ? text.s : "", vars, &out, bad, sizeof bad) != 0)
             rc = fail(why, n, "template %s: unknown placeholder {%s} in %s", pg->templates.v[i], bad, path.s);
         else if (write_new(rundir, pg->templates.v[i], out.s, out.len) != 0)
@@ -623,10 +627,16 @@ static int match_text(const HxMatch *m, const char *rundir, const HxBuf *out, co
         return 0;
     }
     char *p = hx_path_join(rundir, m->file);
-    int fd = open(p, O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
+    /* O_NONBLOCK: a FIFO there would block the open, and the harness with it */
+    int fd = open(p, O_RDONLY | O_NOFOLLOW | O_CLOEXEC | O_NONBLOCK);
     free(p);
     if (fd < 0)
         return fail(why, n, "%s: the run wrote no such file (%s)", m->file, strerror(errno));
+    struct stat st;
+    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        close(fd);
+        return fail(why, n, "%s: not a regular file", m->file);
+    }
     char chunk[65536];
     ssize_t r;
     while ((r = read(fd, chunk, sizeof chunk)) > 0 && own->len < (64u << 20))
@@ -735,14 +745,46 @@ static void argv_free(char **argv)
     free(argv);
 }
 
+/* argv in dir as a run is started (hx_run_child: its own process group,
+ * killed whole at the study's timeout or on a stop signal), so a setup or
+ * version that never ends ends the study instead of hanging it. Its exit
+ * status, 124 when it timed out, 128 + the signal; its stdout into out
+ * (NULL: dropped), its stderr to ours where say_err. */
+static int run_limited(const HxConfig *cfg, char **argv, const char *dir, HxBuf *out, int say_err)
+{
+    HxCommand cmd;
+    memset(&cmd, 0, sizeof cmd);
+    for (char **a = argv; *a; a++)
+        hx_strlist_push(&cmd.argv, *a);
+    hx_strlist_push(&cmd.argv, ""); /* room for the NULL that ends argv */
+    free(cmd.argv.v[--cmd.argv.n]);
+    cmd.argv.v[cmd.argv.n] = NULL;
+    cmd.dir = (char *)dir;
+    HxChildResult res;
+    int rc = 127;
+    if (hx_run_child(&cmd, NULL, NULL, cfg->timeout_s, &res) == 0) {
+        rc = res.timed_out ? 124 : res.exited ? res.code : 128 + res.code;
+        if (out && res.out.s)
+            hx_buf_put(out, res.out.s);
+        if (say_err && res.err.s)
+            fputs(res.err.s, stderr);
+        hx_child_result_free(&res);
+    }
+    hx_strlist_free(&cmd.argv);
+    return rc;
+}
+
 char *hx_program_version(const HxConfig *cfg)
 {
     if (!cfg->prog || !cfg->prog->version.n)
         return hx_strdup("-");
     char **argv = study_argv(cfg, &cfg->prog->version, ".");
-    char out[512];
-    int rc = hx_run_argv(argv, NULL, out, sizeof out, 1);
+    HxBuf text = {0};
+    int rc = run_limited(cfg, argv, NULL, &text, 0);
     argv_free(argv);
+    char out[512];
+    snprintf(out, sizeof out, "%s", text.s ? text.s : "");
+    hx_buf_free(&text);
     char *s = out + strspn(out, " \t\r\n");
     s[strcspn(s, "\r\n")] = '\0';
     for (char *p = s; *p; p++)
@@ -756,7 +798,10 @@ int hx_program_setup(const HxConfig *cfg, const char *workdir, char *why, size_t
     if (!cfg->prog || !cfg->prog->setup.n)
         return 0;
     char **argv = study_argv(cfg, &cfg->prog->setup, workdir);
-    int rc = hx_run_argv(argv, workdir, NULL, 0, 0);
+    int rc = run_limited(cfg, argv, workdir, NULL, 1);
     argv_free(argv);
+    if (rc == 124)
+        return fail(why, n, "%s:%d: setup: still running after the study's timeout (%g s); ended", cfg->path,
+                    cfg->prog->key_line[3], cfg->timeout_s);
     return rc == 0 ? 0 : fail(why, n, "%s:%d: setup: exited with status %d", cfg->path, cfg->prog->key_line[3], rc);
 }

@@ -40,8 +40,8 @@ void hx_reap_strays(void);
 struct HxCommand;
 /* Runs c's argv (PATH search) with its env's name, value pairs set, in its
  * folder (c->dir, NULL: here), in its own process group, bound to run's
- * planned cores when c->bind, stdout and stderr read into res (stdout's tail
- * past 4 MiB, stderr's start: reading stops past 64 KiB); killed (the whole
+ * planned cores when c->bind, stdout and stderr read into res (each whole up
+ * to 4 MiB, past that its last 64 KiB from a line's start); killed (the whole
  * group) at timeout_s or on a stop signal. With c->watch_exe, the CPUs of
  * its processes running that program are sampled (res->cores_seen). 0, or
  * -1 when pipe or fork failed. */

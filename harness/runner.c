@@ -638,7 +638,10 @@ static int study_open(Study *st, int resume, int overwrite)
     }
     /* Open (and drop a torn last row) before reading what is done: a row cut
      * short must be run again, not counted as done and then deleted. */
-    st->fd = hx_csv_open_append(st->out_path, overwrite, err, sizeof err);
+    /* a command study's setup: runs before --overwrite empties the CSV,
+     * so a setup that fails leaves its rows */
+    const int later = overwrite && !resume && st->cfg.prog;
+    st->fd = hx_csv_open_append(st->out_path, later ? HX_CSV_LOCK_ONLY : overwrite, err, sizeof err);
     if (st->fd < 0) {
         fprintf(stderr, "harness run: %s\n", err);
         return -1;
@@ -660,7 +663,13 @@ static int study_open(Study *st, int resume, int overwrite)
     /* the MPI library is mpirun's, whichever launcher starts the ranks */
     hx_fingerprint_get(&st->fp, &st->topo, want_gpu, st->cfg.prog ? NULL : st->raytrace,
                        st->want_mpi ? st->cfg.mpirun : NULL, st->out_path);
-    return st->cfg.prog ? program_open(st) : 0;
+    if (st->cfg.prog && program_open(st) != 0)
+        return -1;
+    if (later && (st->fd = hx_csv_restart(st->fd, st->out_path, err, sizeof err)) < 0) {
+        fprintf(stderr, "harness run: %s\n", err);
+        return -1;
+    }
+    return 0;
 }
 
 /* ceiling: rounds: the copies ready, their file beside the CSV checked;

@@ -204,6 +204,28 @@ int hx_is_dir(const char *path)
     return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
 }
 
+int hx_may_replace(const char *who, const char *path, const char *own)
+{
+    struct stat st;
+    if (stat(path, &st) != 0)
+        return errno == ENOENT ? 0 : (fprintf(stderr, "%s: %s: %s\n", who, path, strerror(errno)), -1);
+    char head[256] = "";
+    const size_t n = strlen(own) < sizeof head - 1 ? strlen(own) : sizeof head - 1;
+    if (S_ISREG(st.st_mode) && st.st_size > 0) {
+        FILE *f = fopen(path, "r");
+        const size_t got = f ? fread(head, 1, n, f) : 0;
+        if (f)
+            fclose(f);
+        if (got == n && memcmp(head, own, n) == 0)
+            return 0;
+    } else if (S_ISREG(st.st_mode)) {
+        return 0;
+    }
+    fprintf(stderr, "%s: %s: %s; move it away or choose another -o\n", who, path,
+            S_ISREG(st.st_mode) ? "holds something else, which this would overwrite" : "not a regular file");
+    return -1;
+}
+
 char *hx_dirname(const char *path)
 {
     const char *slash = strrchr(path, '/');
@@ -251,14 +273,25 @@ int hx_read_file(const char *path, HxBuf *b)
     FILE *f = fopen(path, "rb");
     if (!f)
         return -1;
+    /* a folder, or a device that never ends (/dev/zero), is no file to
+     * read whole; a pipe is (a shell's <(...)), up to a size */
+    struct stat st;
+    if (fstat(fileno(f), &st) != 0 || !(S_ISREG(st.st_mode) || S_ISFIFO(st.st_mode))) {
+        errno = S_ISDIR(st.st_mode) ? EISDIR : EINVAL;
+        fclose(f);
+        return -1;
+    }
     char chunk[65536];
     size_t n;
-    while ((n = fread(chunk, 1, sizeof chunk, f)) > 0)
+    int big = 0;
+    while (!big && (n = fread(chunk, 1, sizeof chunk, f)) > 0) {
         hx_buf_putn(b, chunk, n);
+        big = b->len > HX_READ_MAX;
+    }
     int bad = ferror(f);
     fclose(f);
-    if (bad) {
-        errno = EIO;
+    if (bad || big) {
+        errno = big ? EFBIG : EIO;
         return -1;
     }
     return 0;

@@ -22,6 +22,12 @@ repeats: 3
 CONF
 "$H" ceiling c.conf -o ceil.csv --repeats 2 > ceil.out 2> ceil.err || { cat ceil.out ceil.err; fail "ceiling failed"; }
 cat ceil.out ceil.err
+# -o replaces a ceiling file, never another (a results CSV), and says so
+# before the copies run
+printf 'study,run_id\nx,1\n' > rows.csv
+"$H" ceiling c.conf -o rows.csv --repeats 2 > rows.out 2> rows.err && fail "ceiling -o wrote over a CSV"
+[ "$(cat rows.csv)" = "$(printf 'study,run_id\nx,1')" ] && [ ! -s rows.out ] || fail "ceiling -o changed the CSV"
+[ "$(wc -l < rows.err)" -eq 1 ] && grep -q "rows.csv: holds something else" rows.err || fail "-o refusal: $(cat rows.err)"
 grep -q '^W=2: each copy.s wall_ms at [0-9.]* of a copy alone (median of 4, [0-9.]* to [0-9.]*; alone [0-9.]*, together [0-9.]*;' ceil.out ||
   fail "no W=2 line"
 grep -q '; a step of [0-9.]* ms on 2 cores at once keeps [0-9.]* (CPU steal [0-9.]*%))$' ceil.out || fail "no step on the W=2 line"

@@ -177,4 +177,36 @@ awk -v r="$r" 'BEGIN { exit !(r > 1.2 && r < 3) }' || { cat size.md; fail "T=2 a
 "$H" table mem.csv --metric maxrss_kib --format json | python3 -c 'import json,sys
 c = json.load(sys.stdin)["configurations"]
 assert all("ratio_to_one_worker" in x and "speedup_a" not in x for x in c), c' || fail "table json of a size"
+# a setup that fails stops the study before --overwrite empties its CSV
+printf 'study: s\ncommand: true\nrepeats: 2\npin: none\n' > keep.conf
+"$H" run keep.conf -o keep.csv -q 2> /dev/null || fail "the study to keep"
+cp keep.csv keep.bak
+printf 'study: s\ncommand: true\nsetup: false\nrepeats: 2\npin: none\n' > badsetup.conf
+"$H" run badsetup.conf -o keep.csv --overwrite -q 2> setup.err && fail "a failed setup ran the study"
+grep -q "badsetup.conf:3: setup: exited with status 1" setup.err || fail "setup: $(cat setup.err)"
+cmp -s keep.csv keep.bak || fail "a failed setup emptied the CSV"
+# a setup or a version that never ends is ended at the study's timeout
+printf 'study: s\ncommand: true\nsetup: sleep 1000\ntimeout: 1\nrepeats: 1\npin: none\n' > hang.conf
+timeout 30 "$H" run hang.conf -o hang.csv -q 2> hang.err; rc=$?
+[ "$rc" -eq 1 ] && grep -q "hang.conf:3: setup: still running after the study's timeout (1 s); ended" hang.err ||
+    fail "a setup that never ends (rc $rc): $(cat hang.err)"
+printf 'study: s\ncommand: true\nversion: sleep 1000\ntimeout: 1\nrepeats: 1\npin: none\n' > vhang.conf
+timeout 30 "$H" run vhang.conf -o vhang.csv -q 2> /dev/null || fail "a version that never ends hung or failed the study"
+# inputs that are no text file: one line naming them, no hang, no memory eaten
+printf 'study: n\ncommand: true\0junk\n' > nul.conf
+"$H" run nul.conf --dry-run > /dev/null 2> nul.err && fail "a NUL byte in a config accepted"
+[ "$(cat nul.err)" = "nul.conf:2: control character 0x00 in the line" ] || fail "NUL config: $(cat nul.err)"
+mkdir -p adir.conf
+"$H" run adir.conf --dry-run 2> adir.err && fail "a folder as a config accepted"
+[ "$(cat adir.err)" = "adir.conf: cannot read config: Is a directory" ] || fail "folder config: $(cat adir.err)"
+printf 'study: z\ncommand: cat t\ntemplate t: /dev/zero\nrepeats: 1\npin: none\n' > zero.conf
+(ulimit -v 4000000; timeout 30 "$H" run zero.conf --dry-run > /dev/null 2> zero.err) && fail "/dev/zero as a template accepted"
+[ "$(wc -l < zero.err)" -eq 1 ] && grep -q "^zero.conf:3: template t: /dev/zero: " zero.err || fail "/dev/zero: $(cat zero.err)"
+printf 'A\0B{n}\n' > tnul.txt
+printf 'study: z\ncommand: cat t\ntemplate t: tnul.txt\nrepeats: 1\npin: none\n' > tnul.conf
+"$H" run tnul.conf --dry-run > /dev/null 2> tnul.err && fail "a template with a NUL byte accepted"
+grep -q "^tnul.conf:3: template t: tnul.txt holds a NUL byte" tnul.err || fail "NUL template: $(cat tnul.err)"
+printf "study: f\ncommand: mkfifo out.txt\nmetric t: 't=([0-9]+)' from out.txt unit ms\nrepeats: 1\npin: none\n" > fifo.conf
+timeout 30 "$H" run fifo.conf -o fifo.csv -q > /dev/null 2>&1; rc=$?
+[ "$rc" -eq 1 ] && grep -q ",error,out.txt: not a regular file," fifo.csv || fail "a FIFO as the metric's file (rc $rc)"
 echo "ok"

@@ -6,6 +6,7 @@
 #   - a --raytrace folder with a quote in it (the fingerprint's git calls) runs
 #     nothing;
 #   - harness slurm refuses a config path or study name with a newline;
+#   - a study name with a '/' is refused (it names results/STUDY.csv);
 #   - config lines with control characters are refused, a byte-order mark is
 #     accepted, and a '|' in a scene name stays inside its Markdown cell.
 # usage: test-security.sh HARNESS FAKE_RAYTRACE
@@ -74,4 +75,9 @@ printf 'study: a\033b\nscenes: x\n' > ctrl.conf
 grep -q "ctrl.conf:1: control character" ctrl.err || fail "control character message: $(cat ctrl.err)"
 printf '\357\273\277study: bom\nscene_dir: scenes\nscenes: %s\nrepeats: 1\n' "$evil3" > bom.conf
 "$H" run bom.conf --dry-run --raytrace "$FAKE" > bom.out 2> bom.err || { cat bom.err; fail "a config with a byte-order mark was refused"; }
+# ---- a study name is a name: with a '/' it would put results/STUDY.csv elsewhere
+printf 'study: ../../escaped\nscene_dir: scenes\nscenes: %s\nrepeats: 1\npin: none\nraytrace: %s\n' "$evil3" "$FAKE" > esc.conf
+mkdir -p sub/results && (cd sub && "$H" run ../esc.conf -q > /dev/null 2> ../esc.err) && fail "a study name with '/' was accepted"
+[ "$(wc -l < esc.err)" -eq 1 ] && grep -q "esc.conf:1: study: a name, not a path" esc.err || fail "study name: $(cat esc.err)"
+[ ! -e escaped.csv ] && [ ! -e "$T/../escaped.csv" ] || fail "a study name wrote outside results/"
 echo "security test passed"

@@ -107,6 +107,12 @@ for l in '#SBATCH --nodes=2' '#SBATCH --time=02:30:00' '#SBATCH --partition=shor
 done
 bash -n "$T/job2.sh" || fail "bash -n rejects the -o script"
 has "$T/slog" "sbatch $T/job2.sh"
+# -o writes its own script over, never another file (a results CSV)
+"$H" slurm "$T/hyb.conf" -o "$T/job2.sh" 2> /dev/null || fail "slurm -o over its own script"
+printf 'study,run_id\nx,1\n' > "$T/rows.csv"
+"$H" slurm "$T/hyb.conf" -o "$T/rows.csv" 2> "$T/rows.err" && fail "slurm -o wrote over a CSV"
+[ "$(cat "$T/rows.csv")" = "$(printf 'study,run_id\nx,1')" ] || fail "slurm -o changed the CSV"
+[ "$(wc -l < "$T/rows.err")" -eq 1 ] && grep -q "rows.csv: holds something else" "$T/rows.err" || fail "-o refusal: $(cat "$T/rows.err")"
 # no MPI in the study: one task
 printf 'scenes: ok\nscene_dir: %s\nbackend: openmp\nthreads: 1 8\n' "$T" > "$T/omp.conf"
 "$H" slurm "$T/omp.conf" > "$T/omp.sh" || fail "slurm on an OpenMP study"
