@@ -698,6 +698,15 @@ static int compare_load(char **paths, const CompareOpts *o, HxStudy *nw, HxStudy
         hx_study_free(nw);
         return 1;
     }
+    /* one metric in one unit on both sides: 300 ms against 0.3 s is no slowdown */
+    if (strcmp(nw->metric, base->metric) != 0 || strcmp(nw->unit, base->unit) != 0 || nw->higher != base->higher) {
+        fprintf(stderr, "harness compare: NEW's metric %s [%s, %s is better] and BASE's %s [%s, %s] differ; "
+                        "compare studies of one metric in one unit (--metric)\n", nw->metric, nw->unit,
+                nw->higher ? "higher" : "lower", base->metric, base->unit, base->higher ? "higher" : "lower");
+        hx_study_free(nw);
+        hx_study_free(base);
+        return 1;
+    }
     return 0;
 }
 

@@ -5,7 +5,8 @@
 #   - -o /dev/full ends at once with exit 1 (it used to read /dev/full forever);
 #   - a full disk (RLIMIT_FSIZE) mid-study: exit 1, the rows before stay whole,
 #     the summary counts the rows on disk;
-#   - `table` on a CSV with a torn last row says how to repair it.
+#   - `table` on a CSV with a torn last row (even one cut inside its last
+#     field) says how to repair it.
 # usage: test-faults.sh HARNESS FAKE_RAYTRACE
 set -u
 . "$(dirname "$0")/common.sh"
@@ -64,6 +65,11 @@ conf torn ok 2
 head -c -40 torn.csv > cut.csv
 "$H" table cut.csv > /dev/null 2> cut.err && fail "table read a torn row"
 grep -q -- "--resume" cut.err || fail "torn row message: $(cat cut.err)"
+# cut inside the last field: as many fields, but no line end
+head -c -3 torn.csv > cut2.csv
+"$H" table cut2.csv > /dev/null 2> cut2.err && fail "table read a row cut inside its last field"
+[ "$(wc -l < cut2.err)" -eq 1 ] && grep -q "cut2.csv: line 3: no line end; the last row is torn .*--resume" cut2.err ||
+    fail "torn last field: $(cat cut2.err)"
 # ---- a plan of a billion runs is refused up front, with its count
 { printf 'study: huge\nscene_dir: .\nscenes: ok\nbackend: mpi\nrepeats: 1000\n'
   printf 'threads:'; seq -s ' ' 1 1000; printf 'ranks:'; seq -s ' ' 1 1000; } > huge.conf

@@ -177,6 +177,13 @@ awk -v r="$r" 'BEGIN { exit !(r > 1.2 && r < 3) }' || { cat size.md; fail "T=2 a
 "$H" table mem.csv --metric maxrss_kib --format json | python3 -c 'import json,sys
 c = json.load(sys.stdin)["configurations"]
 assert all("ratio_to_one_worker" in x and "speedup_a" not in x for x in c), c' || fail "table json of a size"
+# compare: one metric in one unit on both sides (0.3 s is 300 ms, no slowdown)
+printf "study: u\ncommand: echo t=0.3\nmetric t: 't=([0-9.]+)' unit s\nrepeats: 4\npin: none\n" > unit-s.conf
+printf "study: u\ncommand: echo t=300\nmetric t: 't=([0-9.]+)' unit ms\nrepeats: 4\npin: none\n" > unit-ms.conf
+"$H" run unit-s.conf -o unit-s.csv -q 2> /dev/null && "$H" run unit-ms.conf -o unit-ms.csv -q 2> /dev/null || fail "unit studies"
+"$H" compare unit-ms.csv unit-s.csv > unit.out 2> unit.err && fail "compare across units passed"
+[ ! -s unit.out ] && [ "$(wc -l < unit.err)" -eq 1 ] && grep -q "NEW's metric t \[ms, lower is better\] and BASE's t \[s, lower\] differ" unit.err ||
+    fail "compare across units: $(cat unit.out unit.err)"
 # a setup that fails stops the study before --overwrite empties its CSV
 printf 'study: s\ncommand: true\nrepeats: 2\npin: none\n' > keep.conf
 "$H" run keep.conf -o keep.csv -q 2> /dev/null || fail "the study to keep"
