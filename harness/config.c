@@ -10,6 +10,7 @@
 
 #include <dirent.h>
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdarg.h>
 #include <stdlib.h>
@@ -289,12 +290,10 @@ static int dim_values(int lineno, int dim, const char *key, const HxStrList *val
         char why[256];
         if (hx_dim_value_check(dim, vals->v[i], why, sizeof why))
             return set_err(err, errlen, cfg, lineno, "%s: %s", key, why);
-        if (hx_strlist_find(&cfg->dim[dim], vals->v[i]) >= 0)
-            return set_err(err, errlen, cfg, lineno, "%s: value '%s' listed twice",
-                           key, vals->v[i]);
         hx_strlist_push(&cfg->dim[dim], vals->v[i]);
     }
-    return 0;
+    const char *twice = hx_strlist_twice(&cfg->dim[dim]);
+    return twice ? set_err(err, errlen, cfg, lineno, "%s: value '%s' listed twice", key, twice) : 0;
 }
 
 /* A scalar key's one value v. 0, or -1 with err set. */
@@ -743,7 +742,11 @@ int hx_config_load_set(const char *path, const HxStrList *set, HxConfig *cfg, ch
     int rc = hx_config_parse_set(path, b.s ? b.s : "", set, cfg, err, errlen);
     hx_buf_free(&b);
     double runs = rc == 0 ? hx_plan_size(cfg) : 0;
-    if (runs > HX_MAX_RUNS) {
+    if (runs > HX_MAX_RUNS && isinf(runs)) {
+        snprintf(err, errlen, "%s: the study expands to more runs than the limit of %d (warm-ups included): "
+                 "split it into several configs", path, HX_MAX_RUNS);
+        rc = -1;
+    } else if (runs > HX_MAX_RUNS) {
         snprintf(err, errlen, "%s: the study expands to %.0f runs (warm-ups included), more than the "
                  "limit of %d: split it into several configs", path, runs, HX_MAX_RUNS);
         rc = -1;

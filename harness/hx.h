@@ -25,6 +25,8 @@ typedef struct {
 } HxBuf;
 
 void hx_strlist_push(HxStrList *l, const char *s);
+/* A value listed twice in l (one of them), else NULL. */
+const char *hx_strlist_twice(const HxStrList *l);
 void hx_strlist_free(HxStrList *l);
 int hx_strlist_find(const HxStrList *l, const char *s); /* index or -1 */
 void hx_buf_put(HxBuf *b, const char *s);

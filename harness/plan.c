@@ -141,11 +141,12 @@ static double count_rec(const HxConfig *cfg, const char *v[HX_NDIM], const char 
             return count_rec(cfg, v, pv, slot + 1);
         }
         double n = 0;
-        for (size_t i = 0; i < vals->n && n <= HX_MAX_RUNS; i++) {
+        size_t i = 0;
+        for (; i < vals->n && n <= HX_MAX_RUNS; i++) {
             pv[p] = vals->v[i];
             n += count_rec(cfg, v, pv, slot + 1);
         }
-        return n;
+        return i < vals->n ? INFINITY : n; /* (over the limit, counted no further) */
     }
     double n = (double)cfg->dim[HX_DIM_SCENE].n * (double)(cfg->repeats + cfg->warmup);
     for (int d = HX_DIM_BACKEND + 1; d < HX_NDIM; d++)

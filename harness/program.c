@@ -195,13 +195,11 @@ static int parse_param(HxConfig *cfg, const char *name, const char *raw, int lin
         rc = hx_split_when(&words, &sc, why, n);
     if (rc == 0)
         rc = hx_values_expand(&words, &vals, why, n);
-    for (size_t i = 0; rc == 0 && i < vals.n; i++)
-        for (size_t j = 0; j < i; j++)
-            if (strcmp(vals.v[i], vals.v[j]) == 0) {
-                snprintf(why, n, "param %s: value '%s' listed twice", name, vals.v[i]);
-                rc = -1;
-                break;
-            }
+    const char *twice = rc == 0 ? hx_strlist_twice(&vals) : NULL;
+    if (twice) {
+        snprintf(why, n, "param %s: value '%s' listed twice", name, twice);
+        rc = -1;
+    }
     hx_strlist_free(&words);
     if (rc) {
         hx_strlist_free(&vals);

@@ -75,6 +75,27 @@ void hx_strlist_push(HxStrList *l, const char *s)
     l->v[l->n++] = hx_strdup(s);
 }
 
+static int cmp_str_ptr(const void *a, const void *b)
+{
+    return strcmp(*(char *const *)a, *(char *const *)b);
+}
+
+const char *hx_strlist_twice(const HxStrList *l)
+{
+    if (l->n < 2)
+        return NULL;
+    /* sorted, so a long list (param n: 1..100000) costs n log n, not n^2 */
+    char **s = hx_xmalloc(l->n * sizeof *s);
+    memcpy(s, l->v, l->n * sizeof *s);
+    qsort(s, l->n, sizeof *s, cmp_str_ptr);
+    const char *twice = NULL;
+    for (size_t i = 1; i < l->n && !twice; i++)
+        if (strcmp(s[i - 1], s[i]) == 0)
+            twice = s[i];
+    free(s);
+    return twice;
+}
+
 void hx_strlist_free(HxStrList *l)
 {
     for (size_t i = 0; i < l->n; i++)

@@ -77,6 +77,11 @@ timeout 10 "$H" run huge.conf --dry-run > /dev/null 2> huge.err
 rc=$?
 [ $rc -eq 1 ] || fail "a billion-run plan: exit $rc"
 grep -q "huge.conf: the study expands to 1000000000 runs" huge.err || fail "plan limit message: $(cat huge.err)"
+# params whose product is past the limit are not counted to the end: "more"
+printf 'study: p\ncommand: true\nparam a: 1..1000\nparam b: 1..1000\nparam c: 1..1000\nrepeats: 1\n' > params.conf
+timeout 10 "$H" run params.conf --dry-run > /dev/null 2> params.err && fail "a plan of 10^9 params' runs accepted"
+[ "$(cat params.err)" = "params.conf: the study expands to more runs than the limit of 1000000 (warm-ups included): split it into several configs" ] ||
+    fail "params plan limit: $(cat params.err)"
 # ---- --resume only continues the same study
 conf resA ok 2
 "$H" run resA.conf -o res.csv -q 2> /dev/null || fail "study A"
