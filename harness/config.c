@@ -668,6 +668,8 @@ static int parse_overrides(HxConfig *cfg, int *seen_scalar, char *err, size_t er
         if (!known && hx_strlist_find(&cfg->set_seen, pk.s) < 0)
             rc = set_err(err, errlen, cfg, -(int)i - 1, "unknown key '%s'%s", k,
                          cfg->prog ? " (and no param of that name)" : "");
+        else if (strncmp(k, "param ", 6) == 0 && hx_strlist_find(&cfg->set_seen, k) < 0)
+            rc = set_err(err, errlen, cfg, -(int)i - 1, "'%s': the config has no param of that name", k);
         else if (!known) /* NAME=VALUES: the config's param NAME */
             hx_buf_put(&line, "param ");
         hx_buf_free(&pk);

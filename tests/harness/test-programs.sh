@@ -177,6 +177,13 @@ awk -v r="$r" 'BEGIN { exit !(r > 1.2 && r < 3) }' || { cat size.md; fail "T=2 a
 "$H" table mem.csv --metric maxrss_kib --format json | python3 -c 'import json,sys
 c = json.load(sys.stdin)["configurations"]
 assert all("ratio_to_one_worker" in x and "speedup_a" not in x for x in c), c' || fail "table json of a size"
+# --set 'param NAME=...' overrides a param of the config, never adds one
+printf 'study: b\ncommand: echo {n}\nparam n: 1 2\nrepeats: 1\npin: none\n' > pset.conf
+"$H" run pset.conf --dry-run --set 'param n=3' > pset.out 2>&1 && grep -q "override: --set 'param n=3'" pset.out ||
+    fail "--set 'param n=3': $(cat pset.out)"
+"$H" run pset.conf --dry-run --set 'param w=1' > /dev/null 2> pset.err && fail "--set 'param w=1' added a param"
+[ "$(cat pset.err)" = "harness: option --set 'param w=1': 'param w': the config has no param of that name" ] ||
+    fail "--set 'param w=1': $(cat pset.err)"
 # compare: one metric in one unit on both sides (0.3 s is 300 ms, no slowdown)
 printf "study: u\ncommand: echo t=0.3\nmetric t: 't=([0-9.]+)' unit s\nrepeats: 4\npin: none\n" > unit-s.conf
 printf "study: u\ncommand: echo t=300\nmetric t: 't=([0-9.]+)' unit ms\nrepeats: 4\npin: none\n" > unit-ms.conf
