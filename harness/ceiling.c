@@ -71,7 +71,12 @@ static int ceiling_opts(int argc, char **argv, CeilOpts *o)
                   "study's workload at once, pinned one per core where the study pins W workers, against one\n"
                   "copy alone: the speed each copy keeps is the machine's ceiling for W-worker\n"
                   "efficiency. Writes FILE (default results/ceiling-FINGERPRINT.csv), which `table`\n"
-                  "reads (docs/harness-noise.md, \"Ceiling\").\n", stdout);
+                  "reads (docs/harness-noise.md, \"Ceiling\").\n"
+                  "  --repeats N      rounds of copies at each W (default 3); the median is kept\n"
+                  "  -o FILE          where to write (a new file or a ceiling file, never another)\n"
+                  "  --set KEY=VALUE  override a config key, as `run --set` does (repeatable)\n"
+                  "  --raytrace PATH  the renderer, as `run --raytrace`\n"
+                  "  -h, --help       this text\n", stdout);
             return 0;
         default: return 1;
         }

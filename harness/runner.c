@@ -531,7 +531,7 @@ static void trust_line(const Study *st)
     if (st->nstolen)
         hx_buf_printf(&b, "%s%zu with CPU steal (up to %.1f%%)", b.len ? ", " : "", st->nstolen, st->max_steal);
     if (st->npartial)
-        hx_buf_printf(&b, "%s%zu ok rows whose pinning did not hold", b.len ? ", " : "", st->npartial);
+        hx_buf_printf(&b, "%s%zu ok rows whose pinning did not hold, or held in part", b.len ? ", " : "", st->npartial);
     fprintf(stderr, "harness: NOT trusted: %s; `harness table` marks them (docs/harness-noise.md, \"Noise\")\n", b.s);
     hx_buf_free(&b);
 }

@@ -119,7 +119,7 @@ void tab_fmt_num(char *b, size_t n, const char *f, double v)
 static void usage_table(FILE *f)
 {
     fputs("usage: harness table CSV [--baseline KEY=VALUE] [--format md|csv|json] [--wide]\n"
-          "                         [--metric COLUMN] [--include-suspect]\n"
+          "                         [--metric COLUMN] [--include-suspect] [--ceiling FILE]\n"
           "Per configuration: median with its 95% bootstrap interval, speedup and\n"
           "efficiency against (a) the same series at one worker and (b) the fastest\n"
           "configuration of the scene matching KEY=VALUE (default: the CSV's baseline\n"
