@@ -12,6 +12,7 @@
 #include <errno.h>
 #include <stdarg.h>
 #include <fcntl.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -665,7 +666,12 @@ int hx_match_number(const regex_t *re, const char *text, double *v, char *num, s
     snprintf(num, n, "%.*s", (int)len, at ? at : "");
     if (!at)
         return -1;
-    return hx_parse_double(hx_trim(num), v) == 0 ? 0 : -2;
+    /* a decimal number, whole: not cut to fit num, not hex (strtod reads
+     * 0x10 as 16), not inf or nan */
+    const char *t = hx_trim(num);
+    if (len >= n || strpbrk(t, "xXpP") || hx_parse_double(t, v) != 0 || !isfinite(*v))
+        return -2;
+    return 0;
 }
 
 static int metric_value(const HxMetric *mt, const char *text, double *v, char *why, size_t n)
@@ -675,7 +681,10 @@ static int metric_value(const HxMetric *mt, const char *text, double *v, char *w
     if (rc == -1)
         return fail(why, n, "metric %s: '%s' not found in %s", mt->name, mt->m.pattern, from_name(&mt->m));
     if (rc == -2)
-        return fail(why, n, "metric %s: '%.40s' from %s is not a number", mt->name, num, from_name(&mt->m));
+        return fail(why, n, "metric %s: '%.40s' from %s is not a decimal number", mt->name, num, from_name(&mt->m));
+    /* a time, a size or a rate below zero is a misread, not a measurement */
+    if (*v < 0 && mt->unit && strcmp(mt->unit, "1") != 0 && strcmp(mt->unit, "%") != 0)
+        return fail(why, n, "metric %s: %s %s from %s is negative", mt->name, num, mt->unit, from_name(&mt->m));
     return 0;
 }
 

@@ -177,6 +177,12 @@ awk -v r="$r" 'BEGIN { exit !(r > 1.2 && r < 3) }' || { cat size.md; fail "T=2 a
 "$H" table mem.csv --metric maxrss_kib --format json | python3 -c 'import json,sys
 c = json.load(sys.stdin)["configurations"]
 assert all("ratio_to_one_worker" in x and "speedup_a" not in x for x in c), c' || fail "table json of a size"
+# a metric that is no decimal number, or a time below zero, is a misread: error
+for v in -3 0x10 $(printf '1%.0s' $(seq 70)); do
+    printf "study: m\ncommand: echo t=%s\nmetric t: 't=([-0-9a-fx.]+)' unit ms\nrepeats: 1\npin: none\n" "$v" > misread.conf
+    "$H" run misread.conf -o misread.csv --overwrite -q > /dev/null 2>&1 && fail "metric t=$v read as ok"
+    grep -q ",error,metric t: .*\(is negative\|is not a decimal number\)," misread.csv || fail "metric t=$v: $(tail -n 1 misread.csv)"
+done
 # --set 'param NAME=...' overrides a param of the config, never adds one
 printf 'study: b\ncommand: echo {n}\nparam n: 1 2\nrepeats: 1\npin: none\n' > pset.conf
 "$H" run pset.conf --dry-run --set 'param n=3' > pset.out 2>&1 && grep -q "override: --set 'param n=3'" pset.out ||
