@@ -98,6 +98,8 @@ void tab_fmt_ms(char *b, size_t n, double v)
 {
     if (isnan(v))
         snprintf(b, n, "-");
+    else if (fabs(v) >= 1e9) /* (whole digits past that would not fit a cell, nor its buffer) */
+        snprintf(b, n, "%.4g", v);
     else if (v >= 1000)
         snprintf(b, n, "%.0f", v);
     else if (v >= 100)
