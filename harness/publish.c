@@ -177,7 +177,11 @@ static void list_metrics(Pub *p)
             int seen = 0;
             for (size_t k = 0; k < p->nm && !seen; k++)
                 seen = strcmp(p->m[k].name, d) == 0;
-            if (!seen && hx_strlist_find(&have, d) >= 0)
+            /* (a name a config can give: a CSV made by hand with '../x' there
+             * must not stop the pages of every other metric) */
+            const int plain = *d && strspn(d, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_") ==
+                                        strlen(d);
+            if (!seen && plain && hx_strlist_find(&have, d) >= 0)
                 add_metric(p, d, unit ? unit : "", "the command study's metric", &files);
         }
     }

@@ -142,6 +142,23 @@ echo '<p>old</p>' > dash/gone.html
 "$H" history publish --db h.db -o dash-okb --scene okb > /dev/null 2>&1 || fail "publish --scene okb"
 [ "$(grep -o '<svg' dash-okb/render_ms.html | wc -l)" -eq 1 ] || fail "--scene okb: one plot expected"
 
+# a hand-made CSV whose metric_info names '../x' and a key of that name:
+# the other metrics' pages are still written, and nothing outside DIR
+python3 - one.csv evilmetric.csv << 'PY' || fail "making the study with a bad metric name"
+import csv, sys
+rows = list(csv.reader(open(sys.argv[1], newline="")))
+c = {n: i for i, n in enumerate(rows[0])}
+for r in rows[1:]:
+    r[c["git_commit"]] = "c0ffee13"
+    r[c["metric_info"]] = "../x:ms:lower"
+    r[c["extra"]] += ";../x=3"
+csv.writer(open(sys.argv[2], "w", newline=""), lineterminator="\n").writerows(rows)
+PY
+cp h.db hx.db
+"$H" history add --db hx.db evilmetric.csv > /dev/null 2>&1 || fail "add of the study with a bad metric name"
+"$H" history publish --db hx.db -o dash-x > /dev/null 2> x.err || { cat x.err; fail "a bad metric name stopped publish"; }
+[ -s dash-x/render_ms.html ] && [ ! -e x.html ] && [ ! -e ../x.html ] || { ls -R dash-x; fail "bad metric name: pages"; }
+
 # an empty database: a page that says so (a study without rows; a new file)
 head -n 1 one.csv > header.csv
 "$H" history add --db empty.db header.csv > /dev/null || fail "add of a header-only CSV"
