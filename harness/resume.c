@@ -71,6 +71,18 @@ static void why_unplanned(const HxCsv *old, size_t i, const HxConfig *cfg, char 
             return;
         }
     }
+    for (int k = 0; k < cfg->nparams; k++) { /* a param's value the config no longer lists in any line */
+        char v[256];
+        if (!hx_kv_get(hx_csv_get(old, i, "params"), cfg->params[k].name, v, sizeof v) || strcmp(v, "-") == 0)
+            continue;
+        int listed = 0;
+        for (int a = 0; a < cfg->params[k].nalt && !listed; a++)
+            listed = hx_strlist_find(&cfg->params[k].alt[a].vals, v) >= 0;
+        if (!listed) {
+            snprintf(why, n, "the config's param %s no longer has '%.100s'", cfg->params[k].name, v);
+            return;
+        }
+    }
     long rep = -1;
     if (hx_parse_int(hx_csv_get(old, i, "repeat"), 0, 1000000, &rep) == 0 && rep >= cfg->repeats) {
         snprintf(why, n, "repeat %ld is beyond 'repeats: %d' (a resume does not drop rows)", rep,

@@ -183,8 +183,13 @@ for v in -3 0x10 $(printf '1%.0s' $(seq 70)); do
     "$H" run misread.conf -o misread.csv --overwrite -q > /dev/null 2>&1 && fail "metric t=$v read as ok"
     grep -q ",error,metric t: .*\(is negative\|is not a decimal number\)," misread.csv || fail "metric t=$v: $(tail -n 1 misread.csv)"
 done
-# --set 'param NAME=...' overrides a param of the config, never adds one
 printf 'study: b\ncommand: echo {n}\nparam n: 1 2\nrepeats: 1\npin: none\n' > pset.conf
+# --resume with a param's value dropped names that value
+"$H" run pset.conf -o pres.csv -q 2> /dev/null || fail "the study to resume"
+"$H" run pset.conf -o pres.csv --resume --set 'n=2 3' -q 2> pres.err && fail "a resume that drops n=1 went on"
+grep -q "the config's param n no longer has '1'; write to another file or use --overwrite$" pres.err ||
+    fail "resume without n=1: $(cat pres.err)"
+# --set 'param NAME=...' overrides a param of the config, never adds one
 "$H" run pset.conf --dry-run --set 'param n=3' > pset.out 2>&1 && grep -q "override: --set 'param n=3'" pset.out ||
     fail "--set 'param n=3': $(cat pset.out)"
 "$H" run pset.conf --dry-run --set 'param w=1' > /dev/null 2> pset.err && fail "--set 'param w=1' added a param"
