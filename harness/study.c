@@ -321,6 +321,19 @@ int hx_study_build(const char *path, const char *metric_opt, HxStudy *s, char *e
         hx_csv_free(&s->csv);
         return -1;
     }
+    /* an ok row's value that is there but no number: a column that is no
+     * metric (--metric status), or a CSV changed by hand */
+    for (size_t r = 0; !slash && hx_csv_col(csv, metric) >= 0 && r < csv->nrows; r++) {
+        const char *v = hx_csv_get(csv, r, metric);
+        double x;
+        if (strcmp(hx_csv_get(csv, r, "status"), "ok") == 0 && *v && strcmp(v, "-") != 0 &&
+            hx_parse_double(v, &x) != 0) {
+            snprintf(err, errlen, "%s: row %zu: %s '%.40s' is not a number (--metric names a numeric column)", path,
+                     r + 1, metric, v);
+            hx_csv_free(&s->csv);
+            return -1;
+        }
+    }
     mark_wrong_rows(s);
     group_rows(s, metric);
     group_stats(s);

@@ -65,6 +65,10 @@ conf torn ok 2
 head -c -40 torn.csv > cut.csv
 "$H" table cut.csv > /dev/null 2> cut.err && fail "table read a torn row"
 grep -q -- "--resume" cut.err || fail "torn row message: $(cat cut.err)"
+# --metric on a column that holds no number
+"$H" table torn.csv --metric scene > /dev/null 2> nonum.err && fail "table --metric scene accepted"
+[ "$(wc -l < nonum.err)" -eq 1 ] && grep -q "torn.csv: row 1: scene 'ok' is not a number" nonum.err ||
+    fail "--metric scene: $(cat nonum.err)"
 # cut inside the last field: as many fields, but no line end
 head -c -3 torn.csv > cut2.csv
 "$H" table cut2.csv > /dev/null 2> cut2.err && fail "table read a row cut inside its last field"
