@@ -23,8 +23,8 @@ conf slow gate 8
 export FAKE_GATE=$PWD/go
 "$H" run slow.conf -o two.csv -q 2> a.err &
 a=$!
-for _ in $(seq 300); do [ "$(wc -l < two.csv 2>/dev/null || echo 0)" -ge 1 ] && break; sleep 0.1; done
-[ "$(wc -l < two.csv 2>/dev/null || echo 0)" -ge 1 ] || { touch go; fail "the first study wrote no header in 30 s"; }
+for _ in $(seq 300); do [ "$( { wc -l < two.csv; } 2>/dev/null || echo 0)" -ge 1 ] && break; sleep 0.1; done
+[ "$( { wc -l < two.csv; } 2>/dev/null || echo 0)" -ge 1 ] || { touch go; fail "the first study wrote no header in 30 s"; }
 first() { kill -0 $a 2> /dev/null && echo "still running" || echo "ended: $(cat a.err)"; }
 timeout 20 "$H" run slow.conf -o two.csv --resume -q 2> b.err; rb=$? # (let in, it would wait at the gate)
 timeout 20 "$H" run slow.conf -o two.csv --overwrite -q 2> c.err; rc=$?
