@@ -472,8 +472,8 @@ int rt_parse_wxh(const char *s, int maxside, int *w, int *h);
 struct stat;
 int rt_open_regular(const char *path, struct stat *st, RtError *err);
 /* A file written whole or not at all (io/atomic.c): unnamed until it is
- * complete (O_TMPFILE, then linkat and renameat), so no signal, SIGKILL
- * included, leaves a partial file; where the file system lacks O_TMPFILE a
+ * complete (O_TMPFILE, then linkat, and renameat where the name is taken),
+ * so no signal, SIGKILL included, leaves a partial file; where the file system lacks O_TMPFILE a
  * named temporary file that rt_atomic_abandon() removes from a signal
  * handler. rt_atomic_open creates name in dirfd (AT_FDCWD for a path; a
  * name with '/' is opened in its own folder), with mode 0666 less the

@@ -2,8 +2,9 @@
  * scene cache's entries and memos.
  *
  * The file is written unnamed (O_TMPFILE) and given a name only once it is
- * complete (linkat to a temporary name, renameat over the final one), so
- * no signal, SIGKILL included, leaves a partial file behind. Where the
+ * complete (linkat to the final name, or, where a file has that name, to a
+ * temporary one and renameat over it), so no signal, SIGKILL included,
+ * leaves a partial file behind. Where the
  * file system has no O_TMPFILE, a named temporary file is written instead
  * and removed on failure or by rt_atomic_abandon() from a signal handler. */
 #define _GNU_SOURCE
@@ -82,29 +83,45 @@ int rt_atomic_open(RtAtomicFile *f, int dirfd, const char *name, RtError *err)
     return 0;
 }
 
+/* The unnamed file f->fd given the name `name` in its folder. */
+static int link_unnamed(const RtAtomicFile *f, const char *name)
+{
+    char proc[64];
+    snprintf(proc, sizeof proc, "/proc/self/fd/%d", f->fd);
+    int rc = linkat(AT_FDCWD, proc, f->dirfd, name, AT_SYMLINK_FOLLOW);
+    if (rc != 0 && errno == ENOENT) /* (no /proc: needs CAP_DAC_READ_SEARCH) */
+        rc = linkat(f->fd, "", f->dirfd, name, AT_EMPTY_PATH);
+    return rc;
+}
+
 int rt_atomic_commit(RtAtomicFile *f, RtError *err)
 {
-    int rc = 0, e = 0;
-    if (!f->tmp[0]) { /* unnamed: a temporary name for the whole file, then the final one */
-        char proc[64];
-        snprintf(proc, sizeof proc, "/proc/self/fd/%d", f->fd);
-        for (int tries = 0; tries < 16; tries++) {
+    int rc = 0, e = 0, named = 0;
+    if (!f->tmp[0]) {
+        /* unnamed: where nothing has the name yet, the whole file takes it
+         * at once; else a temporary name, then renamed over the old file
+         * (a SIGKILL between the two leaves the temporary name; SIGTERM's
+         * handler removes it) */
+        named = link_unnamed(f, f->base) == 0;
+        for (int tries = 0; !named && tries < 16; tries++) {
             tmp_name(f->tmp, sizeof f->tmp, f->base);
-            rc = linkat(AT_FDCWD, proc, f->dirfd, f->tmp, AT_SYMLINK_FOLLOW);
-            if (rc != 0 && errno == ENOENT) /* (no /proc: needs CAP_DAC_READ_SEARCH) */
-                rc = linkat(f->fd, "", f->dirfd, f->tmp, AT_EMPTY_PATH);
+            rc = link_unnamed(f, f->tmp);
             if (rc == 0 || errno != EEXIST)
                 break;
         }
         if (rc != 0) {
             e = errno;
             f->tmp[0] = '\0';
+        } else if (!named) {
+            snprintf(pending_name, sizeof pending_name, "%s", f->tmp);
+            pending_dir = f->dirfd;
+            pending_set = 1;
         }
     }
     if (close(f->fd) != 0 && rc == 0)
         rc = -1, e = errno;
     f->fd = -1;
-    if (rc == 0 && renameat(f->dirfd, f->tmp, f->dirfd, f->base) != 0)
+    if (rc == 0 && !named && renameat(f->dirfd, f->tmp, f->dirfd, f->base) != 0)
         rc = -1, e = errno;
     if (rc != 0) {
         char base[sizeof f->base];
