@@ -362,8 +362,12 @@ void hx_cmp_reason(HxBuf *r, const CmpVerdict *v, const CmpRule *rule)
     const int beyond = v->ci_lo > f || v->ci_hi < 1.0 / f, tail = v->tail_ratio > f;
     if (!judged && !none && tail && !beyond && v->ci_lo > 1.0 / f && v->ci_hi < f)
         hx_buf_printf(r, "; the medians agree, but the slowest tenth of NEW is x%.2f BASE's", v->tail_ratio);
-    else if (!judged && !none && beyond) /* the interval is past the factor: the test held it back */
-        hx_buf_printf(r, "; the interval lies beyond x%.2f, but the rank test's p is not below %.3g", f, rule->alpha);
+    else if (!judged && !none && beyond && isfinite(v->p)) /* the interval is past the factor: the test held it back */
+        hx_buf_printf(r, "; the interval lies %s x%.2f, but the rank test's p is not below %.3g",
+                      v->ci_lo > f ? "above" : "below", v->ci_lo > f ? f : 1.0 / f, rule->alpha);
+    else if (!judged && !none && beyond) /* too few for the test: the minimum decides */
+        hx_buf_printf(r, "; the interval lies %s x%.2f, but the minimum ratio x%.2f does not",
+                      v->ci_lo > f ? "above" : "below", v->ci_lo > f ? f : 1.0 / f, v->min_ratio);
     else if (!judged && !none && isfinite(v->mde))
         hx_buf_printf(r, "; at this noise only changes beyond x%.2f are detectable, about %ld repeats a side "
                          "would resolve x%.2f", v->mde, v->need, f);
@@ -674,6 +678,8 @@ static int compare_load(char **paths, const CompareOpts *o, HxStudy *nw, HxStudy
         return 1;
     }
     /* raytrace's rows (a command study's have no render_ms) */
+    if (!metric && hx_csv_has_values(&nw->csv, "render_ms") != hx_csv_has_values(&base->csv, "render_ms"))
+        metric = "render_ms"; /* (one side without a time: every run of it failed, which judge says) */
     if (!metric && hx_csv_has_values(&nw->csv, "render_ms") && hx_csv_has_values(&base->csv, "render_ms")) {
         /* calibrated times where both studies have them (--calibrate) */
         int calibrated = has_calib(&nw->csv) && has_calib(&base->csv);

@@ -362,6 +362,7 @@ typedef struct {
     char *text;
     size_t *row_at;      /* row r starts at text + row_at[r] */
     uint32_t *field_at;  /* field c of row r at that + field_at[r * ncol + c] */
+    int torn_line;       /* a harness CSV's last row without a line end, left out (0: none) */
 } HxCsv;
 
 int hx_csv_read(const char *path, HxCsv *csv, char *err, size_t errlen);

@@ -139,7 +139,7 @@ HxAmdahl hx_amdahl_fit(const double *p, const double *t, size_t n)
     return r;
 }
 
-/* Two-sided Mann-Whitney U test p-value (Mann & Whitney 1947). Up to 60
+/* Two-sided Mann-Whitney U test p-value (Mann & Whitney 1947). Up to 30
  * samples in all it is exact, ties too: the permutation distribution of the
  * x sample's rank sum over every way to pick nx of the pooled values, the
  * tied ones at their mid-ranks, counted by a dynamic program over the sorted
@@ -148,7 +148,7 @@ HxAmdahl hx_amdahl_fit(const double *p, const double *t, size_t n)
  * approximation with tie and continuity correction. Note: with 3 against 3
  * samples the smallest two-sided p is 0.1, so `compare` only uses this test
  * from 4 samples a side. */
-#define HX_MW_EXACT 60
+#define HX_MW_EXACT 30
 
 /* Twice the smaller tail, P(W <= w) or P(W >= w), as R's wilcox.test, for
  * the rank sum W of nx of the N doubled mid-ranks r2 (integers: 2 x the
@@ -215,7 +215,10 @@ double hx_mann_whitney_p(const double *x, size_t nx, const double *y, size_t ny)
     }
     double p;
     if (N <= HX_MW_EXACT) {
-        p = mw_exact(r2, N, nx, wx2);
+        /* (the smaller sample's sums: fewer of them; the doubled smaller
+         * tail is the same for either sample's rank sum) */
+        long total2 = (long)N * ((long)N + 1);
+        p = nx <= ny ? mw_exact(r2, N, nx, wx2) : mw_exact(r2, N, ny, total2 - wx2);
     } else {
         double m = (double)nx, n = (double)ny;
         double U = (double)wx2 / 2.0 - m * (m + 1) / 2.0;

@@ -90,6 +90,19 @@ PY
 "$H" compare timeout-new.csv set.csv > c9.out && { cat c9.out; fail "half the runs timing out passed"; }
 grep -q "^REGRESSION ok .*: 5 of 10 runs in NEW did not end ok (timeout 5), 0 of 5 in BASE$" c9.out ||
     { cat c9.out; fail "timeouts not reported"; }
+# every run of NEW timed out: no time on that side, still the same metric,
+# and a REGRESSION that says why
+python3 - set.csv allto.csv <<'PY'
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+for r in rows:
+    r["status"], r["render_ms"] = "timeout", ""
+w = csv.DictWriter(open(sys.argv[2], "w", newline=""), fieldnames=list(rows[0].keys()), lineterminator="\n")
+w.writeheader()
+w.writerows(rows)
+PY
+"$H" compare allto.csv set.csv > c12.out 2> c12.err && { cat c12.out c12.err; fail "every run timing out passed"; }
+grep -q "^REGRESSION ok .*: no ok run in NEW (timeout 5" c12.out || { cat c12.out c12.err; fail "all timed out: not said"; }
 # one run as fast as BASE's among nine five times slower: the interval,
 # wholly past the factor, decides where the minimum alone would not
 setrows set.csv ten-base.csv "1.25 1.26 1.24 1.25 1.27"
