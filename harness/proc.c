@@ -348,3 +348,30 @@ int hx_run_child(const HxCommand *cmd, const HxTopo *topo, const HxRun *run, dou
     }
     return 0;
 }
+
+/* argv in dir as a run is started (hx_run_child: its own process group,
+ * killed whole at timeout_s or on a stop signal): a command study's setup
+ * and version, which must not hang the study. */
+int hx_run_limited(char **argv, const char *dir, double timeout_s, HxBuf *out, int say_err)
+{
+    HxCommand cmd;
+    memset(&cmd, 0, sizeof cmd);
+    for (char **a = argv; *a; a++)
+        hx_strlist_push(&cmd.argv, *a);
+    hx_strlist_push(&cmd.argv, ""); /* room for the NULL that ends argv */
+    free(cmd.argv.v[--cmd.argv.n]);
+    cmd.argv.v[cmd.argv.n] = NULL;
+    cmd.dir = (char *)dir;
+    HxChildResult res;
+    int rc = 127;
+    if (hx_run_child(&cmd, NULL, NULL, timeout_s, &res) == 0) {
+        rc = res.timed_out ? 124 : res.exited ? res.code : 128 + res.code;
+        if (out && res.out.s)
+            hx_buf_put(out, res.out.s);
+        if (say_err && res.err.s)
+            fputs(res.err.s, stderr);
+        hx_child_result_free(&res);
+    }
+    hx_strlist_free(&cmd.argv);
+    return rc;
+}

@@ -752,42 +752,13 @@ static void argv_free(char **argv)
     free(argv);
 }
 
-/* argv in dir as a run is started (hx_run_child: its own process group,
- * killed whole at the study's timeout or on a stop signal), so a setup or
- * version that never ends ends the study instead of hanging it. Its exit
- * status, 124 when it timed out, 128 + the signal; its stdout into out
- * (NULL: dropped), its stderr to ours where say_err. */
-static int run_limited(const HxConfig *cfg, char **argv, const char *dir, HxBuf *out, int say_err)
-{
-    HxCommand cmd;
-    memset(&cmd, 0, sizeof cmd);
-    for (char **a = argv; *a; a++)
-        hx_strlist_push(&cmd.argv, *a);
-    hx_strlist_push(&cmd.argv, ""); /* room for the NULL that ends argv */
-    free(cmd.argv.v[--cmd.argv.n]);
-    cmd.argv.v[cmd.argv.n] = NULL;
-    cmd.dir = (char *)dir;
-    HxChildResult res;
-    int rc = 127;
-    if (hx_run_child(&cmd, NULL, NULL, cfg->timeout_s, &res) == 0) {
-        rc = res.timed_out ? 124 : res.exited ? res.code : 128 + res.code;
-        if (out && res.out.s)
-            hx_buf_put(out, res.out.s);
-        if (say_err && res.err.s)
-            fputs(res.err.s, stderr);
-        hx_child_result_free(&res);
-    }
-    hx_strlist_free(&cmd.argv);
-    return rc;
-}
-
 char *hx_program_version(const HxConfig *cfg)
 {
     if (!cfg->prog || !cfg->prog->version.n)
         return hx_strdup("-");
     char **argv = study_argv(cfg, &cfg->prog->version, ".");
     HxBuf text = {0};
-    int rc = run_limited(cfg, argv, NULL, &text, 0);
+    int rc = hx_run_limited(argv, NULL, cfg->timeout_s, &text, 0);
     argv_free(argv);
     char out[512];
     snprintf(out, sizeof out, "%s", text.s ? text.s : "");
@@ -805,7 +776,7 @@ int hx_program_setup(const HxConfig *cfg, const char *workdir, char *why, size_t
     if (!cfg->prog || !cfg->prog->setup.n)
         return 0;
     char **argv = study_argv(cfg, &cfg->prog->setup, workdir);
-    int rc = run_limited(cfg, argv, workdir, NULL, 1);
+    int rc = hx_run_limited(argv, workdir, cfg->timeout_s, NULL, 1);
     argv_free(argv);
     if (rc == 124)
         return fail(why, n, "%s:%d: setup: still running after the study's timeout (%g s); ended", cfg->path,

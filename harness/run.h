@@ -48,6 +48,11 @@ struct HxCommand;
 int hx_run_child(const struct HxCommand *c, const HxTopo *topo, const HxRun *run, double timeout_s,
                  HxChildResult *res);
 void hx_child_result_free(HxChildResult *res);
+/* argv (NULL-terminated) in dir (NULL: here) as hx_run_child runs it, unbound,
+ * ended at timeout_s: its exit status, 124 when it timed out, 128 + the
+ * signal, 127 when it could not start; its stdout into out (NULL: dropped),
+ * its stderr to ours where say_err. */
+int hx_run_limited(char **argv, const char *dir, double timeout_s, HxBuf *out, int say_err);
 /* The child's side of a fork once its descriptors are set: own process
  * group, folder, binding to run's cores (when c->bind, or strict: then a
  * failed binding exits 126, else it warns), environment, exec. */
