@@ -728,7 +728,7 @@ int hx_config_load_set(const char *path, const HxStrList *set, HxConfig *cfg, ch
     memset(cfg, 0, sizeof *cfg);
     HxBuf b = {0};
     if (hx_read_file(path, &b) != 0) {
-        snprintf(err, errlen, "%s: cannot read config: %s", path, strerror(errno));
+        snprintf(err, errlen, "%s: cannot read config: %s", path, hx_read_error(errno));
         hx_buf_free(&b);
         return -1;
     }

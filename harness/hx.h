@@ -51,6 +51,8 @@ int hx_file_exists(const char *path);
  * failure: EISDIR, EINVAL for a device, EFBIG past HX_READ_MAX bytes. */
 #define HX_READ_MAX ((size_t)1 << 30)
 int hx_read_file(const char *path, HxBuf *b);
+/* hx_read_file's errno in words ("not a regular file" for a device). */
+const char *hx_read_error(int e);
 int hx_is_dir(const char *path);
 /* Whether a command may write path over: missing, empty, or a regular file
  * that starts with own (what that command writes there). 0, or -1 with one

@@ -454,7 +454,7 @@ static int check_placeholders(const HxConfig *cfg, int *line, char *why, size_t 
         if (!strchr(strstr(p, "{confdir}") == p ? p + 9 : p, '{')) {
             hx_subst(p, &vars, &path, bad, sizeof bad);
             if (hx_read_file(path.s, &text) != 0)
-                rc = fail(why, n, "template %s: %s: %s", pg->templates.v[i], path.s, strerror(errno));
+                rc = fail(why, n, "template %s: %s: %s", pg->templates.v[i], path.s, hx_read_error(errno));
             else if (text.len && memchr(text.s, '\0', text.len))
                 rc = fail(why, n, "template %s: %s holds a NUL byte: not a text file", pg->templates.v[i], path.s);
             else if (hx_subst(text.s ? text.s : "", &vars, &out, bad, sizeof bad) != 0)
@@ -601,7 +601,7 @@ int hx_program_prepare(const HxConfig *cfg, const HxVars *vars, const char *rund
         path.len = out.len = 0;
         hx_subst(pg->templates.v[i + 1], vars, &path, bad, sizeof bad);
         if (hx_read_file(path.s, &text) != 0)
-            rc = fail(why, n, "template %s: %s: %s", pg->templates.v[i], path.s, strerror(errno));
+            rc = fail(why, n, "template %s: %s: %s", pg->templates.v[i], path.s, hx_read_error(errno));
         else if (text.len && memchr(text.s, '\0', text.len))
             rc = fail(why, n, "template %s: %s holds a NUL byte: not a text file", pg->templates.v[i], path.s);
         else if (hx_subst(text.s ? text.s : "", vars, &out, bad, sizeof bad) != 0)
@@ -768,6 +768,10 @@ char *hx_program_version(const HxConfig *cfg)
     for (char *p = s; *p; p++)
         if (hx_is_ctrl((unsigned char)*p))
             *p = '?';
+    if (rc != 0 || !*s) /* (the study runs on; its rows say program_version -) */
+        fprintf(stderr, "harness: warning: %s:%d: version: %s; program_version is '-'\n", cfg->path,
+                cfg->prog->key_line[2],
+                rc == 124 ? "still running at the study's timeout, ended" : rc ? "failed" : "printed nothing");
     return hx_strdup(rc == 0 && *s ? s : "-");
 }
 

@@ -289,6 +289,11 @@ int hx_cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+const char *hx_read_error(int e)
+{
+    return e == EINVAL ? "not a regular file (a device?)" : strerror(e);
+}
+
 int hx_read_file(const char *path, HxBuf *b)
 {
     FILE *f = fopen(path, "rb");
