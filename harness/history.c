@@ -418,6 +418,12 @@ static int filter_opt(HistOpts *o, const char *key, const char *v)
         fprintf(stderr, "harness history: --%s: expected one word, got '%s'\n", key, v);
         return -1;
     }
+    char why[256];
+    for (int d = 0; d < HX_NDIM; d++) /* a value a config could give (--threads 4, not x) */
+        if (d != HX_DIM_SCENE && strcmp(hx_dim_col[d], key) == 0 && hx_dim_value_check(d, v, why, sizeof why)) {
+            fprintf(stderr, "harness history: --%s: %s\n", key, why);
+            return -1;
+        }
     HxBuf b = {0};
     hx_buf_printf(&b, "%s=%s", key, v);
     hx_strlist_push(&o->want, b.s);

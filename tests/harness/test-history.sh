@@ -101,6 +101,8 @@ grep -q "missing.db: no such database" missing.err || { cat missing.err; fail "m
 grep -q "nothere.csv" nocsv.err || { cat nocsv.err; fail "missing CSV: message"; }
 "$H" history plot "$(printf 'a\nb')" --db h.db -o x 2> nl.err && fail "a metric with a newline accepted"
 [ "$(wc -l < nl.err)" -eq 1 ] || { cat nl.err; fail "a metric with a newline: not one line"; }
+"$H" history check --db h.db --threads x 2> tx.err && fail "--threads x accepted"
+[ "$(cat tx.err)" = "harness history: --threads: expected an integer 1..4096, got 'x'" ] || fail "--threads x: $(cat tx.err)"
 "$H" history check --db h.db --window 0 2> w.err && fail "--window 0 accepted"
 grep -q -- "--window" w.err || fail "--window: message"
 
