@@ -90,17 +90,18 @@ static int ceiling_opts(int argc, char **argv, CeilOpts *o)
 
 /* One scene of the plan: its first run (the copies' workload) and its
  * pinned worker counts above 1, ws[i] workers on cores[i]. */
+#define CEIL_MAX_W 64 /* worker counts a scene's ceiling measures */
 typedef struct {
     const char *name;
     const HxRun *first;
-    int ws[64], *cores[64], nw, wmax;
+    int ws[CEIL_MAX_W], *cores[CEIL_MAX_W], nw, wmax;
 } CeilScene;
 
 /* The scene's pinned worker counts (CeilScene). */
 static void worker_counts(const HxPlan *plan, CeilScene *sc)
 {
     sc->nw = 0, sc->wmax = 1;
-    for (size_t i = 0; i < plan->n && sc->nw < 64; i++) {
+    for (size_t i = 0; i < plan->n && sc->nw < CEIL_MAX_W; i++) {
         const HxRun *r = &plan->runs[i];
         int seen = strcmp(r->scene_name, sc->name) != 0;
         for (int k = 0; k < sc->nw; k++)
@@ -378,7 +379,7 @@ int hx_ceiling_rounds_measure(HxCeilRounds *c, const char *scene, int round, int
         return 0;
     /* the worker counts of this round measured before --resume keep their
      * rows; those the study grew by are measured */
-    int skip[64], todo = 0;
+    int skip[CEIL_MAX_W], todo = 0;
     for (int w = 0; w < c->sc[k].nw; w++) {
         HxBuf key = {0};
         hx_buf_printf(&key, "%d\t%s\t%d", round, scene, c->sc[k].ws[w]);

@@ -256,22 +256,12 @@ static Resolution resolution(const HxGroup *n, const HxGroup *b, const CmpRule *
 /* The slowest tenth's cost ratio, NEW against BASE (the 0.9 quantile of
  * times, the 0.1 of rates), from 10 samples a side; NAN with fewer, where
  * that quantile is one run. */
-static double quantile(const double *x, size_t n, double q)
-{
-    double *c = hx_xmalloc(n * sizeof *c);
-    memcpy(c, x, n * sizeof *c);
-    qsort(c, n, sizeof *c, hx_cmp_double);
-    const double v = hx_quantile_sorted(c, n, q);
-    free(c);
-    return v;
-}
-
 static double tail_ratio(const HxGroup *n, const HxGroup *b, int higher)
 {
     if (n->nt < 10 || b->nt < 10)
         return NAN;
     const double q = higher ? 0.1 : 0.9;
-    double r = quantile(n->t, n->nt, q) / quantile(b->t, b->nt, q);
+    double r = hx_quantile(n->t, n->nt, q) / hx_quantile(b->t, b->nt, q);
     return higher ? 1.0 / r : r;
 }
 
@@ -360,7 +350,7 @@ void hx_cmp_reason(HxBuf *r, const CmpVerdict *v, const CmpRule *rule)
         hx_buf_printf(r, "; a change of x%.2f, within the factor %.2f", v->ratio, rule->factor);
     const double f = rule->factor;
     const int beyond = v->ci_lo > f || v->ci_hi < 1.0 / f, tail = v->tail_ratio > f;
-    if (!judged && !none && tail && !beyond && v->ci_lo > 1.0 / f && v->ci_hi < f)
+    if (!judged && !none && tail && v->ci_lo > 1.0 / f && v->ci_hi < f)
         hx_buf_printf(r, "; the medians agree, but the slowest tenth of NEW is x%.2f BASE's", v->tail_ratio);
     else if (!judged && !none && beyond && isfinite(v->p)) /* the interval is past the factor: the test held it back */
         hx_buf_printf(r, "; the interval lies %s x%.2f, but the rank test's p is not below %.3g",
@@ -678,9 +668,10 @@ static int compare_load(char **paths, const CompareOpts *o, HxStudy *nw, HxStudy
         return 1;
     }
     /* raytrace's rows (a command study's have no render_ms) */
-    if (!metric && hx_csv_has_values(&nw->csv, "render_ms") != hx_csv_has_values(&base->csv, "render_ms"))
+    const int tn = hx_csv_has_values(&nw->csv, "render_ms"), tb = hx_csv_has_values(&base->csv, "render_ms");
+    if (!metric && tn != tb)
         metric = "render_ms"; /* (one side without a time: every run of it failed, which judge says) */
-    if (!metric && hx_csv_has_values(&nw->csv, "render_ms") && hx_csv_has_values(&base->csv, "render_ms")) {
+    if (!metric && tn && tb) {
         /* calibrated times where both studies have them (--calibrate) */
         int calibrated = has_calib(&nw->csv) && has_calib(&base->csv);
         metric = calibrated ? "render_ms/calib" : "render_ms";

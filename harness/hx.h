@@ -407,6 +407,7 @@ int hx_csv_has_values(const HxCsv *csv, const char *col);
 
 /* ---- statistics (stats.c) ---- */
 double hx_median(const double *x, size_t n);
+double hx_quantile(const double *x, size_t n, double q); /* of unsorted x, type 7; NAN when n is 0 */
 double hx_quantile_sorted(const double *sorted, size_t n, double q);
 double hx_mad(const double *x, size_t n);
 double hx_min(const double *x, size_t n);

@@ -121,8 +121,8 @@ const char *hx_signal_name(int sig)
 }
 
 /* Keep the tail of a large stdout or stderr: the record line is the last
- * line, and a metric is the last match, which a kept tail holds if the
- * whole output does. */
+ * line, and a metric is the last match (one only before the tail is not
+ * found, never replaced by an earlier one). */
 static void keep_tail(HxBuf *b)
 {
     const size_t limit = 4u << 20, keep = 64u << 10;
@@ -358,9 +358,7 @@ int hx_run_limited(char **argv, const char *dir, double timeout_s, HxBuf *out, i
     memset(&cmd, 0, sizeof cmd);
     for (char **a = argv; *a; a++)
         hx_strlist_push(&cmd.argv, *a);
-    hx_strlist_push(&cmd.argv, ""); /* room for the NULL that ends argv */
-    free(cmd.argv.v[--cmd.argv.n]);
-    cmd.argv.v[cmd.argv.n] = NULL;
+    hx_command_terminate(&cmd);
     cmd.dir = (char *)dir;
     HxChildResult res;
     int rc = 127;
@@ -373,5 +371,6 @@ int hx_run_limited(char **argv, const char *dir, double timeout_s, HxBuf *out, i
         hx_child_result_free(&res);
     }
     hx_strlist_free(&cmd.argv);
+    hx_strlist_free(&cmd.env);
     return rc;
 }

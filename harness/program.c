@@ -271,7 +271,7 @@ static int parse_single(struct HxProgram *pg, int k, const char *raw, const HxSt
 
 /* A NAME after param, env, input, template or metric: a word that is safe
  * in a placeholder, a file name and a CSV key. */
-static int good_name(const char *s, int file)
+int hx_program_good_name(const char *s, int file)
 {
     if (!*s || strcmp(s, ".") == 0 || strcmp(s, "..") == 0)
         return 0;
@@ -297,7 +297,7 @@ int hx_program_line(HxConfig *cfg, int lineno, const char *key, const char *raw,
     if (hx_words(raw, 0, &w, why, n) != 0)
         return -1;
     int rc = 0, k = key_index(single_keys, key, kn), named = key_index(named_keys, key, kn);
-    if (named >= 0 && !good_name(name, named == 2 || named == 3))
+    if (named >= 0 && !hx_program_good_name(name, named == 2 || named == 3))
         rc = fail(why, n, "%.*s: '%s' is not a name (letters, digits, _%s)", (int)kn, key, name,
                       named == 2 || named == 3 ? ", . and -" : "");
     else if (k >= 0)
@@ -430,6 +430,18 @@ static int locate(HxStrList *argv, char *why, size_t n)
     return 0;
 }
 
+/* Template name's file at path, read into text: 0, or -1 with why (it
+ * cannot be read, or holds a NUL byte, which hx_subst's C strings would
+ * cut it at). */
+static int template_text(const char *name, const char *path, HxBuf *text, char *why, size_t n)
+{
+    if (hx_read_file(path, text) != 0)
+        return fail(why, n, "template %s: %s: %s", name, path, hx_read_error(errno));
+    if (text->len && memchr(text->s, '\0', text->len))
+        return fail(why, n, "template %s: %s holds a NUL byte: not a text file", name, path);
+    return 0;
+}
+
 /* Each template's placeholders known, each template file's text too. */
 static int check_placeholders(const HxConfig *cfg, int *line, char *why, size_t n)
 {
@@ -453,10 +465,8 @@ static int check_placeholders(const HxConfig *cfg, int *line, char *why, size_t 
         /* a path with no placeholder but {confdir} can be checked now */
         if (!strchr(strstr(p, "{confdir}") == p ? p + 9 : p, '{')) {
             hx_subst(p, &vars, &path, bad, sizeof bad);
-            if (hx_read_file(path.s, &text) != 0)
-                rc = fail(why, n, "template %s: %s: %s", pg->templates.v[i], path.s, hx_read_error(errno));
-            else if (text.len && memchr(text.s, '\0', text.len))
-                rc = fail(why, n, "template %s: %s holds a NUL byte: not a text file", pg->templates.v[i], path.s);
+            if (template_text(pg->templates.v[i], path.s, &text, why, n) != 0)
+                rc = -1;
             else if (hx_subst(text.s ? text.s : "", &vars, &out, bad, sizeof bad) != 0)
                 rc = fail(why, n, "template %s: %s has an unknown placeholder {%s}", pg->templates.v[i], path.s, bad);
         }
@@ -600,10 +610,8 @@ int hx_program_prepare(const HxConfig *cfg, const HxVars *vars, const char *rund
     for (size_t i = 0; rc == 0 && i < pg->templates.n; i += 2) {
         path.len = out.len = 0;
         hx_subst(pg->templates.v[i + 1], vars, &path, bad, sizeof bad);
-        if (hx_read_file(path.s, &text) != 0)
-            rc = fail(why, n, "template %s: %s: %s", pg->templates.v[i], path.s, hx_read_error(errno));
-        else if (text.len && memchr(text.s, '\0', text.len))
-            rc = fail(why, n, "template %s: %s holds a NUL byte: not a text file", pg->templates.v[i], path.s);
+        if (template_text(pg->templates.v[i], path.s, &text, why, n) != 0)
+            rc = -1;
         else if (hx_subst(text.s ? text.s : "", vars, &out, bad, sizeof bad) != 0)
             rc = fail(why, n, "template %s: unknown placeholder {%s} in %s", pg->templates.v[i], bad, path.s);
         else if (write_new(rundir, pg->templates.v[i], out.s, out.len) != 0)

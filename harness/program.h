@@ -47,6 +47,10 @@ struct HxProgram {
 /* Whether KEY ("command", "param n", "metric x", ...) belongs to command
  * studies. */
 int hx_program_key(const char *key);
+/* A NAME after param, env, input, template or metric: a word that is safe
+ * in a placeholder, a file name and a CSV key (file: '.' and '-' too, as
+ * input and template names take). */
+int hx_program_good_name(const char *s, int file);
 /* One `KEY: RAW` line of a command study (RAW unsplit). 0, or -1 with why. */
 int hx_program_line(HxConfig *cfg, int lineno, const char *key, const char *raw, char *why, size_t n);
 /* After the last line: placeholders, the program found, scopes resolved.

@@ -8,6 +8,7 @@
  * report's (html.c): no script, nothing fetched. Verdicts are the stored
  * runs' only: re-measuring is `history check --confirm`'s. */
 #include "history.h"
+#include "program.h"
 
 #if HAVE_SQLITE
 #include <ctype.h>
@@ -179,9 +180,7 @@ static void list_metrics(Pub *p)
                 seen = strcmp(p->m[k].name, d) == 0;
             /* (a name a config can give: a CSV made by hand with '../x' there
              * must not stop the pages of every other metric) */
-            const int plain = *d && strspn(d, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_") ==
-                                        strlen(d);
-            if (!seen && plain && hx_strlist_find(&have, d) >= 0)
+            if (!seen && hx_program_good_name(d, 0) && hx_strlist_find(&have, d) >= 0)
                 add_metric(p, d, unit ? unit : "", "the command study's metric", &files);
         }
     }

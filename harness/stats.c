@@ -27,14 +27,19 @@ double hx_quantile_sorted(const double *s, size_t n, double q)
     return s[lo] + (h - (double)lo) * (s[hi] - s[lo]);
 }
 
-double hx_median(const double *x, size_t n)
+double hx_quantile(const double *x, size_t n, double q)
 {
     if (n == 0)
         return NAN;
     double *s = sorted_copy(x, n);
-    double m = hx_quantile_sorted(s, n, 0.5);
+    double v = hx_quantile_sorted(s, n, q);
     free(s);
-    return m;
+    return v;
+}
+
+double hx_median(const double *x, size_t n)
+{
+    return hx_quantile(x, n, 0.5);
 }
 
 double hx_min(const double *x, size_t n)

@@ -302,7 +302,13 @@ int hx_read_file(const char *path, HxBuf *b)
     /* a folder, or a device that never ends (/dev/zero), is no file to
      * read whole; a pipe is (a shell's <(...)), up to a size */
     struct stat st;
-    if (fstat(fileno(f), &st) != 0 || !(S_ISREG(st.st_mode) || S_ISFIFO(st.st_mode))) {
+    if (fstat(fileno(f), &st) != 0) {
+        const int e = errno;
+        fclose(f);
+        errno = e;
+        return -1;
+    }
+    if (!(S_ISREG(st.st_mode) || S_ISFIFO(st.st_mode))) {
         errno = S_ISDIR(st.st_mode) ? EISDIR : EINVAL;
         fclose(f);
         return -1;
