@@ -32,6 +32,14 @@ void rt_atomic_abandon(void)
         unlinkat(pending_dir, pending_name, 0);
 }
 
+/* f->tmp, a name of the file not yet final, for rt_atomic_abandon(). */
+static void set_pending(const RtAtomicFile *f)
+{
+    snprintf(pending_name, sizeof pending_name, "%s", f->tmp);
+    pending_dir = f->dirfd;
+    pending_set = 1;
+}
+
 /* A temporary name beside the final one: NAME.tmp.PID.RANDOM. */
 static void tmp_name(char *out, size_t size, const char *base)
 {
@@ -77,9 +85,7 @@ int rt_atomic_open(RtAtomicFile *f, int dirfd, const char *name, RtError *err)
         rt_atomic_abort(f);
         return rt_fail(err, "%s: cannot create: %s", name, strerror(e));
     }
-    snprintf(pending_name, sizeof pending_name, "%s", f->tmp);
-    pending_dir = f->dirfd;
-    pending_set = 1;
+    set_pending(f);
     return 0;
 }
 
@@ -113,9 +119,7 @@ int rt_atomic_commit(RtAtomicFile *f, RtError *err)
             e = errno;
             f->tmp[0] = '\0';
         } else if (!named) {
-            snprintf(pending_name, sizeof pending_name, "%s", f->tmp);
-            pending_dir = f->dirfd;
-            pending_set = 1;
+            set_pending(f);
         }
     }
     if (close(f->fd) != 0 && rc == 0)
